@@ -1,0 +1,1 @@
+"""Sampling and seeding, execution, Parquet storage and manifest."""

@@ -1,0 +1,5 @@
+"""YAML -> validated schema -> the arrays the core takes."""
+
+from refexmc.config.errors import ConfigError
+
+__all__ = ["ConfigError"]

@@ -1,0 +1,119 @@
+"""Design quantities derived from the nominal vehicle config, never typed in.
+
+omega_dot_max (000 eq. 1), tau_max, gains (eq. 38, 34), f_min (eq. 44), the allocation table.
+"""
+
+import itertools
+
+import numpy as np
+
+LEVELS = ("low", "high")
+
+
+def unit_directions(vehicle):
+    d = np.array([t["direction"] for t in vehicle["rcs"]["thrusters"]], dtype=float)
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def torque_arms(vehicle):
+    """Torque per newton of each thruster about the nominal CoM: r x F / |F| (N m / N)."""
+    r = np.array([t["position_m"] for t in vehicle["rcs"]["thrusters"]], dtype=float)
+    return np.cross(r, unit_directions(vehicle))
+
+
+def lever_arms(vehicle):
+    """l_i of 000 eq. 1: the largest torque arm any thruster has about body axis i (m)."""
+    return np.abs(torque_arms(vehicle)).max(axis=0)
+
+
+def omega_dot_max(vehicle, level):
+    """000 eq. 1: l_i n_t,i F_nom / J_ii per body axis (rad/s^2)."""
+    inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    n_t = np.asarray(vehicle["flight_software"]["thrusters_per_axis"], dtype=float)
+    thrust = vehicle["rcs"]["thrust_n"][level]
+    return lever_arms(vehicle) * n_t * thrust / np.diag(inertia)
+
+
+def torque_max(vehicle, level):
+    """tau_max,i = J_ii omega_dot_max,i (N m), the PWPF full-scale torque (000 eq. 41)."""
+    inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    return np.diag(inertia) * omega_dot_max(vehicle, level)
+
+
+def gains(vehicle, level):
+    """Kp = |tau_min_fraction omega_dot_max / sin(phi_db / 2)| (eq. 38), Kd = 2 zeta sqrt(Kp) (eq. 34)."""
+    fsw = vehicle["flight_software"]
+    phi_db = np.radians(fsw["deadband_angle_deg"])
+    kp = np.abs(fsw["pwpf"]["tau_min_fraction"] * omega_dot_max(vehicle, level) / np.sin(0.5 * phi_db))
+    kd = 2.0 * fsw["damping_ratio"] * np.sqrt(kp)
+    return kp, kd
+
+
+def f_min_fraction(vehicle):
+    """f_min / tau_max = t_on / (t_on + t_off) of 000 eq. 44 with the algorithm's t_on, t_off."""
+    pwpf = vehicle["flight_software"]["pwpf"]
+    return pwpf["t_on_ms"] / (pwpf["t_on_ms"] + pwpf["t_off_ms"])
+
+
+def axis_command_key(w):
+    """'+x-y' style key for modulator outputs w in {-1, 0, 1}^3 ('' when all zero)."""
+    return "".join(("+" if v > 0 else "-") + axis for v, axis in zip(w, "xyz", strict=True) if v != 0)
+
+
+def allocation_table(vehicle):
+    """27 x N matrix of 0/1: thrusters opened for each (wx, wy, wz), row (wx+1)*9+(wy+1)*3+(wz+1).
+
+    Entries come from the config (000 Table 3). A three-axis command opens the roll-pitch set
+    of its x-y entry plus its yaw thrusters (000 sec. 5: yaw has its own thrusters), unless the
+    config lists it. Raises KeyError naming a missing single- or two-axis entry.
+    """
+    entries = vehicle["flight_software"]["allocation"]
+    n = len(vehicle["rcs"]["thrusters"])
+    table = np.zeros((27, n), dtype=np.int64)
+    for w in itertools.product((-1, 0, 1), repeat=3):
+        key = axis_command_key(w)
+        if not key:
+            continue
+        if key in entries:
+            ids = entries[key]
+        elif all(w):
+            ids = set(entries[axis_command_key((w[0], w[1], 0))]) | set(entries[axis_command_key((0, 0, w[2]))])
+        else:
+            raise KeyError(key)
+        row = (w[0] + 1) * 9 + (w[1] + 1) * 3 + (w[2] + 1)
+        for tid in ids:
+            table[row, tid - 1] = 1
+    return table
+
+
+def design(vehicle):
+    """Everything ``refexmc inspect`` shows, as plain Python types."""
+    out = {
+        "lever_arms_m": lever_arms(vehicle).tolist(),
+        "thrusters_per_axis": list(vehicle["flight_software"]["thrusters_per_axis"]),
+        "omega_dot_max_rad_s2": {},
+        "torque_max_n_m": {},
+        "gains": {},
+    }
+    for level in LEVELS:
+        out["omega_dot_max_rad_s2"][level] = omega_dot_max(vehicle, level).tolist()
+        out["torque_max_n_m"][level] = torque_max(vehicle, level).tolist()
+        kp, kd = gains(vehicle, level)
+        out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
+    pwpf = vehicle["flight_software"]["pwpf"]
+    limits = vehicle["rcs"]["switching_limits_ms"]
+    out["f_min_fraction"] = f_min_fraction(vehicle)
+    out["tau_min_fraction"] = pwpf["tau_min_fraction"]
+    out["pwpf_t_on_ms"] = pwpf["t_on_ms"]
+    out["pwpf_t_off_ms"] = pwpf["t_off_ms"]
+    out["pwpf_correction_ms"] = pwpf["correction_ms"]
+    out["hardware_min_on_ms"] = limits["min_on"]
+    out["hardware_min_off_ms"] = limits["min_off"]
+    table = allocation_table(vehicle)
+    out["allocation"] = {}
+    for w in itertools.product((-1, 0, 1), repeat=3):
+        key = axis_command_key(w)
+        if key:
+            row = (w[0] + 1) * 9 + (w[1] + 1) * 3 + (w[2] + 1)
+            out["allocation"][key] = [int(i) + 1 for i in np.flatnonzero(table[row])]
+    return out

@@ -1,0 +1,246 @@
+"""Read YAML files, validate them against the schema, and report bad input precisely."""
+
+import difflib
+import re
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import yaml
+
+from refexmc.config import schema
+from refexmc.config.errors import ConfigError
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads YAML 1.2 floats such as ``1e14`` (YAML 1.1 wants ``1.0e+14``)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$"),
+    list("-+0123456789."),
+)
+
+
+def _line_map(node, path=(), out=None):
+    """Map every key path in a composed YAML node tree to its 1-based line."""
+    if out is None:
+        out = {}
+    out[path] = node.start_mark.line + 1
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value_node in node.value:
+            key = key_node.value
+            out[path + (key,)] = key_node.start_mark.line + 1
+            _line_map(value_node, path + (key,), out)
+            out[path + (key,)] = key_node.start_mark.line + 1
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _line_map(item, path + (i,), out)
+    return out
+
+
+def read_yaml(path):
+    """Parse a YAML file into (data, line map); ConfigError on a missing file or bad syntax."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError("file not found", file=path) from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read file: {exc.strerror}", file=path) from None
+    try:
+        data = yaml.load(text, Loader=_Loader)
+        node = yaml.compose(text, Loader=_Loader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ConfigError(f"YAML syntax error: {problem}", file=path, line=mark.line + 1 if mark else None) from None
+    lines = _line_map(node) if node is not None else {}
+    return data, lines
+
+
+def _describe(error):
+    """One sentence for a jsonschema error, with did-you-mean for unknown keys."""
+    if error.validator == "additionalProperties":
+        allowed = list(error.schema.get("properties", {}))
+        extra = [k for k in error.instance if k not in allowed]
+        key = extra[0]
+        guess = difflib.get_close_matches(str(key), allowed, n=1)
+        hint = f"; did you mean '{guess[0]}'?" if guess else f"; expected one of: {', '.join(allowed)}"
+        return (key,), f"unknown key '{key}'{hint}"
+    if error.validator == "required":
+        return (), error.message.replace("is a required property", "is required")
+    if error.validator == "type":
+        return (), f"expected {error.validator_value}, got {error.instance!r}"
+    if error.validator in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
+        words = {
+            "minimum": ">=",
+            "maximum": "<=",
+            "exclusiveMinimum": ">",
+            "exclusiveMaximum": "<",
+        }[error.validator]
+        return (), f"expected a value {words} {error.validator_value}, got {error.instance!r}"
+    if error.validator == "enum":
+        return (), f"expected one of {', '.join(map(str, error.validator_value))}, got {error.instance!r}"
+    if error.validator in ("minItems", "maxItems"):
+        return (), f"expected {error.schema.get('minItems')}..{error.schema.get('maxItems')} items, got {len(error.instance)}"
+    return (), error.message
+
+
+def validate(data, schema_def, file, lines, prefix=()):
+    """Raise ConfigError for the first (shallowest) schema violation."""
+    if data is None:
+        raise ConfigError("empty file", file=file)
+    validator = jsonschema.Draft202012Validator(schema_def)
+    errors = sorted(validator.iter_errors(data), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
+    if errors:
+        error = errors[0]
+        extra, message = _describe(error)
+        path = tuple(error.absolute_path) + extra
+        line = lines.get(path) or lines.get(tuple(error.absolute_path)) or lines.get(())
+        raise ConfigError(message, file=file, line=line, path=prefix + path)
+
+
+def check_vehicle(vehicle, file, lines, prefix=()):
+    """Checks the schema cannot express: thruster numbering, allocation ids, physical inertia."""
+
+    def fail(message, *path):
+        raise ConfigError(message, file=file, line=lines.get(path) or lines.get(()), path=prefix + path)
+
+    thrusters = vehicle["rcs"]["thrusters"]
+    for i, thruster in enumerate(thrusters):
+        if thruster["id"] != i + 1:
+            fail(f"expected thruster ids 1..{len(thrusters)} in order, got {thruster['id']}", "rcs", "thrusters", i, "id")
+        if np.linalg.norm(thruster["direction"]) == 0.0:
+            fail("expected a non-zero force direction", "rcs", "thrusters", i, "direction")
+    for key, ids in vehicle["flight_software"]["allocation"].items():
+        for k, tid in enumerate(ids):
+            if tid > len(thrusters):
+                fail(f"expected a thruster id 1..{len(thrusters)}, got {tid}", "flight_software", "allocation", key, k)
+    message = inertia_problem(vehicle["inertia_kg_m2"])
+    if message:
+        fail(message, "inertia_kg_m2")
+
+
+def inertia_problem(inertia):
+    """Why an inertia tensor is not physical, or None."""
+    j = np.asarray(inertia, dtype=float)
+    if not np.allclose(j, j.T, rtol=0.0, atol=1e-9 * max(1.0, np.abs(j).max())):
+        return "expected a symmetric inertia tensor"
+    eig = np.linalg.eigvalsh(j)
+    if eig.min() <= 0.0:
+        return f"expected a positive definite inertia tensor, eigenvalues {eig.round(6).tolist()}"
+    a, b, c = eig
+    if a + b < c * (1.0 - 1e-12):
+        return f"principal moments {eig.round(6).tolist()} violate the triangle inequality"
+    return None
+
+
+def check_mission(mission, file, lines, prefix=()):
+    """Checks the schema cannot express: ascending atmosphere, non-zero sun direction."""
+    bases = [row["base_altitude_km"] for row in mission["atmosphere"]]
+    if any(b2 <= b1 for b1, b2 in zip(bases, bases[1:], strict=False)):
+        raise ConfigError(
+            "expected strictly ascending base altitudes",
+            file=file,
+            line=lines.get(("atmosphere",)),
+            path=prefix + ("atmosphere",),
+        )
+    if np.linalg.norm(mission["sun_direction"]) == 0.0:
+        raise ConfigError(
+            "expected a non-zero vector", file=file, line=lines.get(("sun_direction",)), path=prefix + ("sun_direction",)
+        )
+
+
+def load_vehicle(path):
+    data, lines = read_yaml(path)
+    validate(data, schema.VEHICLE, path, lines)
+    check_vehicle(data, path, lines)
+    return data
+
+
+def load_mission(path):
+    data, lines = read_yaml(path)
+    validate(data, schema.MISSION, path, lines)
+    check_mission(data, path, lines)
+    return data
+
+
+def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
+    ref = campaign[key]
+    if isinstance(ref, dict):
+        validate(ref, part_schema, campaign_file, {k[1:]: v for k, v in lines.items() if k[:1] == (key,)}, (key,))
+        checker(ref, campaign_file, {k[1:]: v for k, v in lines.items() if k[:1] == (key,)}, (key,))
+        return ref, None
+    path = (Path(campaign_file).parent / ref).resolve()
+    data, part_lines = read_yaml(path)
+    validate(data, part_schema, path, part_lines)
+    checker(data, path, part_lines)
+    return data, path
+
+
+def load_campaign(path):
+    """Validated campaign with vehicle and mission inlined; ConfigError on any bad input."""
+    path = Path(path)
+    data, lines = read_yaml(path)
+    validate(data, schema.CAMPAIGN, path, lines)
+    vehicle, vehicle_path = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, check_vehicle)
+    mission, mission_path = _resolve_part(data, "mission", path, lines, schema.MISSION, check_mission)
+    campaign = {
+        "name": data["name"],
+        "runs": data["runs"],
+        "seed": data["seed"],
+        "nominal_first": data.get("nominal_first", True),
+        "sampling": data.get("sampling", "random"),
+        "dispersions": data.get("dispersions", {}),
+        "failures": data.get("failures", {"mode": "none"}),
+        "output": data.get("output", {"history_rate_hz": 2.0}),
+        "requirements": data.get("requirements", []),
+        "vehicle": vehicle,
+        "mission": mission,
+    }
+    failures = campaign["failures"]
+    n_thrusters = len(vehicle["rcs"]["thrusters"])
+    if failures["mode"] == "fixed":
+        if "thrusters" not in failures:
+            raise ConfigError("mode fixed needs 'thrusters'", file=path, line=lines.get(("failures",)), path=("failures",))
+        for k, tid in enumerate(failures["thrusters"]):
+            if tid > n_thrusters:
+                raise ConfigError(
+                    f"expected a thruster id 1..{n_thrusters}, got {tid}",
+                    file=path,
+                    line=lines.get(("failures", "thrusters", k)),
+                    path=("failures", "thrusters", k),
+                )
+    elif "thrusters" in failures:
+        raise ConfigError(
+            "'thrusters' is only used with mode fixed", file=path, line=lines.get(("failures",)), path=("failures",)
+        )
+    return campaign
+
+
+def detect_kind(data):
+    """'campaign', 'vehicle' or 'mission' from a file's top-level keys."""
+    if not isinstance(data, dict):
+        return None
+    if "runs" in data or "dispersions" in data:
+        return "campaign"
+    if "rcs" in data or "inertia_kg_m2" in data:
+        return "vehicle"
+    if "modes" in data or "separation" in data:
+        return "mission"
+    return None
+
+
+def load_any(path):
+    """Validate a campaign, vehicle or mission file; return (kind, validated data)."""
+    data, _ = read_yaml(path)
+    kind = detect_kind(data)
+    if kind == "campaign":
+        return kind, load_campaign(path)
+    if kind == "vehicle":
+        return kind, load_vehicle(path)
+    if kind == "mission":
+        return kind, load_mission(path)
+    raise ConfigError("not a campaign, vehicle or mission file (no 'runs', 'rcs' or 'modes' key)", file=path, line=1)

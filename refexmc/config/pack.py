@@ -1,0 +1,171 @@
+"""Validated config dicts -> the flat arrays of ``refexmc.core.layout``."""
+
+from typing import NamedTuple
+
+import numpy as np
+
+from refexmc.config import derived
+from refexmc.core import layout as L
+
+
+class RunInputs(NamedTuple):
+    """The arrays ``refexmc.core.flight.run_flight`` takes."""
+
+    vehicle: np.ndarray
+    thrusters: np.ndarray
+    fsw: np.ndarray
+    mission: np.ndarray
+    nav: np.ndarray
+    atmosphere: np.ndarray
+    allocation: np.ndarray
+
+
+def _put(array, fields, name, value):
+    offset, size = fields.slices[name]
+    value = np.asarray(value, dtype=float).ravel()
+    if value.size != size:
+        raise ValueError(f"{name}: expected {size} values, got {value.size}")
+    array[offset : offset + size] = value
+
+
+def pack_vehicle(vehicle):
+    """Truth vehicle array (layout.VEHICLE)."""
+    out = np.zeros(L.VEHICLE_SIZE)
+    rcs = vehicle["rcs"]
+    aero = vehicle["aerodynamics"]
+    derating = list(rcs["derating"])
+    derating += [derating[-1]] * (L.DERATING_MAX_VALVES - len(derating))
+    _put(out, L.VEHICLE, "inertia_kg_m2", vehicle["inertia_kg_m2"])
+    _put(out, L.VEHICLE, "com_offset_m", vehicle["com_offset_m"])
+    _put(out, L.VEHICLE, "mass_kg", vehicle["mass_kg"])
+    _put(out, L.VEHICLE, "thrust_low_n", rcs["thrust_n"]["low"])
+    _put(out, L.VEHICLE, "thrust_high_n", rcs["thrust_n"]["high"])
+    _put(out, L.VEHICLE, "derating", derating)
+    _put(out, L.VEHICLE, "isp_s", rcs["isp_s"])
+    _put(out, L.VEHICLE, "propellant_kg", rcs["propellant_kg"])
+    _put(out, L.VEHICLE, "aero_area_m2", aero["reference_area_m2"])
+    _put(out, L.VEHICLE, "aero_length_m", aero["reference_length_m"])
+    _put(out, L.VEHICLE, "aero_mistrim_cm", aero["mistrim_cm"])
+    _put(out, L.VEHICLE, "drag_area_m2", aero["drag_area_m2"])
+    return out
+
+
+def pack_thrusters(vehicle, failed=()):
+    """Thruster table (layout.THRUSTER), one row per thruster; ``failed`` are 1-based ids."""
+    rcs = vehicle["rcs"]
+    n = len(rcs["thrusters"])
+    out = np.zeros((n, L.THRUSTER_SIZE))
+    directions = derived.unit_directions(vehicle)
+    for i, thruster in enumerate(rcs["thrusters"]):
+        row = out[i]
+        _put(row, L.THRUSTER, "position_m", thruster["position_m"])
+        _put(row, L.THRUSTER, "direction", directions[i])
+        _put(row, L.THRUSTER, "thrust_scale", 1.0)
+        for level in ("low", "high"):
+            tc = rcs["valve_time_constants_ms"][level]
+            _put(row, L.THRUSTER, f"on_delay_{level}_s", tc["on_delay"] / 1e3)
+            _put(row, L.THRUSTER, f"rise_{level}_s", tc["rise"] / 1e3)
+            _put(row, L.THRUSTER, f"off_delay_{level}_s", tc["off_delay"] / 1e3)
+            _put(row, L.THRUSTER, f"fall_{level}_s", tc["fall"] / 1e3)
+        _put(row, L.THRUSTER, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
+    return out
+
+
+def pack_fsw(vehicle):
+    """Flight-software design array (layout.FSW), derived from the nominal vehicle."""
+    fsw_cfg = vehicle["flight_software"]
+    pwpf = fsw_cfg["pwpf"]
+    out = np.zeros(L.FSW_SIZE)
+    kp_low, kd_low = derived.gains(vehicle, "low")
+    kp_high, kd_high = derived.gains(vehicle, "high")
+    _put(out, L.FSW, "control_period_s", 1.0 / fsw_cfg["control_rate_hz"])
+    _put(out, L.FSW, "inertia_kg_m2", vehicle["inertia_kg_m2"])
+    _put(out, L.FSW, "kp", np.concatenate([kp_low, kp_high]))
+    _put(out, L.FSW, "kd", np.concatenate([kd_low, kd_high]))
+    _put(out, L.FSW, "torque_max_n_m", np.concatenate([derived.torque_max(vehicle, lv) for lv in derived.LEVELS]))
+    _put(out, L.FSW, "accel_max_rad_s2", np.concatenate([derived.omega_dot_max(vehicle, lv) for lv in derived.LEVELS]))
+    _put(out, L.FSW, "accel_margin", fsw_cfg["guidance_accel_margin"])
+    _put(out, L.FSW, "tau_min_fraction", pwpf["tau_min_fraction"])
+    _put(out, L.FSW, "pwpf_on_s", pwpf["t_on_ms"] / 1e3)
+    _put(out, L.FSW, "pwpf_off_s", pwpf["t_off_ms"] / 1e3)
+    _put(out, L.FSW, "pwpf_correction_s", pwpf["correction_ms"] / 1e3)
+    _put(out, L.FSW, "min_on_s", vehicle["rcs"]["switching_limits_ms"]["min_on"] / 1e3)
+    _put(out, L.FSW, "min_off_s", vehicle["rcs"]["switching_limits_ms"]["min_off"] / 1e3)
+    controllers = {"pd_feedback_linearisation": L.CONTROLLER_PD_FEEDBACK_LINEARISATION}
+    actuations = {"pwpf_table": L.ACTUATION_PWPF_TABLE}
+    _put(out, L.FSW, "controller_id", controllers[fsw_cfg["controller"]])
+    _put(out, L.FSW, "actuation_id", actuations[fsw_cfg["actuation"]])
+    return out
+
+
+def pack_mission(mission):
+    """Mission array (layout.MISSION)."""
+    out = np.zeros(L.MISSION_SIZE)
+    sep = mission["separation"]
+    modes = mission["modes"]
+    sun = np.asarray(mission["sun_direction"], dtype=float)
+    rad = np.radians
+    values = {
+        "separation_altitude_m": sep["altitude_m"],
+        "separation_speed_m_s": sep["speed_m_s"],
+        "separation_flight_path_angle_rad": rad(sep["flight_path_angle_deg"]),
+        "separation_rates_rad_s": rad(sep["rates_deg_s"]),
+        "separation_attitude_rotvec_rad": rad(sep["attitude_error_deg"]),
+        "sun_direction": sun / np.linalg.norm(sun),
+        "earth_radius_m": mission["earth"]["radius_m"],
+        "earth_mu_m3_s2": mission["earth"]["mu_m3_s2"],
+        "ncm_duration_s": modes["ncm"]["duration_s"],
+        "rdm1_rate_threshold_rad_s": rad(modes["rdm1"]["rate_threshold_deg_s"]),
+        "rdm1_timeout_s": modes["rdm1"]["timeout_s"],
+        "sam_angle_threshold_rad": rad(modes["sam"]["angle_threshold_deg"]),
+        "sam_rate_threshold_rad_s": rad(modes["sam"]["rate_threshold_deg_s"]),
+        "sam_timeout_s": modes["sam"]["timeout_s"],
+        "ssm_roll_rate_rad_s": rad(modes["ssm"]["roll_rate_deg_s"]),
+        "ssm_exit_altitude_m": modes["ssm"]["exit_altitude_m"],
+        "rdm2_duration_s": modes["rdm2"]["duration_s"],
+        "eam_alpha_rad": rad(modes["eam"]["alpha_deg"]),
+        "eam_beta_rad": rad(modes["eam"]["beta_deg"]),
+        "eam_bank_rad": rad(modes["eam"]["bank_deg"]),
+        "eam_t1_design_s": modes["eam"]["t1_design_s"],
+        "eam_exit_altitude_m": modes["eam"]["exit_altitude_m"],
+        "geem_handover_qbar_pa": modes["geem"]["handover_qbar_pa"],
+        "geem_exit_altitude_m": modes["geem"]["exit_altitude_m"],
+        "handover_max_angle_rad": rad(mission["handover_max_angle_deg"]),
+        "max_flight_time_s": mission["max_flight_time_s"],
+        "integrator_max_step_s": mission["integrator"]["max_step_s"],
+    }
+    for name, value in values.items():
+        _put(out, L.MISSION, name, value)
+    return out
+
+
+def pack_navigation(mission):
+    """Navigation-error array (layout.NAV)."""
+    nav = mission["navigation"]
+    out = np.zeros(L.NAV_SIZE)
+    _put(out, L.NAV, "attitude_bias_rad", np.radians(nav["attitude_bias_deg"]))
+    _put(out, L.NAV, "attitude_noise_rad", np.radians(nav["attitude_noise_deg"]))
+    _put(out, L.NAV, "rate_bias_rad_s", np.radians(nav["rate_bias_deg_s"]))
+    _put(out, L.NAV, "rate_noise_rad_s", np.radians(nav["rate_noise_deg_s"]))
+    _put(out, L.NAV, "ssm_calibration_time_s", nav["ssm_calibration_time_s"])
+    return out
+
+
+def pack_atmosphere(mission):
+    """Atmosphere table rows [base altitude m, density kg/m^3, scale height m]."""
+    return np.array(
+        [[r["base_altitude_km"] * 1e3, r["density_kg_m3"], r["scale_height_km"] * 1e3] for r in mission["atmosphere"]]
+    )
+
+
+def pack(vehicle, mission, failed_thrusters=()):
+    """All run inputs for the nominal (undispersed) vehicle and mission."""
+    return RunInputs(
+        vehicle=pack_vehicle(vehicle),
+        thrusters=pack_thrusters(vehicle, failed_thrusters),
+        fsw=pack_fsw(vehicle),
+        mission=pack_mission(mission),
+        nav=pack_navigation(mission),
+        atmosphere=pack_atmosphere(mission),
+        allocation=derived.allocation_table(vehicle),
+    )

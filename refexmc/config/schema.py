@@ -1,0 +1,319 @@
+"""Every configuration key, declared once: type, unit, range and meaning (JSON Schema).
+
+Units are in the key names (``_m``, ``_deg_s``, ``_ms``...) and repeated in each description.
+Unknown keys fail (``additionalProperties: false``).
+"""
+
+
+def number(doc, minimum=None, maximum=None, exclusive_minimum=None):
+    s = {"type": "number", "description": doc}
+    if minimum is not None:
+        s["minimum"] = minimum
+    if maximum is not None:
+        s["maximum"] = maximum
+    if exclusive_minimum is not None:
+        s["exclusiveMinimum"] = exclusive_minimum
+    return s
+
+
+def integer(doc, minimum=None, maximum=None):
+    s = {"type": "integer", "description": doc}
+    if minimum is not None:
+        s["minimum"] = minimum
+    if maximum is not None:
+        s["maximum"] = maximum
+    return s
+
+
+def vector(doc, length=3, **limits):
+    item = number("component", **limits)
+    return {"type": "array", "items": item, "minItems": length, "maxItems": length, "description": doc}
+
+
+def string(doc, enum=None):
+    s = {"type": "string", "description": doc}
+    if enum is not None:
+        s["enum"] = list(enum)
+    return s
+
+
+def obj(doc, properties, optional=()):
+    return {
+        "type": "object",
+        "description": doc,
+        "properties": properties,
+        "required": [k for k in properties if k not in optional],
+        "additionalProperties": False,
+    }
+
+
+POSITIVE = {"exclusive_minimum": 0.0}
+
+_time_constants = obj(
+    "valve time constants of one thrust level (000 Table 2)",
+    {
+        "on_delay": number("delay from open command to start of rise [ms]", minimum=0.0),
+        "rise": number("linear rise time to full thrust [ms]", minimum=0.0),
+        "off_delay": number("delay from close command to start of fall [ms]", minimum=0.0),
+        "fall": number("linear fall time to zero thrust [ms]", minimum=0.0),
+    },
+)
+
+THRUSTER = obj(
+    "one thruster",
+    {
+        "id": integer("thruster number, 1..N in order", minimum=1),
+        "position_m": vector("position in the nominal body frame [m]"),
+        "direction": vector("force direction in body axes (normalised on load) [-]"),
+    },
+)
+
+AXIS_COMMAND_PATTERN = "^([+-]x)?([+-]y)?([+-]z)?$"
+
+VEHICLE = obj(
+    "vehicle, RCS and flight-software design",
+    {
+        "name": string("vehicle name"),
+        "mass_kg": number("vehicle mass [kg]", **POSITIVE),
+        "length_m": number("vehicle length [m]", **POSITIVE),
+        "span_m": number("wing span [m]", **POSITIVE),
+        "inertia_kg_m2": {
+            "type": "array",
+            "description": "inertia tensor about the CoM, body axes [kg m^2]",
+            "items": vector("row"),
+            "minItems": 3,
+            "maxItems": 3,
+        },
+        "com_offset_m": vector("actual minus nominal centre of mass, body axes [m]"),
+        "aerodynamics": obj(
+            "aerodynamic reference data",
+            {
+                "reference_area_m2": number("reference area S [m^2]", **POSITIVE),
+                "reference_length_m": number("reference length L [m]", **POSITIVE),
+                "drag_area_m2": number("drag area C_D S for the trajectory [m^2]", minimum=0.0),
+                "mistrim_cm": vector("mistrim moment coefficient per body axis [-]"),
+            },
+        ),
+        "rcs": obj(
+            "reaction control system",
+            {
+                "thrust_n": obj(
+                    "nominal thrust per thruster",
+                    {
+                        "low": number("low thrust mode [N]", **POSITIVE),
+                        "high": number("high thrust mode [N]", **POSITIVE),
+                    },
+                ),
+                "derating": {
+                    "type": "array",
+                    "description": "thrust factor with 1, 2, ... valves open; more valves: the last [-]",
+                    "items": number("factor", exclusive_minimum=0.0, maximum=1.0),
+                    "minItems": 1,
+                    "maxItems": 8,
+                },
+                "isp_s": number("specific impulse [s]", **POSITIVE),
+                "propellant_kg": number("propellant mass at separation [kg]", **POSITIVE),
+                "valve_time_constants_ms": obj(
+                    "mean valve time constants", {"low": _time_constants, "high": _time_constants}
+                ),
+                "switching_limits_ms": obj(
+                    "hardware switching limits per thruster (000 sec. 5)",
+                    {
+                        "min_on": number("minimum pulse duration [ms]", minimum=0.0),
+                        "min_off": number("minimum rest between pulses [ms]", minimum=0.0),
+                    },
+                ),
+                "thrusters": {
+                    "type": "array",
+                    "description": "thruster geometry",
+                    "items": THRUSTER,
+                    "minItems": 1,
+                    "maxItems": 64,
+                },
+            },
+        ),
+        "flight_software": obj(
+            "flight-software design parameters",
+            {
+                "control_rate_hz": number("controller and modulator rate [Hz]", **POSITIVE),
+                "controller": string("control law", enum=["pd_feedback_linearisation"]),
+                "actuation": string("torque-to-thruster chain", enum=["pwpf_table"]),
+                "damping_ratio": number("zeta of 000 eq. 34 [-]", **POSITIVE),
+                "deadband_angle_deg": number("phi_e,db of 000 eq. 38 [deg]", exclusive_minimum=0.0, maximum=10.0),
+                "thrusters_per_axis": vector("n_t of 000 eq. 1 [-]", minimum=1),
+                "guidance_accel_margin": number(
+                    "fraction of omega_dot_max the guidance uses (000 eq. 13) [-]", exclusive_minimum=0.0, maximum=1.0
+                ),
+                "pwpf": obj(
+                    "pulse modulator (000 eq. 41-48)",
+                    {
+                        "tau_min_fraction": number("tau_min / tau_max [-]", minimum=0.0, maximum=1.0),
+                        "t_on_ms": number("algorithm minimum pulse [ms]", **POSITIVE),
+                        "t_off_ms": number("algorithm minimum rest [ms]", **POSITIVE),
+                        "correction_ms": number("delay correction delta gamma [ms]", minimum=0.0),
+                    },
+                ),
+                "allocation": {
+                    "type": "object",
+                    "description": "thrusters opened per axis-command combination, e.g. '+x-y' (000 Table 3)",
+                    "propertyNames": {"pattern": AXIS_COMMAND_PATTERN, "minLength": 2},
+                    "additionalProperties": {
+                        "type": "array",
+                        "items": integer("thruster id", minimum=1),
+                        "description": "thruster ids",
+                    },
+                },
+            },
+        ),
+    },
+)
+
+_mode = obj  # readability below
+
+MISSION = obj(
+    "mission: trajectory, environment, modes, navigation",
+    {
+        "name": string("mission name"),
+        "earth": obj(
+            "spherical non-rotating Earth",
+            {
+                "radius_m": number("radius [m]", **POSITIVE),
+                "mu_m3_s2": number("gravitational parameter [m^3/s^2]", **POSITIVE),
+            },
+        ),
+        "separation": obj(
+            "state at separation (t = 0)",
+            {
+                "altitude_m": number("altitude [m]", **POSITIVE),
+                "speed_m_s": number("inertial speed [m/s]", **POSITIVE),
+                "flight_path_angle_deg": number("flight-path angle [deg]", minimum=-90.0, maximum=90.0),
+                "rates_deg_s": vector("body rates [deg/s]", minimum=-90.0, maximum=90.0),
+                "attitude_error_deg": vector("rotation vector from body x along velocity, wings level [deg]"),
+            },
+        ),
+        "sun_direction": vector("sun direction, inertial frame (normalised on load) [-]"),
+        "atmosphere": {
+            "type": "array",
+            "description": "piecewise-exponential density table, ascending base altitude",
+            "minItems": 1,
+            "items": obj(
+                "one layer",
+                {
+                    "base_altitude_km": number("layer base altitude [km]"),
+                    "density_kg_m3": number("density at the base [kg/m^3]", **POSITIVE),
+                    "scale_height_km": number("scale height [km]", **POSITIVE),
+                },
+            ),
+        },
+        "modes": obj(
+            "mode exit conditions (reference-model sec. 4)",
+            {
+                "ncm": _mode("no control mode", {"duration_s": number("duration [s]", minimum=0.0)}),
+                "rdm1": _mode(
+                    "first rate damping",
+                    {
+                        "rate_threshold_deg_s": number("every body rate below [deg/s]", **POSITIVE),
+                        "timeout_s": number("fails the run after [s]", **POSITIVE),
+                    },
+                ),
+                "sam": _mode(
+                    "sun acquisition",
+                    {
+                        "angle_threshold_deg": number("total angle error below [deg]", **POSITIVE),
+                        "rate_threshold_deg_s": number("rate error norm below [deg/s]", **POSITIVE),
+                        "timeout_s": number("fails the run after [s]", **POSITIVE),
+                    },
+                ),
+                "ssm": _mode(
+                    "sun scanning",
+                    {
+                        "roll_rate_deg_s": number("roll rate about body x [deg/s]"),
+                        "exit_altitude_m": number("ends below this on the descending branch [m]", **POSITIVE),
+                    },
+                ),
+                "rdm2": _mode("second rate damping", {"duration_s": number("duration [s]", minimum=0.0)}),
+                "eam": _mode(
+                    "entry attitude acquisition",
+                    {
+                        "alpha_deg": number("angle of attack [deg]", minimum=-90.0, maximum=90.0),
+                        "beta_deg": number("sideslip [deg]", minimum=-90.0, maximum=90.0),
+                        "bank_deg": number("bank angle [deg]", minimum=-180.0, maximum=180.0),
+                        "t1_design_s": number("design duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
+                        "exit_altitude_m": number("ends below this altitude [m]", **POSITIVE),
+                    },
+                ),
+                "geem": _mode(
+                    "guided entry",
+                    {
+                        "handover_qbar_pa": number("hand-over at this dynamic pressure [Pa]", **POSITIVE),
+                        "exit_altitude_m": number("or below this altitude [m]", **POSITIVE),
+                    },
+                ),
+            },
+        ),
+        "handover_max_angle_deg": number("success: total angle error at hand-over below [deg]", **POSITIVE),
+        "max_flight_time_s": number("a run still flying then fails [s]", **POSITIVE),
+        "navigation": obj(
+            "navigation errors (reference-model sec. 5)",
+            {
+                "attitude_bias_deg": vector("attitude bias rotation vector [deg]"),
+                "attitude_noise_deg": number("attitude white noise, 1 sigma per axis [deg]", minimum=0.0),
+                "rate_bias_deg_s": vector("rate bias [deg/s]"),
+                "rate_noise_deg_s": number("rate white noise, 1 sigma per axis [deg/s]", minimum=0.0),
+                "ssm_calibration_time_s": number("attitude-bias decay time constant in SSM; 0: none [s]", minimum=0.0),
+            },
+        ),
+        "integrator": obj(
+            "attitude integrator",
+            {"max_step_s": number("largest RK4 step between thrust breakpoints [s]", exclusive_minimum=0.0, maximum=1.0)},
+        ),
+    },
+)
+
+_reference = {
+    "oneOf": [{"type": "string"}, {"type": "object"}],
+    "description": "path relative to the campaign file, or an inline mapping",
+}
+
+CAMPAIGN = obj(
+    "a campaign",
+    {
+        "name": string("campaign name (default output directory runs/<name>)"),
+        "vehicle": dict(_reference),
+        "mission": dict(_reference),
+        "runs": integer("number of runs", minimum=1, maximum=10_000_000),
+        "seed": integer("campaign seed", minimum=0, maximum=2**63 - 1),
+        "nominal_first": {"type": "boolean", "description": "run 0 is the undispersed nominal case"},
+        "sampling": string("sampling of the dispersions", enum=["random", "lhs", "sobol"]),
+        "dispersions": {
+            "type": "object",
+            "description": "parameter path -> distribution",
+            "maxProperties": 0,
+        },
+        "failures": {
+            "type": "object",
+            "description": "thrusters that never open and use no propellant (000 sec. 5)",
+            "properties": {
+                "mode": string("none | fixed", enum=["none", "fixed"]),
+                "thrusters": {
+                    "type": "array",
+                    "items": integer("thruster id", minimum=1),
+                    "uniqueItems": True,
+                    "description": "failed thruster ids (mode fixed)",
+                },
+            },
+            "required": ["mode"],
+            "additionalProperties": False,
+        },
+        "output": obj(
+            "what is stored",
+            {"history_rate_hz": number("history sample rate [Hz]", exclusive_minimum=0.0, maximum=1000.0)},
+        ),
+        "requirements": {
+            "type": "array",
+            "items": string("'METRIC OP VALUE'"),
+            "description": "requirement verdicts for the report",
+        },
+    },
+    optional=("nominal_first", "sampling", "dispersions", "failures", "output", "requirements"),
+)

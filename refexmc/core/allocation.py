@@ -1,0 +1,56 @@
+"""Thruster allocation and the actuation chain from torque command to valve commands.
+
+The actuation chain is chosen by ``actuation_id`` (layout.ACTUATION_*); later strategies (LP
+fuel-optimal allocation, reaction wheels) add a branch to :func:`thruster_commands` and keep the
+run loop unchanged.
+"""
+
+from refexmc._jit import jit
+from refexmc.core import pulse_modulation
+from refexmc.core.layout import (
+    ACTUATION_PWPF_TABLE,
+    F_PWPF_CORRECTION,
+    F_PWPF_OFF,
+    F_PWPF_ON,
+    F_TAU_MIN_FRACTION,
+    F_TORQUE_MAX,
+)
+
+
+@jit
+def table_row(wx, wy, wz):
+    """Row of the allocation table for modulator outputs (wx, wy, wz) in {-1, 0, 1}^3."""
+    return int((wx + 1.0) * 9.0 + (wy + 1.0) * 3.0 + (wz + 1.0))
+
+
+@jit
+def table_lookup(table, wx, wy, wz, out):
+    """Thrusters to open for the modulator outputs (000 Table 3); ``out`` is 0/1 per thruster."""
+    row = table_row(wx, wy, wz)
+    for i in range(table.shape[1]):
+        out[i] = table[row, i]
+
+
+@jit
+def thruster_commands(actuation_id, fsw, thrust_level, torque_cmd, pwpf_state, table, t, pulse_out, desired):
+    """Desired open (1) / closed (0) state of each thruster for this control step.
+
+    ``pulse_out`` receives the per-axis modulator outputs for the history.
+    """
+    if actuation_id == ACTUATION_PWPF_TABLE:
+        for axis in range(3):
+            pulse_out[axis] = pulse_modulation.modulate(
+                pwpf_state,
+                axis,
+                torque_cmd[axis],
+                fsw[F_TORQUE_MAX + 3 * thrust_level + axis],
+                fsw[F_TAU_MIN_FRACTION],
+                fsw[F_PWPF_ON],
+                fsw[F_PWPF_OFF],
+                fsw[F_PWPF_CORRECTION],
+                t,
+            )
+        table_lookup(table, pulse_out[0], pulse_out[1], pulse_out[2], desired)
+    else:
+        for i in range(desired.shape[0]):
+            desired[i] = 0

@@ -1,0 +1,52 @@
+"""Attitude controllers: commanded torque from measured state and guidance reference.
+
+The controller is chosen by ``controller_id`` (layout.CONTROLLER_*); new laws add a branch to
+:func:`torque_command` and leave the run loop alone.
+"""
+
+from refexmc._jit import jit
+from refexmc.core import quaternion
+from refexmc.core.layout import CONTROLLER_PD_FEEDBACK_LINEARISATION
+
+
+@jit
+def control_errors(q_meas, rate_meas, q_ref, rate_ref, q_error, rate_error):
+    """Quaternion error q_e = conj(q_ref) (x) q_meas (shortest arc) and rate error (000 eq. 35)."""
+    quaternion.conj_multiply(q_ref, q_meas, q_error)
+    if q_error[3] < 0.0:
+        for i in range(4):
+            q_error[i] = -q_error[i]
+    for i in range(3):
+        rate_error[i] = rate_meas[i] - rate_ref[i]
+
+
+@jit
+def pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out):
+    """u = J v + omega x J omega with v = omega_dot_g - Kd omega_e - Kp q_e,vec (000 eq. 30, 35).
+
+    In rate damping the attitude is not controlled (000 sec. 3.2): the Kp term is left out.
+    """
+    v0 = accel_ref[0] - kd[0] * rate_error[0]
+    v1 = accel_ref[1] - kd[1] * rate_error[1]
+    v2 = accel_ref[2] - kd[2] * rate_error[2]
+    if attitude_controlled:
+        v0 -= kp[0] * q_error[0]
+        v1 -= kp[1] * q_error[1]
+        v2 -= kp[2] * q_error[2]
+    wx, wy, wz = rate_meas[0], rate_meas[1], rate_meas[2]
+    hx = inertia[0, 0] * wx + inertia[0, 1] * wy + inertia[0, 2] * wz
+    hy = inertia[1, 0] * wx + inertia[1, 1] * wy + inertia[1, 2] * wz
+    hz = inertia[2, 0] * wx + inertia[2, 1] * wy + inertia[2, 2] * wz
+    out[0] = inertia[0, 0] * v0 + inertia[0, 1] * v1 + inertia[0, 2] * v2 + (wy * hz - wz * hy)
+    out[1] = inertia[1, 0] * v0 + inertia[1, 1] * v1 + inertia[1, 2] * v2 + (wz * hx - wx * hz)
+    out[2] = inertia[2, 0] * v0 + inertia[2, 1] * v1 + inertia[2, 2] * v2 + (wx * hy - wy * hx)
+
+
+@jit
+def torque_command(controller_id, q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out):
+    """Commanded torque (N m, body axes) of the configured controller."""
+    if controller_id == CONTROLLER_PD_FEEDBACK_LINEARISATION:
+        pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out)
+    else:
+        for i in range(3):
+            out[i] = 0.0

@@ -1,0 +1,145 @@
+"""Trajectory, atmosphere and aerodynamic torque (reference-model sec. 5).
+
+Inertial frame (fixed at the separation point at t = 0): x horizontal downrange, z down, y to
+the right completing the right-handed set. The Earth is a non-rotating sphere whose centre lies
+at (0, 0, R + h_sep). The trajectory is a point mass in the x-z plane under central gravity and
+drag; its state is ``[x, z, v_x, v_z]``.
+"""
+
+import math
+
+from refexmc._jit import jit
+from refexmc.core.layout import (
+    M_EARTH_MU,
+    M_EARTH_RADIUS,
+    M_SEP_ALTITUDE,
+    M_SEP_FLIGHT_PATH,
+    M_SEP_SPEED,
+    V_AERO_AREA,
+    V_AERO_LENGTH,
+    V_DRAG_AREA,
+    V_MASS,
+    V_MISTRIM,
+)
+
+TRAJECTORY_STATE_SIZE = 4
+
+
+@jit
+def density(atmosphere, altitude):
+    """Piecewise-exponential density (kg/m^3); rows ``[base altitude m, rho0, scale height m]``."""
+    row = 0
+    for k in range(atmosphere.shape[0]):
+        if altitude >= atmosphere[k, 0]:
+            row = k
+    return atmosphere[row, 1] * math.exp(-(altitude - atmosphere[row, 0]) / atmosphere[row, 2])
+
+
+@jit
+def initial_state(mission, out):
+    """Trajectory state at separation: origin, speed along the flight-path angle."""
+    gamma = mission[M_SEP_FLIGHT_PATH]
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = mission[M_SEP_SPEED] * math.cos(gamma)
+    out[3] = -mission[M_SEP_SPEED] * math.sin(gamma)
+
+
+@jit
+def radial(mission, state):
+    """Vector from the Earth's centre to the vehicle (x, z components) and its length."""
+    rx = state[0]
+    rz = state[1] - (mission[M_EARTH_RADIUS] + mission[M_SEP_ALTITUDE])
+    return rx, rz, math.sqrt(rx * rx + rz * rz)
+
+
+@jit
+def altitude(mission, state):
+    """Altitude above the spherical Earth (m)."""
+    return radial(mission, state)[2] - mission[M_EARTH_RADIUS]
+
+
+@jit
+def climb_rate(mission, state):
+    """Rate of change of altitude (m/s); negative on the descending branch."""
+    rx, rz, r = radial(mission, state)
+    return (rx * state[2] + rz * state[3]) / r
+
+
+@jit
+def dynamic_pressure(mission, vehicle, atmosphere, state):
+    """q = rho V^2 / 2 (Pa)."""
+    v2 = state[2] * state[2] + state[3] * state[3]
+    return 0.5 * density(atmosphere, altitude(mission, state)) * v2
+
+
+@jit
+def acceleration(mission, vehicle, atmosphere, state):
+    """Gravity plus drag acceleration (x, z)."""
+    rx, rz, r = radial(mission, state)
+    g = -mission[M_EARTH_MU] / (r * r * r)
+    vx, vz = state[2], state[3]
+    speed = math.sqrt(vx * vx + vz * vz)
+    rho = density(atmosphere, r - mission[M_EARTH_RADIUS])
+    drag = 0.5 * rho * speed * vehicle[V_DRAG_AREA] / vehicle[V_MASS]
+    return g * rx - drag * vx, g * rz - drag * vz
+
+
+@jit
+def trajectory_step(mission, vehicle, atmosphere, state, h, stage):
+    """Advance the trajectory by ``h`` seconds with classical RK4; ``stage`` is scratch (4,)."""
+    x0, z0, vx1, vz1 = state[0], state[1], state[2], state[3]
+    ax1, az1 = acceleration(mission, vehicle, atmosphere, state)
+    stage[0] = x0 + 0.5 * h * vx1
+    stage[1] = z0 + 0.5 * h * vz1
+    stage[2] = vx1 + 0.5 * h * ax1
+    stage[3] = vz1 + 0.5 * h * az1
+    vx2, vz2 = stage[2], stage[3]
+    ax2, az2 = acceleration(mission, vehicle, atmosphere, stage)
+    stage[0] = x0 + 0.5 * h * vx2
+    stage[1] = z0 + 0.5 * h * vz2
+    stage[2] = vx1 + 0.5 * h * ax2
+    stage[3] = vz1 + 0.5 * h * az2
+    vx3, vz3 = stage[2], stage[3]
+    ax3, az3 = acceleration(mission, vehicle, atmosphere, stage)
+    stage[0] = x0 + h * vx3
+    stage[1] = z0 + h * vz3
+    stage[2] = vx1 + h * ax3
+    stage[3] = vz1 + h * az3
+    vx4, vz4 = stage[2], stage[3]
+    ax4, az4 = acceleration(mission, vehicle, atmosphere, stage)
+    state[0] = x0 + h / 6.0 * (vx1 + 2.0 * vx2 + 2.0 * vx3 + vx4)
+    state[1] = z0 + h / 6.0 * (vz1 + 2.0 * vz2 + 2.0 * vz3 + vz4)
+    state[2] = vx1 + h / 6.0 * (ax1 + 2.0 * ax2 + 2.0 * ax3 + ax4)
+    state[3] = vz1 + h / 6.0 * (az1 + 2.0 * az2 + 2.0 * az3 + az4)
+
+
+@jit
+def velocity_pitch(state):
+    """Angle of the velocity above the inertial x axis, a rotation about +y (rad)."""
+    return math.atan2(-state[3], state[2])
+
+
+@jit
+def velocity_pitch_rate(mission, vehicle, atmosphere, state):
+    """Time derivative of :func:`velocity_pitch` (rad/s)."""
+    ax, az = acceleration(mission, vehicle, atmosphere, state)
+    vx, vz = state[2], state[3]
+    return (vz * ax - vx * az) / (vx * vx + vz * vz)
+
+
+@jit
+def local_horizontal(mission, state, out):
+    """Unit downrange horizontal direction at the vehicle (inertial, y = 0)."""
+    rx, rz, r = radial(mission, state)
+    out[0] = -rz / r
+    out[1] = 0.0
+    out[2] = rx / r
+
+
+@jit
+def aerodynamic_torque(vehicle, qbar, out):
+    """Mistrim torque q S L c_m per body axis (N m)."""
+    scale = qbar * vehicle[V_AERO_AREA] * vehicle[V_AERO_LENGTH]
+    for i in range(3):
+        out[i] = scale * vehicle[V_MISTRIM + i]

@@ -1,0 +1,203 @@
+"""Reaction control system: valve transients, derating, torque and propellant.
+
+Each thruster's normalised thrust level L(t) in [0, 1] is piecewise linear (000 Fig. 6): after an
+open command it keeps its course for the on-delay, then rises at 1/rise_time; after a close
+command it keeps its course for the off-delay, then falls at 1/fall_time. A reaction that takes
+effect mid-transient starts its ramp from the level at that instant. A later command that would
+react earlier than a pending one supersedes it. Failed thrusters never open (000 sec. 5).
+
+Valve state: one row per thruster, columns below; all arrays are owned by the caller.
+"""
+
+from refexmc._jit import jit
+from refexmc.core.layout import (
+    DERATING_MAX_VALVES,
+    FALL,
+    OFF_DELAY,
+    ON_DELAY,
+    RISE,
+    T_DIRECTION,
+    T_FAILED,
+    T_ON_DELAY_LOW,
+    T_POSITION,
+    T_SCALE,
+    TIME_CONSTANTS_PER_LEVEL,
+    V_COM_OFFSET,
+    V_DERATING,
+    V_ISP,
+    V_THRUST_HIGH,
+    V_THRUST_LOW,
+)
+
+STANDARD_GRAVITY = 9.80665  # m/s^2, defines Isp in seconds
+
+MAX_PENDING = 4
+VS_LEVEL = 0  # level at VS_TIME
+VS_TIME = 1
+VS_SLOPE = 2  # 1/s
+VS_PENDING_COUNT = 3
+VS_PENDING = 4  # pairs (reaction time, 1 open / 0 close), ascending in time
+VALVE_STATE_SIZE = VS_PENDING + 2 * MAX_PENDING
+
+LEVEL_LOW = 0
+LEVEL_HIGH = 1
+_EPS_T = 1e-12
+
+
+@jit
+def reset(valve_state):
+    """All valves closed, nothing pending."""
+    valve_state[:, :] = 0.0
+
+
+@jit
+def level_at(valve_state, i, t):
+    """Normalised thrust level of thruster ``i`` at time ``t`` (before pending reactions)."""
+    v = valve_state[i, VS_LEVEL] + valve_state[i, VS_SLOPE] * (t - valve_state[i, VS_TIME])
+    if v < 0.0:
+        return 0.0
+    if v > 1.0:
+        return 1.0
+    return v
+
+
+@jit
+def time_constant(thrusters, i, thrust_level, which):
+    """On-delay, rise, off-delay or fall time (s) of thruster ``i`` at the given thrust level."""
+    return thrusters[i, T_ON_DELAY_LOW + TIME_CONSTANTS_PER_LEVEL * thrust_level + which]
+
+
+@jit
+def command(valve_state, thrusters, i, open_valve, t, thrust_level):
+    """Send an open (True) or close command to thruster ``i`` at time ``t``."""
+    if thrusters[i, T_FAILED] != 0.0:
+        return
+    delay = time_constant(thrusters, i, thrust_level, ON_DELAY if open_valve else OFF_DELAY)
+    t_react = t + delay
+    n = int(valve_state[i, VS_PENDING_COUNT])
+    while n > 0 and valve_state[i, VS_PENDING + 2 * (n - 1)] > t_react:
+        n -= 1  # superseded by this later command
+    if n == MAX_PENDING:  # cannot happen at 40 Hz with delays < 4 periods; keep the newest
+        for k in range(MAX_PENDING - 1):
+            valve_state[i, VS_PENDING + 2 * k] = valve_state[i, VS_PENDING + 2 * k + 2]
+            valve_state[i, VS_PENDING + 2 * k + 1] = valve_state[i, VS_PENDING + 2 * k + 3]
+        n -= 1
+    valve_state[i, VS_PENDING + 2 * n] = t_react
+    valve_state[i, VS_PENDING + 2 * n + 1] = 1.0 if open_valve else 0.0
+    valve_state[i, VS_PENDING_COUNT] = n + 1
+
+
+@jit
+def apply_reactions(valve_state, thrusters, i, t, thrust_level):
+    """Start the ramps of all reactions of thruster ``i`` due at or before ``t``."""
+    n = int(valve_state[i, VS_PENDING_COUNT])
+    done = 0
+    while done < n and valve_state[i, VS_PENDING + 2 * done] <= t + _EPS_T:
+        t_react = valve_state[i, VS_PENDING + 2 * done]
+        opening = valve_state[i, VS_PENDING + 2 * done + 1] != 0.0
+        level = level_at(valve_state, i, t_react)
+        ramp = time_constant(thrusters, i, thrust_level, RISE if opening else FALL)
+        valve_state[i, VS_TIME] = t_react
+        if ramp <= 0.0:  # ideal valve: jump
+            valve_state[i, VS_LEVEL] = 1.0 if opening else 0.0
+            valve_state[i, VS_SLOPE] = 0.0
+        else:
+            valve_state[i, VS_LEVEL] = level
+            valve_state[i, VS_SLOPE] = 1.0 / ramp if opening else -1.0 / ramp
+        done += 1
+    if done > 0:
+        for k in range(n - done):
+            valve_state[i, VS_PENDING + 2 * k] = valve_state[i, VS_PENDING + 2 * (k + done)]
+            valve_state[i, VS_PENDING + 2 * k + 1] = valve_state[i, VS_PENDING + 2 * (k + done) + 1]
+        valve_state[i, VS_PENDING_COUNT] = n - done
+
+
+@jit
+def next_breakpoint(valve_state, n_thrusters, t_start, t_end):
+    """Earliest kink of any thruster's level in (t_start, t_end), or ``t_end``."""
+    t_next = t_end
+    for i in range(n_thrusters):
+        n = int(valve_state[i, VS_PENDING_COUNT])
+        if n > 0:
+            tr = valve_state[i, VS_PENDING]
+            if t_start + _EPS_T < tr < t_next:
+                t_next = tr
+        slope = valve_state[i, VS_SLOPE]
+        if slope != 0.0:
+            target = 1.0 if slope > 0.0 else 0.0
+            t_kink = valve_state[i, VS_TIME] + (target - valve_state[i, VS_LEVEL]) / slope
+            if t_start + _EPS_T < t_kink < t_next:
+                t_next = t_kink
+    return t_next
+
+
+@jit
+def torque_arms(thrusters, vehicle, out):
+    """Torque per newton of each thruster about the actual CoM: (r - com_offset) x direction."""
+    for i in range(thrusters.shape[0]):
+        rx = thrusters[i, T_POSITION] - vehicle[V_COM_OFFSET]
+        ry = thrusters[i, T_POSITION + 1] - vehicle[V_COM_OFFSET + 1]
+        rz = thrusters[i, T_POSITION + 2] - vehicle[V_COM_OFFSET + 2]
+        dx = thrusters[i, T_DIRECTION]
+        dy = thrusters[i, T_DIRECTION + 1]
+        dz = thrusters[i, T_DIRECTION + 2]
+        out[i, 0] = ry * dz - rz * dy
+        out[i, 1] = rz * dx - rx * dz
+        out[i, 2] = rx * dy - ry * dx
+
+
+@jit
+def derating_factor(vehicle, n_open):
+    """Thrust factor with ``n_open`` valves open (000 sec. 2.1); 1 when none is open."""
+    if n_open <= 0:
+        return 1.0
+    if n_open > DERATING_MAX_VALVES:
+        n_open = DERATING_MAX_VALVES
+    return vehicle[V_DERATING + n_open - 1]
+
+
+@jit
+def segment_thrust(valve_state, thrusters, vehicle, arms, thrust_level, t_start, t_end, tau_start, tau_end):
+    """Torques at both ends of a segment without kinks, and its total impulse (N s).
+
+    Within the segment each level is linear; the number of open valves (level > 0 at the
+    midpoint) and hence the derating are constant.
+    """
+    n = thrusters.shape[0]
+    t_mid = 0.5 * (t_start + t_end)
+    n_open = 0
+    for i in range(n):
+        if level_at(valve_state, i, t_mid) > 0.0:
+            n_open += 1
+    nominal = vehicle[V_THRUST_HIGH] if thrust_level == LEVEL_HIGH else vehicle[V_THRUST_LOW]
+    force = nominal * derating_factor(vehicle, n_open)
+    for k in range(3):
+        tau_start[k] = 0.0
+        tau_end[k] = 0.0
+    impulse = 0.0
+    for i in range(n):
+        f0 = force * thrusters[i, T_SCALE] * level_at(valve_state, i, t_start)
+        f1 = force * thrusters[i, T_SCALE] * level_at(valve_state, i, t_end)
+        if f0 == 0.0 and f1 == 0.0:
+            continue
+        for k in range(3):
+            tau_start[k] += f0 * arms[i, k]
+            tau_end[k] += f1 * arms[i, k]
+        impulse += 0.5 * (f0 + f1) * (t_end - t_start)
+    return impulse
+
+
+@jit
+def propellant_for_impulse(vehicle, impulse):
+    """Propellant mass (kg) that an impulse (N s) uses: impulse / (Isp g0)."""
+    return impulse / (vehicle[V_ISP] * STANDARD_GRAVITY)
+
+
+@jit
+def open_mask(valve_state, n_thrusters, t):
+    """Bit mask of thrusters producing thrust at ``t`` (bit i-1 for thruster i)."""
+    mask = 0
+    for i in range(n_thrusters):
+        if level_at(valve_state, i, t) > 0.0:
+            mask |= 1 << i
+    return mask
