@@ -93,7 +93,11 @@ def validate(data, schema_def, file, lines, prefix=()):
     if data is None:
         raise ConfigError("empty file", file=file)
     validator = jsonschema.Draft202012Validator(schema_def)
-    errors = sorted(validator.iter_errors(data), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
+    # shallowest first; at equal depth an unknown key (with its did-you-mean) before a missing one
+    errors = sorted(
+        validator.iter_errors(data),
+        key=lambda e: (len(e.absolute_path), e.validator != "additionalProperties", str(e.absolute_path)),
+    )
     if errors:
         error = errors[0]
         extra, message = _describe(error)

@@ -1,0 +1,161 @@
+"""Output directory: Parquet part files (written atomically), manifest and resolved campaign."""
+
+import hashlib
+import json
+import os
+import platform
+import shutil
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numba
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import yaml
+
+import refexmc
+from refexmc.core import layout as L
+
+MODE_COLUMNS = [f"t_{name.lower()}_s" for name in L.MODE_NAMES]
+AXES = "xyz"
+
+
+def now():
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def write_table_atomic(table, path):
+    """Write a Parquet file under a temporary name, then rename: readers never see a partial file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    pq.write_table(table, tmp, compression="zstd")
+    os.replace(tmp, path)
+
+
+def write_text_atomic(text, path):
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def part_name(chunk_index):
+    return f"part-{chunk_index:05d}.parquet"
+
+
+def runs_row(run_id, seed, failed, result, n_thrusters, error=None):
+    """One row of the ``runs`` table (interface.md) as a dict."""
+    row = {
+        "run_id": run_id,
+        "seed": seed,
+        "status": "error" if error else "ok",
+        "success": False,
+        "failure_reason": error,
+        "failed_thrusters": ",".join(str(t) for t in sorted(failed)),
+    }
+    if result is None:
+        for name in ["fuel_remaining", "fuel_used_kg", "t_end_s", *MODE_COLUMNS, "theta_t_handover_deg"]:
+            row[name] = float("nan")
+        row["modes_completed"] = 0
+        for i in range(n_thrusters):
+            row[f"pulses_{i + 1}"] = 0
+        return row
+    row["success"] = result.success
+    row["failure_reason"] = result.failure_reason
+    row["fuel_remaining"] = float(result.value("fuel_remaining"))
+    row["fuel_used_kg"] = float(result.value("fuel_used_kg"))
+    row["t_end_s"] = float(result.value("t_end_s"))
+    for name, value in zip(MODE_COLUMNS, result.value("t_mode_s"), strict=True):
+        row[name] = float(value)
+    row["theta_t_handover_deg"] = float(result.value("theta_t_handover_deg"))
+    row["modes_completed"] = int(result.value("modes_completed"))
+    for i, count in enumerate(result.pulse_counts):
+        row[f"pulses_{i + 1}"] = int(count)
+    return row
+
+
+def runs_table(rows):
+    columns = {key: [row[key] for row in rows] for key in rows[0]}
+    table = pa.table(columns)
+    return table.cast(
+        pa.schema(
+            [
+                pa.field(name, pa.int64() if name in ("run_id", "seed") else table.schema.field(name).type)
+                for name in table.column_names
+            ]
+        )
+    )
+
+
+def history_table(run_id, history):
+    """Long history table for one run (interface.md ``histories`` columns)."""
+    n = history.shape[0]
+
+    def col(name, k=0):
+        return history[:, L.HISTORY.slices[name][0] + k]
+
+    mode_index = col("mode").astype(np.int32)
+    columns = {
+        "run_id": pa.array(np.full(n, run_id, dtype=np.int64)),
+        "t_s": pa.array(col("t_s")),
+        "mode": pa.DictionaryArray.from_arrays(pa.array(mode_index), pa.array(list(L.MODE_NAMES))),
+        "theta_t_deg": pa.array(col("theta_t_deg")),
+        "omega_m_deg_s": pa.array(col("omega_m_deg_s")),
+    }
+    for k, axis in enumerate(AXES):
+        columns[f"theta_e_{axis}_deg"] = pa.array(col("theta_e_deg", k))
+    for k, axis in enumerate(AXES):
+        columns[f"omega_e_{axis}_deg_s"] = pa.array(col("omega_e_deg_s", k))
+    columns["fuel_remaining"] = pa.array(col("fuel_remaining"))
+    columns["valves_open"] = pa.array(col("valves_open").astype(np.int32))
+    for k, axis in enumerate(AXES):
+        columns[f"pulse_{axis}"] = pa.array(col("pulse_command", k).astype(np.int8))
+    columns["altitude_m"] = pa.array(col("altitude_m"))
+    columns["qbar_pa"] = pa.array(col("qbar_pa"))
+    return pa.table(columns)
+
+
+def manifest(campaign_file, campaign, chunk_size, status, started, finished=None, counts=None):
+    data = Path(campaign_file).read_bytes() if campaign_file else b""
+    return {
+        "refexmc": refexmc.__version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "pyarrow": pa.__version__,
+        "campaign_file": str(campaign_file) if campaign_file else None,
+        "campaign_sha256": hashlib.sha256(data).hexdigest(),
+        "name": campaign["name"],
+        "seed": campaign["seed"],
+        "runs": campaign["runs"],
+        "chunk_size": chunk_size,
+        "status": status,
+        "started": started,
+        "finished": finished,
+        "counts": counts or {},
+    }
+
+
+def write_manifest(out, info):
+    write_text_atomic(json.dumps(info, indent=2) + "\n", Path(out) / "manifest.json")
+
+
+def write_resolved(out, campaign):
+    text = "# Resolved campaign: vehicle and mission inlined; enough to redo any run.\n"
+    text += yaml.safe_dump(campaign, sort_keys=False)
+    write_text_atomic(text, Path(out) / "campaign.resolved.yaml")
+
+
+def prepare_output(out, overwrite=False, resume=False):
+    """Create OUT; an existing OUT is refused unless ``overwrite`` (emptied) or ``resume`` (kept)."""
+    out = Path(out)
+    if out.exists():
+        if resume:
+            return
+        if not overwrite:
+            raise FileExistsError(str(out))
+        shutil.rmtree(out)
+    (out / "runs").mkdir(parents=True)
+    (out / "histories").mkdir()

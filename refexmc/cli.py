@@ -1,0 +1,159 @@
+"""Command line: a thin click layer over functions that tests call directly."""
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import click
+
+from refexmc.config.errors import ConfigError
+
+MODE_NAMES = ("NCM", "RDM1", "SAM", "SSM", "RDM2", "EAM", "GEEM")
+
+
+def _bad_input(message):
+    click.echo(f"error: {message}", err=True)
+    sys.exit(2)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="refexmc")
+def main():
+    """refexmc: Monte-Carlo campaigns for the ReFEx exoatmospheric attitude control system."""
+
+
+@main.command()
+@click.argument("campaign", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--out", type=click.Path(file_okay=False, path_type=Path), help="Output directory.")
+@click.option("--runs", type=int, help="Override the number of runs.")
+@click.option("--seed", type=int, help="Override the campaign seed.")
+@click.option("--resume", is_flag=True, help="Finish what is missing in an existing OUT.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing OUT.")
+@click.option("--no-progress", is_flag=True, help="No progress lines.")
+def run(campaign, out, runs, seed, resume, overwrite, no_progress):
+    """Run CAMPAIGN and write OUT (default runs/<name>).
+
+    Example: refexmc run campaigns/nominal.yaml -o runs/nominal --overwrite
+    """
+    from refexmc.campaign.run import run_campaign
+
+    if resume and overwrite:
+        _bad_input("--resume and --overwrite exclude each other")
+    log = None if no_progress else (lambda line: click.echo(line, err=True))
+    try:
+        result = run_campaign(campaign, out=out, runs=runs, seed=seed, overwrite=overwrite, resume=resume, log=log)
+    except ConfigError as exc:
+        _bad_input(str(exc))
+    except FileExistsError as exc:
+        _bad_input(f"{exc}: output directory exists; use --resume or --overwrite")
+    click.echo(format_run_summary(result))
+    errored = result["runs"].loc[result["runs"]["status"] == "error", "run_id"].tolist()
+    if errored:
+        click.echo(f"runs with errors: {', '.join(map(str, errored))}", err=True)
+        sys.exit(1)
+
+
+def format_run_summary(result):
+    """A few lines a reviewer reads first: success, propellant, hand-over error, mode times."""
+    table = result["runs"]
+    counts = result["counts"]
+    lines = [
+        f"campaign {result['campaign']['name']}: {counts['runs']} runs, {counts['success']} succeeded, "
+        f"{counts['error']} errored -> {result['out']}",
+    ]
+    ok = table[table["status"] == "ok"]
+    if len(ok) == 1:
+        row = ok.iloc[0]
+        verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
+        lines.append(f"  flight: {verdict}, hand-over at t = {row['t_end_s']:.1f} s")
+        lines.append(f"  propellant remaining: {100 * row['fuel_remaining']:.1f} % ({row['fuel_used_kg']:.3f} kg used)")
+        theta = row["theta_t_handover_deg"]
+        lines.append(f"  total angle error at hand-over: {theta:.2f} deg" if not math.isnan(theta) else "")
+        times = ", ".join(f"{m} {row[f't_{m.lower()}_s']:.1f}" for m in MODE_NAMES)
+        lines.append(f"  time in mode [s]: {times}")
+    elif len(ok) > 1:
+        lines.append(
+            f"  propellant remaining: min {100 * ok['fuel_remaining'].min():.1f} %, "
+            f"median {100 * ok['fuel_remaining'].median():.1f} %"
+        )
+    return "\n".join(line for line in lines if line)
+
+
+@main.command()
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+def validate(files):
+    """Check campaign, vehicle or mission FILES without running anything.
+
+    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml
+    """
+    from refexmc.config.load import load_any
+
+    bad = 0
+    for path in files:
+        try:
+            kind, _ = load_any(path)
+        except ConfigError as exc:
+            click.echo(f"error: {exc}", err=True)
+            bad += 1
+            continue
+        click.echo(f"{path}: valid {kind}")
+    if bad:
+        sys.exit(2)
+
+
+@main.command()
+@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def inspect(file, as_json):
+    """Print the design quantities derived from a vehicle (or a campaign's vehicle).
+
+    omega_dot_max (000 eq. 1), gains (eq. 38, 34), f_min (eq. 44), switching times, allocation table.
+    Example: refexmc inspect configs/vehicles/refex.yaml --json
+    """
+    from refexmc.config.derived import design
+    from refexmc.config.load import load_any
+
+    try:
+        kind, data = load_any(file)
+    except ConfigError as exc:
+        _bad_input(str(exc))
+    if kind == "mission":
+        _bad_input(f"{file}: a mission has no design quantities; give a vehicle or campaign file")
+    vehicle = data["vehicle"] if kind == "campaign" else data
+    info = design(vehicle)
+    if as_json:
+        click.echo(json.dumps(info, indent=2))
+        return
+    click.echo(format_design(vehicle.get("name", str(file)), info))
+
+
+def format_design(name, info):
+    def vec(values, fmt):
+        return "  ".join(format(v, fmt) for v in values)
+
+    lines = [f"vehicle {name}", f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}"]
+    lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
+    for level in ("low", "high"):
+        lines.append(f"  {level} thrust")
+        lines.append(f"    omega_dot_max [rad/s^2]     {vec(info['omega_dot_max_rad_s2'][level], '8.4f')}")
+        lines.append(f"    tau_max [N m]               {vec(info['torque_max_n_m'][level], '8.3f')}")
+        lines.append(f"    Kp                          {vec(info['gains'][level]['kp'], '8.3f')}")
+        lines.append(f"    Kd                          {vec(info['gains'][level]['kd'], '8.3f')}")
+    lines.append(
+        f"  PWPF: t_on {info['pwpf_t_on_ms']:g} ms, t_off {info['pwpf_t_off_ms']:g} ms, "
+        f"correction {info['pwpf_correction_ms']:g} ms, tau_min {100 * info['tau_min_fraction']:.1f} %, "
+        f"f_min {100 * info['f_min_fraction']:.1f} % of tau_max"
+    )
+    lines.append(
+        f"  hardware switching limits: min pulse {info['hardware_min_on_ms']:g} ms, "
+        f"min rest {info['hardware_min_off_ms']:g} ms"
+    )
+    lines.append("  allocation (axis command -> thrusters):")
+    for key, ids in info["allocation"].items():
+        lines.append(f"    {key:8s} {', '.join(map(str, ids))}")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    main()
