@@ -162,3 +162,35 @@ def test_flight_is_deterministic(vehicle, mission):
     assert np.array_equal(a.summary, b.summary, equal_nan=True)
     assert np.array_equal(a.history, b.history, equal_nan=True)
     assert not np.array_equal(a.history, c.history, equal_nan=True)
+
+
+def test_dispersible_inputs_reach_the_model_without_recompiling(vehicle, mission):
+    """Every quantity a campaign disperses is an array value: changing it changes the flight
+    and compiles nothing new (one signature of the run kernel)."""
+    from refexmc.core.flight import run_flight
+
+    base_inputs = pack(vehicle, mission)
+    base = fly(base_inputs)
+
+    def perturbed(edit):
+        inputs = pack(vehicle, mission)
+        edit(inputs)
+        return fly(inputs)
+
+    edits = {
+        "inertia": lambda p: p.vehicle.__setitem__(L.V_INERTIA + 4, 260.0),
+        "com_offset": lambda p: p.vehicle.__setitem__(L.V_COM_OFFSET + 2, 0.01),
+        "isp": lambda p: p.vehicle.__setitem__(L.V_ISP, 60.0),
+        "derating": lambda p: p.vehicle.__setitem__(L.V_DERATING + 1, 0.8),
+        "mistrim": lambda p: p.vehicle.__setitem__(L.V_MISTRIM + 1, 2e-3),
+        "thrust_scale": lambda p: p.thrusters.__setitem__((6, L.T_SCALE), 0.9),
+        "off_delay": lambda p: p.thrusters.__setitem__((2, L.T_OFF_DELAY_LOW), 0.06),
+        "separation_rates": lambda p: p.mission.__setitem__(L.M_SEP_RATES, 0.06),
+        "separation_attitude": lambda p: p.mission.__setitem__(L.M_SEP_ATTITUDE + 2, 0.1),
+        "rate_bias": lambda p: p.nav.__setitem__(L.N_RATE_BIAS, 1e-4),
+    }
+    for name, edit in edits.items():
+        result = perturbed(edit)
+        assert not np.array_equal(result.history, base.history, equal_nan=True), f"{name} had no effect"
+    if hasattr(run_flight, "signatures"):  # absent when REFEXMC_DISABLE_JIT=1
+        assert len(run_flight.signatures) == 1

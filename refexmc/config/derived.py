@@ -111,7 +111,9 @@ def design(vehicle):
     out["hardware_min_off_ms"] = limits["min_off"]
     table = allocation_table(vehicle)
     out["allocation"] = {}
-    combos = sorted(itertools.product((-1, 0, 1), repeat=3), key=lambda w: (sum(map(abs, w)), [-abs(v) for v in w], [-v for v in w]))
+    combos = sorted(
+        itertools.product((-1, 0, 1), repeat=3), key=lambda w: (sum(map(abs, w)), [-abs(v) for v in w], [-v for v in w])
+    )
     for w in combos:
         key = axis_command_key(w)
         if key:

@@ -84,7 +84,10 @@ def _describe(error):
     if error.validator == "enum":
         return (), f"expected one of {', '.join(map(str, error.validator_value))}, got {error.instance!r}"
     if error.validator in ("minItems", "maxItems"):
-        return (), f"expected {error.schema.get('minItems')}..{error.schema.get('maxItems')} items, got {len(error.instance)}"
+        return (
+            (),
+            f"expected {error.schema.get('minItems')}..{error.schema.get('maxItems')} items, got {len(error.instance)}",
+        )
     return (), error.message
 
 
@@ -115,7 +118,9 @@ def check_vehicle(vehicle, file, lines, prefix=()):
     thrusters = vehicle["rcs"]["thrusters"]
     for i, thruster in enumerate(thrusters):
         if thruster["id"] != i + 1:
-            fail(f"expected thruster ids 1..{len(thrusters)} in order, got {thruster['id']}", "rcs", "thrusters", i, "id")
+            fail(
+                f"expected thruster ids 1..{len(thrusters)} in order, got {thruster['id']}", "rcs", "thrusters", i, "id"
+            )
         if np.linalg.norm(thruster["direction"]) == 0.0:
             fail("expected a non-zero force direction", "rcs", "thrusters", i, "direction")
     for key, ids in vehicle["flight_software"]["allocation"].items():
@@ -153,7 +158,10 @@ def check_mission(mission, file, lines, prefix=()):
         )
     if np.linalg.norm(mission["sun_direction"]) == 0.0:
         raise ConfigError(
-            "expected a non-zero vector", file=file, line=lines.get(("sun_direction",)), path=prefix + ("sun_direction",)
+            "expected a non-zero vector",
+            file=file,
+            line=lines.get(("sun_direction",)),
+            path=prefix + ("sun_direction",),
         )
 
 
@@ -208,7 +216,9 @@ def load_campaign(path):
     n_thrusters = len(vehicle["rcs"]["thrusters"])
     if failures["mode"] == "fixed":
         if "thrusters" not in failures:
-            raise ConfigError("mode fixed needs 'thrusters'", file=path, line=lines.get(("failures",)), path=("failures",))
+            raise ConfigError(
+                "mode fixed needs 'thrusters'", file=path, line=lines.get(("failures",)), path=("failures",)
+            )
         for k, tid in enumerate(failures["thrusters"]):
             if tid > n_thrusters:
                 raise ConfigError(

@@ -265,7 +265,11 @@ MISSION = obj(
         ),
         "integrator": obj(
             "attitude integrator",
-            {"max_step_s": number("largest RK4 step between thrust breakpoints [s]", exclusive_minimum=0.0, maximum=1.0)},
+            {
+                "max_step_s": number(
+                    "largest RK4 step between thrust breakpoints [s]", exclusive_minimum=0.0, maximum=1.0
+                )
+            },
         ),
     },
 )

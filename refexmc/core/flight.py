@@ -87,8 +87,8 @@ from refexmc.core.layout import (
     S_QBAR_END,
     S_RK4_STEPS,
     S_SUCCESS,
-    S_T_END,
     S_T1_MODE,
+    S_T_END,
     S_T_MODE,
     S_THETA_HANDOVER,
     V_INERTIA,
@@ -99,8 +99,23 @@ _DEG = 180.0 / math.pi
 
 
 @jit
-def _write_history(history, row, t, mode, theta_t, rate_meas, q_error, rate_error, attitude_controlled,
-                   fuel_fraction, valves, pulse, altitude, qbar, rotvec):
+def _write_history(
+    history,
+    row,
+    t,
+    mode,
+    theta_t,
+    rate_meas,
+    q_error,
+    rate_error,
+    attitude_controlled,
+    fuel_fraction,
+    valves,
+    pulse,
+    altitude,
+    qbar,
+    rotvec,
+):
     history[row, H_T] = t
     history[row, H_MODE] = mode
     history[row, H_THETA_T] = theta_t * _DEG
@@ -118,8 +133,20 @@ def _write_history(history, row, t, mode, theta_t, rate_meas, q_error, rate_erro
 
 
 @jit
-def run_flight(vehicle, thrusters, fsw, mission, nav, atmosphere, allocation_table, nav_seed,
-               history_every, summary, pulse_counts, history):
+def run_flight(
+    vehicle,
+    thrusters,
+    fsw,
+    mission,
+    nav,
+    atmosphere,
+    allocation_table,
+    nav_seed,
+    history_every,
+    summary,
+    pulse_counts,
+    history,
+):
     """Fly one exoatmospheric phase; fill ``summary``, ``pulse_counts`` and ``history``.
 
     ``history`` has one row per ``history_every`` control steps (plus the final state) until
@@ -224,7 +251,9 @@ def run_flight(vehicle, thrusters, fsw, mission, nav, atmosphere, allocation_tab
             guidance.slerp_reference(guid, t, q_ref, rate_ref, accel_ref)
             angle = quaternion.angle_between(q_meas, q_final)
             rate_error_norm = math.sqrt(
-                (rate_meas[0] - rate_ref[0]) ** 2 + (rate_meas[1] - rate_ref[1]) ** 2 + (rate_meas[2] - rate_ref[2]) ** 2
+                (rate_meas[0] - rate_ref[0]) ** 2
+                + (rate_meas[1] - rate_ref[1]) ** 2
+                + (rate_meas[2] - rate_ref[2]) ** 2
             )
             if modes.sam_done(mission, angle, rate_error_norm):
                 mode = MODE_SSM
@@ -348,9 +377,21 @@ def run_flight(vehicle, thrusters, fsw, mission, nav, atmosphere, allocation_tab
         finished = mode == MODE_DONE or failure != FAIL_NONE
         if (step % history_every == 0 or finished) and rows < history.shape[0]:
             _write_history(
-                history, rows, t, min(mode, MODE_GEEM), theta_t, rate_meas, q_error, rate_error,
-                attitude_controlled, fuel / propellant0, rcs.open_mask(valve_state, n_thr, t), pulse,
-                altitude, qbar, rotvec,
+                history,
+                rows,
+                t,
+                min(mode, MODE_GEEM),
+                theta_t,
+                rate_meas,
+                q_error,
+                rate_error,
+                attitude_controlled,
+                fuel / propellant0,
+                rcs.open_mask(valve_state, n_thr, t),
+                pulse,
+                altitude,
+                qbar,
+                rotvec,
             )
             rows += 1
         if finished:
