@@ -133,6 +133,7 @@ def pack_mission(mission):
         "handover_max_angle_rad": rad(mission["handover_max_angle_deg"]),
         "max_flight_time_s": mission["max_flight_time_s"],
         "integrator_max_step_s": mission["integrator"]["max_step_s"],
+        "trajectory_step_s": mission["integrator"]["trajectory_step_s"],
     }
     for name, value in values.items():
         _put(out, L.MISSION, name, value)

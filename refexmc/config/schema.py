@@ -264,11 +264,14 @@ MISSION = obj(
             },
         ),
         "integrator": obj(
-            "attitude integrator",
+            "numerical integration",
             {
                 "max_step_s": number(
-                    "largest RK4 step between thrust breakpoints [s]", exclusive_minimum=0.0, maximum=1.0
-                )
+                    "largest attitude RK4 step between thrust breakpoints [s]", exclusive_minimum=0.0, maximum=1.0
+                ),
+                "trajectory_step_s": number(
+                    "trajectory RK4 node spacing; cubic Hermite in between [s]", exclusive_minimum=0.0, maximum=5.0
+                ),
             },
         ),
     },

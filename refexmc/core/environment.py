@@ -143,3 +143,35 @@ def aerodynamic_torque(vehicle, qbar, out):
     scale = qbar * vehicle[V_AERO_AREA] * vehicle[V_AERO_LENGTH]
     for i in range(3):
         out[i] = scale * vehicle[V_MISTRIM + i]
+
+
+@jit
+def interpolate(node_a, accel_a, node_b, accel_b, span, tau, out):
+    """Cubic Hermite interpolation of the trajectory between two RK4 nodes ``span`` apart.
+
+    Positions use the nodes' velocities, velocities the nodes' accelerations; the error is
+    O(span^4) times the fourth derivative, far below a metre for spans of a second.
+    """
+    s = tau / span
+    s2 = s * s
+    s3 = s2 * s
+    h00 = 2.0 * s3 - 3.0 * s2 + 1.0
+    h10 = s3 - 2.0 * s2 + s
+    h01 = -2.0 * s3 + 3.0 * s2
+    h11 = s3 - s2
+    for k in range(2):
+        out[k] = h00 * node_a[k] + h10 * span * node_a[2 + k] + h01 * node_b[k] + h11 * span * node_b[2 + k]
+        out[2 + k] = h00 * node_a[2 + k] + h10 * span * accel_a[k] + h01 * node_b[2 + k] + h11 * span * accel_b[k]
+
+
+@jit
+def advance_nodes(mission, vehicle, atmosphere, nodes, accels, span, stage):
+    """Move node b to a and integrate a new node b one ``span`` ahead (RK4)."""
+    for k in range(4):
+        nodes[0, k] = nodes[1, k]
+    accels[0, 0] = accels[1, 0]
+    accels[0, 1] = accels[1, 1]
+    trajectory_step(mission, vehicle, atmosphere, nodes[1], span, stage)
+    ax, az = acceleration(mission, vehicle, atmosphere, nodes[1])
+    accels[1, 0] = ax
+    accels[1, 1] = az

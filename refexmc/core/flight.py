@@ -69,6 +69,7 @@ from refexmc.core.layout import (
     M_SEP_RATES,
     M_SSM_RATE,
     M_SUN_DIRECTION,
+    M_TRAJECTORY_STEP,
     MODE_DONE,
     MODE_EAM,
     MODE_GEEM,
@@ -163,7 +164,9 @@ def run_flight(
     # --- work arrays, allocated once per run ----------------------------------------------
     x = np.empty(dynamics.STATE_SIZE)
     work = np.empty((8, dynamics.STATE_SIZE))
-    traj = np.empty(environment.TRAJECTORY_STATE_SIZE)
+    traj = np.empty(environment.TRAJECTORY_STATE_SIZE)  # interpolated state at t
+    nodes = np.empty((2, environment.TRAJECTORY_STATE_SIZE))  # RK4 nodes bracketing t
+    node_accels = np.empty((2, 2))
     stage = np.empty(environment.TRAJECTORY_STATE_SIZE)
     valve_state = np.zeros((n_thr, rcs.VALVE_STATE_SIZE))
     arms = np.empty((n_thr, 3))
@@ -195,7 +198,12 @@ def run_flight(
     side[2, 0] = mission[M_SSM_RATE]
 
     # --- initial state: body x along the velocity, wings level, then the separation error -----
-    environment.initial_state(mission, traj)
+    span = mission[M_TRAJECTORY_STEP]
+    environment.initial_state(mission, nodes[1])
+    node_accels[1, 0], node_accels[1, 1] = environment.acceleration(mission, vehicle, atmosphere, nodes[1])
+    environment.advance_nodes(mission, vehicle, atmosphere, nodes, node_accels, span, stage)
+    node_index = 0  # nodes[0] is at node_index * span
+    environment.interpolate(nodes[0], node_accels[0], nodes[1], node_accels[1], span, 0.0, traj)
     quaternion.from_rotation_vector(0.0, mission[M_SEP_FLIGHT_PATH], 0.0, tmp4)
     sep = mission[M_SEP_ATTITUDE : M_SEP_ATTITUDE + 3]
     quaternion.from_rotation_vector(sep[0], sep[1], sep[2], q_ref)
@@ -227,6 +235,10 @@ def run_flight(
 
     while True:
         t = step * dt
+        while t >= (node_index + 1) * span - 1e-9:
+            environment.advance_nodes(mission, vehicle, atmosphere, nodes, node_accels, span, stage)
+            node_index += 1
+        environment.interpolate(nodes[0], node_accels[0], nodes[1], node_accels[1], span, t - node_index * span, traj)
         altitude = environment.altitude(mission, traj)
         climb = environment.climb_rate(mission, traj)
         qbar = environment.dynamic_pressure(mission, vehicle, atmosphere, traj)
@@ -325,11 +337,14 @@ def run_flight(
                 accel_ref[i] = 0.0
 
         # total angle error: true attitude to the mode's final reference attitude (000 sec. 6.1)
+        finished = mode == MODE_DONE or failure != FAIL_NONE
+        record = (step % history_every == 0 or finished) and rows < history.shape[0]
         theta_t = math.nan
-        if mode == MODE_SAM or mode == MODE_EAM:
-            theta_t = quaternion.angle_between(x[0:4], q_final)
-        elif has_attitude_reference:
-            theta_t = quaternion.angle_between(x[0:4], q_ref)
+        if record or mode == MODE_DONE:
+            if mode == MODE_SAM or mode == MODE_EAM:
+                theta_t = quaternion.angle_between(x[0:4], q_final)
+            elif has_attitude_reference:
+                theta_t = quaternion.angle_between(x[0:4], q_ref)
         if mode == MODE_DONE:
             theta_handover = theta_t
             if theta_t > mission[M_HANDOVER_ANGLE]:
@@ -375,7 +390,7 @@ def run_flight(
 
         # --- history ----------------------------------------------------------------------------
         finished = mode == MODE_DONE or failure != FAIL_NONE
-        if (step % history_every == 0 or finished) and rows < history.shape[0]:
+        if record:
             _write_history(
                 history,
                 rows,
@@ -403,13 +418,17 @@ def run_flight(
         t_end = t + dt
         exhausted = False
         while t_seg < t_end - 1e-12:
-            for i in range(n_thr):
-                rcs.apply_reactions(valve_state, thrusters, i, t_seg, level)
-            t_next = rcs.next_breakpoint(valve_state, n_thr, t_seg, t_end)
-            impulse = 0.0
-            if fuel > 0.0:
+            active = rcs.any_active(valve_state, n_thr)
+            if active:
+                for i in range(n_thr):
+                    rcs.apply_reactions(valve_state, thrusters, i, t_seg, level)
+                t_next = rcs.next_breakpoint(valve_state, n_thr, t_seg, t_end)
+            else:  # coasting: the whole rest of the period is one thrust-free segment
+                t_next = t_end
+            if active and fuel > 0.0:
                 impulse = rcs.segment_thrust(valve_state, thrusters, vehicle, arms, level, t_seg, t_next, tau0, tau1)
             else:
+                impulse = 0.0
                 for i in range(3):
                     tau0[i] = 0.0
                     tau1[i] = 0.0
@@ -430,7 +449,6 @@ def run_flight(
                 fuel = 0.0
                 exhausted = True
             t_seg = t_next
-        environment.trajectory_step(mission, vehicle, atmosphere, traj, dt, stage)
         if mode < N_MODES:
             summary[S_T_MODE + mode] += dt
         if mode == MODE_SSM:

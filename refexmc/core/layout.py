@@ -111,6 +111,7 @@ M_GEEM_EXIT_ALTITUDE = MISSION.add("geem_exit_altitude_m")
 M_HANDOVER_ANGLE = MISSION.add("handover_max_angle_rad")
 M_MAX_TIME = MISSION.add("max_flight_time_s")
 M_MAX_STEP = MISSION.add("integrator_max_step_s")
+M_TRAJECTORY_STEP = MISSION.add("trajectory_step_s")  # RK4 node spacing, Hermite in between
 MISSION_SIZE = MISSION.size
 
 # --- navigation errors ------------------------------------------------------------------------

@@ -201,3 +201,12 @@ def open_mask(valve_state, n_thrusters, t):
         if level_at(valve_state, i, t) > 0.0:
             mask |= 1 << i
     return mask
+
+
+@jit
+def any_active(valve_state, n_thrusters):
+    """True if some thruster produces thrust, ramps, or has a reaction pending."""
+    for i in range(n_thrusters):
+        if valve_state[i, VS_PENDING_COUNT] > 0.0 or valve_state[i, VS_SLOPE] != 0.0 or valve_state[i, VS_LEVEL] > 0.0:
+            return True
+    return False
