@@ -4,14 +4,44 @@ Every kernel in ``refexmc.core`` is decorated with :func:`jit`. Compiled code is
 disk (``cache=True``) so that a new process starts without recompiling; ``fastmath`` stays off
 so that results are bit-for-bit reproducible. ``REFEXMC_DISABLE_JIT=1`` runs the kernels as
 plain Python (slow; for debugging and coverage).
+
+Numba keys a cached function on its own source file only, so an edit to a kernel that another
+file's kernel calls would leave a stale cache behind. The cache therefore lives in a directory
+named by a hash of every core source file: any change to the core starts a fresh cache.
+Location: ``$NUMBA_CACHE_DIR/refexmc-<hash>`` if that variable is set, else
+``$XDG_CACHE_HOME/refexmc/numba-<hash>`` (default ``~/.cache``).
 """
 
+import hashlib
 import os
+from pathlib import Path
 
 import numba
 
 JIT_OPTIONS = {"cache": True, "fastmath": False, "nogil": True, "error_model": "numpy"}
 DISABLED = os.environ.get("REFEXMC_DISABLE_JIT", "0") not in ("", "0")
+
+
+def _source_hash():
+    package = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted([package / "_jit.py", *(package / "core").glob("*.py")]):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    digest.update(numba.__version__.encode())
+    return digest.hexdigest()[:16]
+
+
+def cache_dir():
+    """Where compiled kernels of this exact core source are cached."""
+    tag = _source_hash()
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"]) / f"refexmc-{tag}"
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "refexmc" / f"numba-{tag}"
+
+
+numba.config.CACHE_DIR = str(cache_dir())
 
 
 def jit(function):

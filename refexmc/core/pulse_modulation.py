@@ -10,6 +10,9 @@ P_T_OFF = 1  # time the axis last ended a pulse
 P_OUTPUT = 2  # last output w in {-1, 0, 1}
 PWPF_STATE_SIZE = 3
 _NEVER = -1.0e9
+# Times are step * dt, so t - t_s carries ~1e-15 s of roundoff; at 40 Hz the bounds of eq. 47-48
+# are often whole control periods, and the "<=" must not be decided by that roundoff.
+_EPS_T = 1e-9
 
 
 @jit
@@ -54,13 +57,17 @@ def modulate(state, axis, torque_cmd, torque_max, tau_min_fraction, t_on, t_off,
         sign = 1.0 if f > 0.0 else -1.0
         f_abs = abs(f)
         if f_abs >= torque_max:
-            w = sign
+            # eq. 45-48 in the limit |f| -> tau_max: an endless pulse after a rest of t_off + delta gamma
+            if firing:
+                w = sign
+            else:
+                w = 0.0 if t - state[axis, P_T_OFF] <= t_off + correction + _EPS_T else sign
         else:
             gamma, period = pulse_timing(f_abs, torque_max, t_on, t_off)
             if firing:
-                w = sign if t - state[axis, P_T_ON] <= gamma - correction else 0.0  # eq. 47
+                w = sign if t - state[axis, P_T_ON] <= gamma - correction + _EPS_T else 0.0  # eq. 47
             else:
-                w = 0.0 if t - state[axis, P_T_OFF] <= period - (gamma - correction) else sign  # eq. 48
+                w = 0.0 if t - state[axis, P_T_OFF] <= period - (gamma - correction) + _EPS_T else sign  # eq. 48
     if firing and w == 0.0:
         state[axis, P_T_OFF] = t
     elif not firing and w != 0.0:

@@ -1,0 +1,253 @@
+"""Slow, obvious twins of the numba kernels, written from 000 and the reference model.
+
+Each function here is plain Python, readable next to the equation it cites, and shares no code
+with ``refexmc.core``. The unit tests compare the kernels with them.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.polynomial import Polynomial
+
+# --------------------------------------------------------------------------------------------
+# Pulse-width pulse-frequency modulation, 000 eq. 41-48
+# --------------------------------------------------------------------------------------------
+
+
+def pwpf_shaped_command(tau_c, tau_max, tau_min):
+    """f(tau_c) of 000 eq. 43."""
+    if abs(tau_c) > tau_max:
+        return math.copysign(tau_max, tau_c)
+    if abs(tau_c) >= tau_min:
+        return tau_c
+    return 0.0
+
+
+def pwpf_f_min(tau_max, t_on, t_off):
+    """f_min of 000 eq. 44."""
+    return tau_max * t_on / (t_on + t_off)
+
+
+def pwpf_pulse(f_abs, tau_max, t_on, t_off):
+    """(gamma_k, T_k) of 000 eq. 45-46; gamma = T = inf at saturation (|f| = tau_max)."""
+    if f_abs >= tau_max:
+        return math.inf, math.inf
+    if f_abs >= pwpf_f_min(tau_max, t_on, t_off):
+        gamma = t_off * f_abs / (tau_max - f_abs)
+    else:
+        gamma = t_on
+    return gamma, tau_max * gamma / f_abs
+
+
+# Time comparisons as in exact arithmetic: times are step * dt in float64, so a difference of
+# two of them is off the ideal value by ~1e-15 s; 1 ns is far below any control period.
+TIME_EPS = 1e-9
+
+
+class NaivePWPF:
+    """One axis of the Kienitz-Bals modulator with the delay correction (000 eq. 47-48).
+
+    ``t_s_on`` / ``t_s_off`` are the times of the last pulse start / end (None: never). At
+    saturation eq. 45 gives an endless pulse, started after the limiting rest t_off + delta gamma. The "<=" of
+    eq. 47-48 is evaluated as in exact arithmetic (``TIME_EPS``).
+    """
+
+    def __init__(self, tau_max, tau_min_fraction, t_on, t_off, correction):
+        self.tau_max = tau_max
+        self.tau_min = tau_min_fraction * tau_max
+        self.t_on = t_on
+        self.t_off = t_off
+        self.correction = correction
+        self.t_s_on = None
+        self.t_s_off = None
+        self.firing = False
+
+    def step(self, t, tau_c):
+        f = pwpf_shaped_command(tau_c, self.tau_max, self.tau_min)
+        if f == 0.0:
+            w = 0
+        else:
+            sign = 1 if f > 0 else -1
+            gamma, period = pwpf_pulse(abs(f), self.tau_max, self.t_on, self.t_off)
+            if math.isinf(gamma):  # limit |f| -> tau_max: endless pulse after a rest of t_off + delta gamma
+                if self.firing or self.t_s_off is None:
+                    w = sign
+                else:
+                    w = 0 if t - self.t_s_off <= self.t_off + self.correction + TIME_EPS else sign
+            elif self.firing:  # eq. 47
+                w = sign if t - self.t_s_on <= gamma - self.correction + TIME_EPS else 0
+            elif self.t_s_off is None:  # never fired: nothing to rest from
+                w = sign
+            else:  # eq. 48
+                w = 0 if t - self.t_s_off <= period - (gamma - self.correction) + TIME_EPS else sign
+        if self.firing and w == 0:
+            self.firing = False
+            self.t_s_off = t
+        elif not self.firing and w != 0:
+            self.firing = True
+            self.t_s_on = t
+        return w
+
+
+# --------------------------------------------------------------------------------------------
+# Allocation rule, 000 sec. 5 (the text that Table 3 tabulates)
+# --------------------------------------------------------------------------------------------
+
+ROLL_SET = {+1: {2, 3}, -1: {1, 4}}  # thrusters 1 and 4, 2 and 3 fire together for roll
+PITCH_SET = {+1: {1, 2, 7}, -1: {3, 4, 8}}  # a pure pitch torque uses three thrusters
+PITCH_ONLY = {+1: 7, -1: 8}  # the dedicated pitch thrusters
+YAW_SET = {+1: {6}, -1: {5}}  # yaw only from 5 and 6
+
+
+def allocate(wx, wy, wz):
+    """Thruster ids (1-based) for modulator outputs, by the rule of 000 sec. 5.
+
+    Roll and pitch together: the roll pair plus the dedicated pitch thruster (the pitch-set
+    thrusters that would counteract the roll pair are left out). Yaw adds its own thruster.
+    """
+    ids = set()
+    if wx and wy:
+        ids |= ROLL_SET[wx] | {PITCH_ONLY[wy]}
+    elif wx:
+        ids |= ROLL_SET[wx]
+    elif wy:
+        ids |= PITCH_SET[wy]
+    if wz:
+        ids |= YAW_SET[wz]
+    return ids
+
+
+# --------------------------------------------------------------------------------------------
+# Guidance polynomials, 000 eq. 7-9, 17-18, 22-27 (derivatives by polynomial differentiation)
+# --------------------------------------------------------------------------------------------
+
+
+def quintic_polynomial(t1):
+    """h(t) of 000 eq. 7 as a Polynomial in t."""
+    return Polynomial([0.0, 0.0, 0.0, 10.0 / t1**3, -15.0 / t1**4, 6.0 / t1**5])
+
+
+def quintic(t, t1):
+    """(h, h', h'') at ``t``; the final state (1, 0, 0) is held for t > t1 (000 sec. 3.1)."""
+    if t >= t1:
+        return 1.0, 0.0, 0.0
+    p = quintic_polynomial(t1)
+    return p(t), p.deriv(1)(t), p.deriv(2)(t)
+
+
+def cubic_rate_polynomial(t1):
+    """Rate factor of 000 eq. 17: omega(t) = factor(t) * omega_0."""
+    return Polynomial([1.0, 0.0, -3.0 / t1**2, 2.0 / t1**3])
+
+
+def cubic_rate(t, t1):
+    """(factor, factor') of 000 eq. 17-18; (0, 0) after t1."""
+    if t >= t1:
+        return 0.0, 0.0
+    p = cubic_rate_polynomial(t1)
+    return p(t), p.deriv(1)(t)
+
+
+def quartic_angle_polynomial(t1):
+    """Angle factor of 000 eq. 22: phi(t) = factor(t) * omega_1."""
+    return Polynomial([0.0, 0.0, 0.0, 1.0 / t1**2, -0.5 / t1**3])
+
+
+def quartic_spin_up(t, t1):
+    """(angle, rate, accel) factors of 000 eq. 22-24, continued by eq. 25-27 after t1."""
+    p = quartic_angle_polynomial(t1)
+    if t > t1:
+        return p(t1) + (t - t1), 1.0, 0.0
+    return p(t), p.deriv(1)(t), p.deriv(2)(t)
+
+
+# --------------------------------------------------------------------------------------------
+# Valve thrust profile (000 Fig. 6, Table 2; reference-model sec. 2) and its exact integral
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ValveTimes:
+    """Delays and full-swing ramp times of one valve (s)."""
+
+    on_delay: float
+    rise: float
+    off_delay: float
+    fall: float
+
+
+def valve_reactions(commands, times):
+    """Times at which the valve starts to react, from ``[(t_command, is_open), ...]``.
+
+    Each command reacts after its delay. A command whose reaction comes before a pending one
+    of an earlier command cancels that one (the later command wins).
+    """
+    reactions = []
+    for t, is_open in sorted(commands, key=lambda c: c[0]):
+        t_react = t + (times.on_delay if is_open else times.off_delay)
+        reactions = [r for r in reactions if r[0] <= t_react]
+        reactions.append((t_react, is_open))
+    return reactions
+
+
+def valve_knots(commands, times):
+    """Knots ``[(t, level), ...]`` of the piecewise-linear normalised thrust level.
+
+    Zero before the first knot; constant after the last. Every reaction starts a ramp from the
+    level at that instant toward 1 (open) or 0 (close) at the full-swing slope.
+    """
+    knots = []
+    level, t_level, slope = 0.0, -math.inf, 0.0
+
+    def level_at(t):
+        if slope == 0.0:
+            return level
+        return min(1.0, max(0.0, level + slope * (t - t_level)))
+
+    reactions = valve_reactions(commands, times)
+    for k, (t_react, is_open) in enumerate(reactions):
+        start = level_at(t_react)
+        knots.append((t_react, start))
+        target = 1.0 if is_open else 0.0
+        ramp = times.rise if is_open else times.fall
+        level, t_level, slope = start, t_react, (1.0 if is_open else -1.0) / ramp
+        t_done = t_react + abs(target - start) * ramp
+        t_following = reactions[k + 1][0] if k + 1 < len(reactions) else math.inf
+        if t_done < t_following:
+            knots.append((t_done, target))
+    return knots
+
+
+def level(knots, t):
+    """Normalised thrust level at ``t`` from the knots."""
+    if not knots or t <= knots[0][0]:
+        return 0.0
+    ts = [k[0] for k in knots]
+    ls = [k[1] for k in knots]
+    return float(np.interp(t, ts, ls))
+
+
+def thrust_impulse(knots_per_thruster, nominal_thrust, derating, t_start, t_end, arms=None):
+    """Exact impulse (N s) and angular impulse (N m s) of several valves over [t_start, t_end].
+
+    Thrust of valve i: nominal * derating[n - 1] * level_i, with n the number of valves whose
+    level is above zero (more than len(derating) valves: the last factor). Between consecutive
+    knots of all valves every level is linear and n is constant, so the trapezoid rule is exact.
+    """
+    times = {t_start, t_end}
+    for knots in knots_per_thruster:
+        times |= {t for t, _ in knots if t_start < t < t_end}
+    times = sorted(times)
+    impulse = 0.0
+    angular = np.zeros(3)
+    for a, b in zip(times[:-1], times[1:], strict=True):
+        mid = 0.5 * (a + b)
+        n_open = sum(level(k, mid) > 0.0 for k in knots_per_thruster)
+        factor = derating[min(n_open, len(derating)) - 1] if n_open else 1.0
+        for i, knots in enumerate(knots_per_thruster):
+            area = 0.5 * (level(knots, a) + level(knots, b)) * (b - a)
+            impulse += nominal_thrust * factor * area
+            if arms is not None:
+                angular += nominal_thrust * factor * area * np.asarray(arms[i])
+    return impulse, angular

@@ -1,0 +1,323 @@
+"""Reaction control system (refexmc/core/rcs.py) against the naive valve profile.
+
+The kernels are stepped the way refexmc/core/flight.py steps them: commands at control times,
+then the period is integrated in segments that end on ``next_breakpoint``. Impulses are sums of
+exact trapezoids on both sides, so they agree to rounding: ``REL = 1e-12``.
+"""
+
+import copy
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from naive import ValveTimes, level, thrust_impulse, valve_knots
+
+from refexmc.config.pack import pack_thrusters, pack_vehicle
+from refexmc.core import layout, rcs
+
+REL = 1e-12  # both sides are exact piecewise-linear integrals; only rounding separates them
+DT = 0.025  # control period, 000 sec. 5 (40 Hz)
+DERATING = (1.00, 0.91, 0.73, 0.65)  # 000 sec. 2.1
+TABLE_2 = {  # 000 Table 2, mean time constants in s
+    rcs.LEVEL_LOW: ValveTimes(0.0191, 0.0045, 0.0516, 0.1457),
+    rcs.LEVEL_HIGH: ValveTimes(0.0256, 0.0053, 0.0530, 0.1390),
+}
+
+
+def set_times(thrusters, thrust_level, times, rows=None):
+    """Overwrite the valve time constants of ``rows`` (all by default) at one thrust level."""
+    out = thrusters.copy()
+    col = layout.T_ON_DELAY_LOW + layout.TIME_CONSTANTS_PER_LEVEL * thrust_level
+    rows = range(out.shape[0]) if rows is None else rows
+    for i in rows:
+        out[i, col : col + 4] = [times.on_delay, times.rise, times.off_delay, times.fall]
+    return out
+
+
+def fly_valves(thrusters, vehicle, commands, t_end, thrust_level, dt=DT):
+    """Drive the RCS kernels like the run loop: ``commands`` maps a step to [(thruster, open)].
+
+    Returns impulse (N s), angular impulse (N m s), the segment boundaries and the valve state.
+    """
+    n = thrusters.shape[0]
+    valve_state = np.zeros((n, rcs.VALVE_STATE_SIZE))
+    rcs.reset(valve_state)
+    arms = np.empty((n, 3))
+    rcs.torque_arms(thrusters, vehicle, arms)
+    tau0, tau1 = np.empty(3), np.empty(3)
+    impulse, angular, boundaries = 0.0, np.zeros(3), [0.0]
+    for step in range(int(round(t_end / dt))):
+        t = step * dt
+        for i, is_open in commands.get(step, ()):
+            rcs.command(valve_state, thrusters, i, is_open, t, thrust_level)
+        t_seg = t
+        while t_seg < t + dt - 1e-12:
+            for i in range(n):
+                rcs.apply_reactions(valve_state, thrusters, i, t_seg, thrust_level)
+            t_next = rcs.next_breakpoint(valve_state, n, t_seg, t + dt)
+            impulse += rcs.segment_thrust(
+                valve_state, thrusters, vehicle, arms, thrust_level, t_seg, t_next, tau0, tau1
+            )
+            angular += 0.5 * (tau0 + tau1) * (t_next - t_seg)
+            boundaries.append(t_next)
+            t_seg = t_next
+    return impulse, angular, np.array(boundaries), valve_state
+
+
+def naive_commands(commands, thruster, dt=DT):
+    return [(step * dt, is_open) for step, cmds in sorted(commands.items()) for i, is_open in cmds if i == thruster]
+
+
+@pytest.fixture(scope="module")
+def vehicle(inputs):
+    return inputs.vehicle
+
+
+@pytest.fixture(scope="module")
+def thrusters(inputs):
+    return inputs.thrusters
+
+
+def nominal_thrust(vehicle, thrust_level):
+    return vehicle[layout.V_THRUST_HIGH if thrust_level == rcs.LEVEL_HIGH else layout.V_THRUST_LOW]
+
+
+def arms_of(thrusters, vehicle):
+    arms = np.empty((thrusters.shape[0], 3))
+    rcs.torque_arms(thrusters, vehicle, arms)
+    return arms
+
+
+# --- one valve: analytic impulse --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("thrust_level", [rcs.LEVEL_LOW, rcs.LEVEL_HIGH])
+@pytest.mark.parametrize("close_step", [1, 4, 9])
+def test_single_pulse_impulse_is_analytic(vehicle, thrusters, thrust_level, close_step):
+    """Open at 0, close at t1 (000 Fig. 6): full thrust from lambda_on + delta_r / 2 to
+    t1 + lambda_off + delta_f / 2 in area, so impulse = F (t1 + lambda_off + delta_f/2 - lambda_on - delta_r/2).
+
+    Valid while the close reaction comes after the rise: t1 + lambda_off > lambda_on + delta_r.
+    """
+    c = TABLE_2[thrust_level]
+    t1 = close_step * DT
+    commands = {0: [(6, True)], close_step: [(6, False)]}
+    impulse, angular, _, _ = fly_valves(thrusters, vehicle, commands, 0.5, thrust_level)
+    force = nominal_thrust(vehicle, thrust_level)
+    expected = force * (t1 + c.off_delay + 0.5 * c.fall - c.on_delay - 0.5 * c.rise)
+    assert impulse == pytest.approx(expected, rel=REL)
+    # thruster 7 pushes +z at x = -1.05 m: pitch arm +1.05 m, nothing on roll or yaw
+    np.testing.assert_allclose(angular, [0.0, 1.05 * expected, 0.0], rtol=REL, atol=1e-15)
+
+
+# --- sequences with transients interrupted: kernels against the naive profile ------------------
+
+LOW = rcs.LEVEL_LOW
+SLOW_RISE = ValveTimes(on_delay=0.0191, rise=0.060, off_delay=0.010, fall=0.1457)  # synthetic
+
+SEQUENCES = {
+    # name: (times, {step: [(thruster, open)]}, duration)
+    "min pulse (25 ms command)": (TABLE_2[LOW], {0: [(0, True)], 1: [(0, False)]}, 0.4),
+    # close at 100 ms falls from 151.6 ms; the open at 200 ms reacts at 219.1 ms mid-fall (level 0.54)
+    "open during the fall": (TABLE_2[LOW], {0: [(0, True)], 4: [(0, False)], 8: [(0, True)], 12: [(0, False)]}, 0.7),
+    # Table 2's off delay outlasts the rise, so a close can only react mid-rise with a slower
+    # valve: open at 0 rises from 19.1 ms over 60 ms; the close at 25 ms reacts at 35 ms (0.265)
+    "close during the rise": (SLOW_RISE, {0: [(0, True)], 1: [(0, False)]}, 0.4),
+    # open at 125 ms reacts (144.1 ms) before the pending close of 100 ms (151.6 ms): it wins
+    "later open supersedes pending close": (
+        TABLE_2[LOW],
+        {0: [(0, True)], 4: [(0, False)], 5: [(0, True)], 12: [(0, False)]},
+        0.7,
+    ),
+    "high thrust pulse train": (
+        TABLE_2[rcs.LEVEL_HIGH],
+        {0: [(0, True)], 3: [(0, False)], 11: [(0, True)], 14: [(0, False)]},
+        0.7,
+    ),
+}
+
+
+@pytest.mark.parametrize("name", SEQUENCES)
+def test_command_sequence_matches_naive_profile(vehicle, thrusters, name):
+    times, commands, duration = SEQUENCES[name]
+    thrust_level = rcs.LEVEL_HIGH if times == TABLE_2[rcs.LEVEL_HIGH] else LOW
+    thr = set_times(thrusters, thrust_level, times)
+    impulse, angular, boundaries, _ = fly_valves(thr, vehicle, commands, duration, thrust_level)
+    knots = valve_knots(naive_commands(commands, 0), times)
+    expected, expected_angular = thrust_impulse(
+        [knots], nominal_thrust(vehicle, thrust_level), DERATING, 0.0, duration, arms_of(thr, vehicle)[:1]
+    )
+    assert impulse == pytest.approx(expected, rel=REL)
+    np.testing.assert_allclose(angular, expected_angular, rtol=REL, atol=1e-15)
+    # every kink of the profile is a segment boundary, so each RK4 step sees a linear torque
+    for t_knot, _ in knots:
+        if t_knot < duration:
+            assert np.abs(boundaries - t_knot).min() < 1e-12, f"kink at {t_knot} s is not a segment end"
+
+
+def test_open_during_fall_restarts_from_current_level(thrusters):
+    """000 sec. 5 / reference model: a new command mid-transient starts from the current level."""
+    times = SEQUENCES["open during the fall"][0]
+    thr = set_times(thrusters, LOW, times)
+    # open at 0, close at 100 ms, open at 200 ms; stop at the last reaction to read the level
+    valve_state = np.zeros((8, rcs.VALVE_STATE_SIZE))
+    for t, is_open in [(0.0, True), (0.1, False), (0.2, True)]:
+        rcs.apply_reactions(valve_state, thr, 0, t, LOW)
+        rcs.command(valve_state, thr, 0, is_open, t, LOW)
+    t_react = 0.2 + times.on_delay
+    rcs.apply_reactions(valve_state, thr, 0, t_react, LOW)
+    level_before = 1.0 - (t_react - 0.1 - times.off_delay) / times.fall  # on the fall, 0.537
+    assert rcs.level_at(valve_state, 0, t_react) == pytest.approx(level_before, rel=1e-12)
+    # then it rises at the full-swing slope 1/delta_r and reaches 1 after (1 - L) delta_r
+    t_full = t_react + (1.0 - level_before) * times.rise
+    assert rcs.level_at(valve_state, 0, t_full - 1e-4) == pytest.approx(1.0 - 1e-4 / times.rise, rel=1e-9)
+    assert rcs.next_breakpoint(valve_state, 8, t_react, 1.0) == pytest.approx(t_full, abs=1e-12)
+    assert rcs.level_at(valve_state, 0, t_full + 0.05) == 1.0
+
+
+# random command streams on all eight thrusters, with derating during overlapping transients
+streams = st.lists(
+    st.lists(st.booleans(), min_size=24, max_size=24),  # per step: does this thruster toggle?
+    min_size=8,
+    max_size=8,
+)
+
+
+@settings(deadline=None, max_examples=40)
+@given(streams, st.sampled_from([rcs.LEVEL_LOW, rcs.LEVEL_HIGH]))
+def test_random_command_streams_match_naive(inputs, toggles, thrust_level):
+    vehicle, thrusters = inputs.vehicle, inputs.thrusters
+    commands = {}
+    for i, row in enumerate(toggles):
+        is_open = False
+        for step, toggle in enumerate(row):
+            if toggle:
+                is_open = not is_open
+                commands.setdefault(step, []).append((i, is_open))
+    duration = 24 * DT + 0.25  # let the last falls finish
+    impulse, angular, _, _ = fly_valves(thrusters, vehicle, commands, duration, thrust_level)
+    knots = [valve_knots(naive_commands(commands, i), TABLE_2[thrust_level]) for i in range(8)]
+    expected, expected_angular = thrust_impulse(
+        knots, nominal_thrust(vehicle, thrust_level), DERATING, 0.0, duration, arms_of(thrusters, vehicle)
+    )
+    assert impulse == pytest.approx(expected, rel=1e-11, abs=1e-14)
+    np.testing.assert_allclose(angular, expected_angular, rtol=1e-11, atol=1e-12)
+
+
+# --- derating, failures, torque arms, propellant ----------------------------------------------
+
+IDEAL = ValveTimes(0.0, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("n_open", range(1, 9))
+@pytest.mark.parametrize("thrust_level", [rcs.LEVEL_LOW, rcs.LEVEL_HIGH])
+def test_derating_by_number_of_open_valves(vehicle, thrusters, n_open, thrust_level):
+    """Thrust per thruster F * derating[n]: 1.00 / 0.91 / 0.73 / 0.65, and 0.65 beyond four."""
+    thr = set_times(thrusters, thrust_level, IDEAL)
+    commands = {0: [(i, True) for i in range(n_open)]}
+    impulse, _, _, _ = fly_valves(thr, vehicle, commands, DT, thrust_level)
+    factor = DERATING[min(n_open, 4) - 1]
+    assert impulse == pytest.approx(n_open * nominal_thrust(vehicle, thrust_level) * factor * DT, rel=REL)
+    assert rcs.derating_factor(vehicle, n_open) == factor
+    assert rcs.derating_factor(vehicle, 0) == 1.0
+
+
+def test_derating_with_table_2_transients(vehicle, thrusters):
+    """Steady state with Table 2 valves: three open give 3 x 0.73 F after the rise."""
+    commands = {0: [(0, True), (1, True), (6, True)]}
+    impulse_a, _, _, _ = fly_valves(thrusters, vehicle, commands, 0.2, LOW)
+    impulse_b, _, _, _ = fly_valves(thrusters, vehicle, commands, 0.3, LOW)
+    assert impulse_b - impulse_a == pytest.approx(3 * 0.73 * nominal_thrust(vehicle, LOW) * 0.1, rel=1e-10)
+
+
+def test_failed_thrusters_never_open_and_use_no_propellant(vehicle_config, inputs):
+    thrusters = pack_thrusters(vehicle_config, failed=(2, 5))
+    vehicle = inputs.vehicle
+    commands = {0: [(i, True) for i in range(8)], 4: [(i, False) for i in range(8)]}
+    impulse, angular, _, valve_state = fly_valves(thrusters, vehicle, commands, 0.5, LOW)
+    for failed in (1, 4):  # 0-based rows of thrusters 2 and 5
+        assert valve_state[failed, rcs.VS_PENDING_COUNT] == 0 and valve_state[failed, rcs.VS_LEVEL] == 0.0
+    # the same as commanding only the six working thrusters (derating counts six open valves)
+    working = [i for i in range(8) if i not in (1, 4)]
+    reference = {0: [(i, True) for i in working], 4: [(i, False) for i in working]}
+    impulse_ref, angular_ref, _, _ = fly_valves(inputs.thrusters, vehicle, reference, 0.5, LOW)
+    assert impulse == pytest.approx(impulse_ref, rel=REL)
+    np.testing.assert_allclose(angular, angular_ref, rtol=REL, atol=1e-15)
+    # and the open mask never shows them
+    valve_state = np.zeros((8, rcs.VALVE_STATE_SIZE))
+    for i in range(8):
+        rcs.command(valve_state, thrusters, i, True, 0.0, LOW)
+        rcs.apply_reactions(valve_state, thrusters, i, 0.1, LOW)
+    assert rcs.open_mask(valve_state, 8, 0.1) == 0b11111111 & ~0b10010
+    # commanding only failed thrusters: no thrust, no torque, no propellant
+    only_failed = {0: [(1, True), (4, True)], 4: [(1, False), (4, False)]}
+    impulse, angular, _, _ = fly_valves(thrusters, vehicle, only_failed, 0.5, LOW)
+    assert impulse == 0.0 and not angular.any()
+    assert rcs.propellant_for_impulse(vehicle, impulse) == 0.0
+
+
+# 000 Table 3 / reference-model sec. 2: sign of (roll, pitch, yaw) torque of each thruster
+SIGN_TABLE = {
+    1: (-1, +1, 0),
+    2: (+1, +1, 0),
+    3: (+1, -1, 0),
+    4: (-1, -1, 0),
+    5: (0, 0, -1),
+    6: (0, 0, +1),
+    7: (0, +1, 0),
+    8: (0, -1, 0),
+}
+
+
+def test_torque_arms_are_r_cross_f_with_reference_signs(vehicle_config, inputs):
+    arms = arms_of(inputs.thrusters, inputs.vehicle)
+    r = np.array([t["position_m"] for t in vehicle_config["rcs"]["thrusters"]], float)
+    d = np.array([t["direction"] for t in vehicle_config["rcs"]["thrusters"]], float)
+    np.testing.assert_allclose(arms, np.cross(r, d / np.linalg.norm(d, axis=1, keepdims=True)), atol=1e-15)
+    for tid, signs in SIGN_TABLE.items():
+        np.testing.assert_array_equal(np.sign(np.round(arms[tid - 1], 12)), signs, err_msg=f"thruster {tid}")
+    np.testing.assert_allclose(arms[1], [0.171, 1.05, 0.0], atol=1e-15)  # reference-model check line
+
+
+def test_torque_arms_about_a_shifted_centre_of_mass(vehicle_config):
+    shifted = copy.deepcopy(vehicle_config)
+    shifted["com_offset_m"] = [0.02, -0.01, 0.03]
+    vehicle = pack_vehicle(shifted)
+    thrusters = pack_thrusters(shifted)
+    arms = arms_of(thrusters, vehicle)
+    r = thrusters[:, layout.T_POSITION : layout.T_POSITION + 3] - np.array([0.02, -0.01, 0.03])
+    d = thrusters[:, layout.T_DIRECTION : layout.T_DIRECTION + 3]
+    np.testing.assert_allclose(arms, np.cross(r, d), atol=1e-15)
+
+
+def test_propellant_is_impulse_over_isp_g0(vehicle):
+    isp = vehicle[layout.V_ISP]
+    assert isp == 70.0
+    assert rcs.propellant_for_impulse(vehicle, 10.0) == pytest.approx(10.0 / (70.0 * 9.80665), rel=1e-15)
+    assert rcs.STANDARD_GRAVITY == 9.80665  # defines Isp in seconds
+
+
+def test_idle_valves_have_no_breakpoints_and_no_thrust(vehicle, thrusters):
+    valve_state = np.zeros((8, rcs.VALVE_STATE_SIZE))
+    assert rcs.next_breakpoint(valve_state, 8, 0.0, 0.025) == 0.025
+    tau0, tau1 = np.ones(3), np.ones(3)
+    assert (
+        rcs.segment_thrust(valve_state, thrusters, vehicle, arms_of(thrusters, vehicle), LOW, 0.0, 0.025, tau0, tau1)
+        == 0.0
+    )
+    assert not tau0.any() and not tau1.any()
+
+
+def test_naive_profile_sanity():
+    """The twin itself: a 100 ms command gives the Fig. 6 trapezoid."""
+    c = TABLE_2[LOW]
+    knots = valve_knots([(0.0, True), (0.1, False)], c)
+    expected = [
+        (c.on_delay, 0.0),
+        (c.on_delay + c.rise, 1.0),
+        (0.1 + c.off_delay, 1.0),
+        (0.1 + c.off_delay + c.fall, 0.0),
+    ]
+    np.testing.assert_allclose(knots, expected, atol=1e-15)
+    assert level(knots, 0.01) == 0.0 and level(knots, 0.05) == 1.0
