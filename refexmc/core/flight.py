@@ -157,7 +157,8 @@ def run_flight(
     dt = fsw[F_CONTROL_PERIOD]
     max_step = mission[M_MAX_STEP]
     inertia = vehicle[V_INERTIA : V_INERTIA + 9].copy().reshape((3, 3))
-    inertia_inv = np.linalg.inv(inertia)
+    inertia_inv = np.empty((3, 3))
+    dynamics.invert_3x3(inertia, inertia_inv)
     fsw_inertia = fsw[F_INERTIA : F_INERTIA + 9].copy().reshape((3, 3))
     propellant0 = vehicle[V_PROPELLANT]
 
@@ -184,6 +185,12 @@ def run_flight(
     work34 = np.empty((3, 4))
     work33 = np.empty((3, 3))
     side = np.empty((3, 3))  # horizontal, sun, spin rate
+    gains = np.empty((2, 2, 3))  # [level][kp, kd][axis], no views created in the loop
+    for lv in range(2):
+        for i in range(3):
+            gains[lv, 0, i] = fsw[F_KP + 3 * lv + i]
+            gains[lv, 1, i] = fsw[F_KD + 3 * lv + i]
+    kp_low, kd_low, kp_high, kd_high = gains[0, 0], gains[0, 1], gains[1, 0], gains[1, 1]
     accel_low = np.empty(3)
     accel_high = np.empty(3)
     rng_state = np.empty(1, dtype=np.uint64)
@@ -372,8 +379,8 @@ def run_flight(
                 rate_error,
                 rate_meas,
                 accel_ref,
-                fsw[F_KP + 3 * level : F_KP + 3 * level + 3],
-                fsw[F_KD + 3 * level : F_KD + 3 * level + 3],
+                kp_high if level == rcs.LEVEL_HIGH else kp_low,
+                kd_high if level == rcs.LEVEL_HIGH else kd_low,
                 fsw_inertia,
                 attitude_controlled,
                 torque_cmd,
@@ -421,7 +428,8 @@ def run_flight(
             active = rcs.any_active(valve_state, n_thr)
             if active:
                 for i in range(n_thr):
-                    rcs.apply_reactions(valve_state, thrusters, i, t_seg, level)
+                    if valve_state[i, rcs.VS_PENDING_COUNT] > 0.0:
+                        rcs.apply_reactions(valve_state, thrusters, i, t_seg, level)
                 t_next = rcs.next_breakpoint(valve_state, n_thr, t_seg, t_end)
             else:  # coasting: the whole rest of the period is one thrust-free segment
                 t_next = t_end
