@@ -49,3 +49,14 @@ def jit(function):
     if DISABLED:
         return function
     return numba.njit(**JIT_OPTIONS)(function)
+
+
+def jit_inline(function):
+    """Like :func:`jit`, but inlined into its callers at numba IR level.
+
+    For thin dispatchers called every control step: inlining removes a call layer whose array
+    arguments would each cost a reference-count increment and decrement.
+    """
+    if DISABLED:
+        return function
+    return numba.njit(inline="always", **JIT_OPTIONS)(function)

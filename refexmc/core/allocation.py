@@ -5,7 +5,7 @@ fuel-optimal allocation, reaction wheels) add a branch to :func:`thruster_comman
 run loop unchanged.
 """
 
-from refexmc._jit import jit
+from refexmc._jit import jit, jit_inline
 from refexmc.core import pulse_modulation
 from refexmc.core.layout import (
     ACTUATION_PWPF_TABLE,
@@ -31,7 +31,7 @@ def table_lookup(table, wx, wy, wz, out):
         out[i] = table[row, i]
 
 
-@jit
+@jit_inline
 def thruster_commands(actuation_id, fsw, thrust_level, torque_cmd, pwpf_state, table, t, pulse_out, desired):
     """Desired open (1) / closed (0) state of each thruster for this control step.
 

@@ -4,12 +4,12 @@ The controller is chosen by ``controller_id`` (layout.CONTROLLER_*); new laws ad
 :func:`torque_command` and leave the run loop alone.
 """
 
-from refexmc._jit import jit
+from refexmc._jit import jit_inline
 from refexmc.core import quaternion
 from refexmc.core.layout import CONTROLLER_PD_FEEDBACK_LINEARISATION
 
 
-@jit
+@jit_inline
 def control_errors(q_meas, rate_meas, q_ref, rate_ref, q_error, rate_error):
     """Quaternion error q_e = conj(q_ref) (x) q_meas (shortest arc) and rate error (000 eq. 35)."""
     quaternion.conj_multiply(q_ref, q_meas, q_error)
@@ -20,7 +20,7 @@ def control_errors(q_meas, rate_meas, q_ref, rate_ref, q_error, rate_error):
         rate_error[i] = rate_meas[i] - rate_ref[i]
 
 
-@jit
+@jit_inline
 def pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out):
     """u = J v + omega x J omega with v = omega_dot_g - Kd omega_e - Kp q_e,vec (000 eq. 30, 35).
 
@@ -42,7 +42,7 @@ def pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd,
     out[2] = inertia[2, 0] * v0 + inertia[2, 1] * v1 + inertia[2, 2] * v2 + (wx * hy - wy * hx)
 
 
-@jit
+@jit_inline
 def torque_command(controller_id, q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out):
     """Commanded torque (N m, body axes) of the configured controller."""
     if controller_id == CONTROLLER_PD_FEEDBACK_LINEARISATION:

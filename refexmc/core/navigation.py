@@ -7,7 +7,7 @@ scan runs and keeps its decayed value afterwards (000 sec. 2.2, 6.2).
 
 import math
 
-from refexmc._jit import jit
+from refexmc._jit import jit, jit_inline
 from refexmc.core import quaternion, rng
 from refexmc.core.layout import N_ATT_BIAS, N_ATT_NOISE, N_CALIBRATION_TIME, N_RATE_BIAS, N_RATE_NOISE
 
@@ -21,7 +21,7 @@ def calibration_factor(nav, time_in_ssm):
     return math.exp(-time_in_ssm / tau)
 
 
-@jit
+@jit_inline
 def measure(x, nav, time_in_ssm, rng_state, q_out, rate_out, work4):
     """Measured attitude quaternion and body rates from the true state ``x``."""
     factor = calibration_factor(nav, time_in_ssm)

@@ -3,7 +3,7 @@
 One modulator per body axis; its state is a caller-owned row ``[t_s_on, t_s_off, w]``.
 """
 
-from refexmc._jit import jit
+from refexmc._jit import jit, jit_inline
 
 P_T_ON = 0  # time the axis last started a pulse
 P_T_OFF = 1  # time the axis last ended a pulse
@@ -46,7 +46,7 @@ def pulse_timing(f_abs, torque_max, t_on, t_off):
     return gamma, torque_max * gamma / f_abs
 
 
-@jit
+@jit_inline
 def modulate(state, axis, torque_cmd, torque_max, tau_min_fraction, t_on, t_off, correction, t):
     """Modulator output w in {-1, 0, 1} for this control step (000 eq. 47-48)."""
     f = shaped_command(torque_cmd, torque_max, tau_min_fraction * torque_max)
