@@ -8,8 +8,7 @@ from pathlib import Path
 import click
 
 from refexmc.config.errors import ConfigError
-
-MODE_NAMES = ("NCM", "RDM1", "SAM", "SSM", "RDM2", "EAM", "GEEM")
+from refexmc.core.layout import MODE_NAMES
 
 
 def _bad_input(message):
