@@ -176,10 +176,11 @@ def run_flight(
     desired = np.zeros(n_thr, dtype=np.int64)
     changes = np.zeros(n_thr, dtype=np.int64)
     guid = np.zeros(guidance.GUIDANCE_STATE_SIZE)
-    vec = np.zeros((12, 3))
+    vec = np.zeros((13, 3))
     rate_meas, rate_ref, accel_ref, rate_error = vec[0], vec[1], vec[2], vec[3]
     torque_cmd, pulse, tau0, tau1, tau_a, tau_b, aero = vec[4], vec[5], vec[6], vec[7], vec[8], vec[9], vec[10]
     rotvec = vec[11]
+    inertial_rate = vec[12]  # GEEM reference rate, inertial axes
     quat = np.zeros((5, 4))
     q_meas, q_ref, q_error, q_final, tmp4 = quat[0], quat[1], quat[2], quat[3], quat[4]
     work34 = np.empty((3, 4))
@@ -330,10 +331,8 @@ def run_flight(
                 work34,
             )
             pitch_rate = environment.velocity_pitch_rate(mission, vehicle, atmosphere, traj)
-            side[0, 0] = 0.0
-            side[0, 1] = pitch_rate
-            side[0, 2] = 0.0
-            quaternion.rotate_inverse(q_ref, side[0], rate_ref)
+            inertial_rate[1] = pitch_rate  # the velocity turns about inertial y
+            quaternion.rotate_inverse(q_ref, inertial_rate, rate_ref)
             for i in range(3):
                 accel_ref[i] = 0.0
         else:  # NCM: no reference, actuators locked
