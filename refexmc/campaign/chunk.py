@@ -2,34 +2,81 @@
 
 ``fly_chunk(campaign, run_ids)`` depends only on the validated campaign and the run ids, never
 on the worker, the chunking or the order: run i's inputs derive from (campaign seed, run id,
-parameter path) alone.
+parameter path) alone (``refexmc.campaign.sampling``).
 """
+
+import numpy as np
 
 from refexmc.campaign import storage
 from refexmc.campaign.execute import fly
+from refexmc.campaign.sampling import Sampler
 from refexmc.campaign.seeding import run_seed
+from refexmc.config import dispersions
 from refexmc.config.pack import pack
+from refexmc.core import layout as L
+
+# history columns that are finite in every mode (angle errors are NaN before a reference exists)
+_FINITE_HISTORY = [L.HISTORY.slices[name][0] for name in ("t_s", "omega_m_deg_s", "fuel_remaining", "altitude_m")]
 
 
-def failed_thrusters(campaign):
-    failures = campaign["failures"]
-    return tuple(sorted(failures.get("thrusters", ()))) if failures["mode"] == "fixed" else ()
+def non_finite_reason(result):
+    """Why a flight result is not usable (a non-finite state), or None."""
+    for name in ("fuel_remaining", "fuel_used_kg", "t_end_s"):
+        if not np.isfinite(result.value(name)):
+            return f"non-finite {name} in the summary"
+    history = result.history[:, _FINITE_HISTORY]
+    if not np.isfinite(history).all():
+        row = int(np.argmax(~np.isfinite(history).all(axis=1)))
+        return f"non-finite state at t = {result.history[row, L.HISTORY.slices['t_s'][0]]:.3f} s"
+    return None
+
+
+class RunPlan:
+    """Everything needed to fly any run of a campaign, built once per chunk."""
+
+    def __init__(self, campaign):
+        self.campaign = campaign
+        self.sampler = Sampler(campaign)
+        self.nominal_inputs = pack(campaign["vehicle"], campaign["mission"])
+        self.n_thrusters = self.nominal_inputs.thrusters.shape[0]
+
+    def prepare(self, run_id):
+        """(nav seed, failed thrusters, p-columns, packed inputs) of run ``run_id``."""
+        values = self.sampler.values(run_id)
+        failed = self.sampler.failed(run_id)
+        inputs = self.sampler.inputs(self.nominal_inputs, values, failed)
+        return run_seed(self.campaign["seed"], run_id), failed, self.sampler.columns(values), inputs
+
+    def fly(self, run_id, history_rate_hz):
+        """(runs row, history table, FlightResult); an error gives an error row and no history/result."""
+        seed = run_seed(self.campaign["seed"], run_id)
+        failed, params = (), {}
+        try:
+            seed, failed, params, inputs = self.prepare(run_id)
+            result = fly(inputs, nav_seed=seed, history_rate_hz=history_rate_hz)
+            reason = non_finite_reason(result)
+        except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
+            result, reason = None, f"{type(exc).__name__}: {exc}"
+        if reason is not None:
+            row = storage.runs_row(run_id, seed, failed, None, self.n_thrusters, error=reason)
+            row.update(params or dict.fromkeys(self.param_columns(), float("nan")))
+            return row, None, None
+        row = storage.runs_row(run_id, seed, failed, result, self.n_thrusters)
+        row.update(params)
+        return row, storage.history_table(run_id, result.history), result
+
+    def param_columns(self):
+        return [c for path in self.sampler.specs for c in dispersions.columns(path, self.campaign["vehicle"])]
 
 
 def fly_chunk(campaign, run_ids):
     """Fly ``run_ids``; return (runs rows as dicts, history tables). A run that raises is an error row."""
-    failed = failed_thrusters(campaign)
-    inputs = pack(campaign["vehicle"], campaign["mission"], failed)
+    plan = RunPlan(campaign)
     rate = campaign["output"]["history_rate_hz"]
-    n_thrusters = inputs.thrusters.shape[0]
     rows, histories = [], []
     for run_id in run_ids:
-        seed = run_seed(campaign["seed"], run_id)
-        try:
-            result = fly(inputs, nav_seed=seed, history_rate_hz=rate)
-        except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
-            rows.append(storage.runs_row(run_id, seed, failed, None, n_thrusters, error=f"{type(exc).__name__}: {exc}"))
-            continue
-        rows.append(storage.runs_row(run_id, seed, failed, result, n_thrusters))
-        histories.append(storage.history_table(run_id, result.history))
+        row, history, _ = plan.fly(run_id, rate)
+        rows.append(row)
+        if history is not None:
+            histories.append(history)
     return rows, histories

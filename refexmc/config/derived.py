@@ -120,3 +120,17 @@ def design(vehicle):
             row = (w[0] + 1) * 9 + (w[1] + 1) * 3 + (w[2] + 1)
             out["allocation"][key] = [int(i) + 1 for i in np.flatnonzero(table[row])]
     return out
+
+
+def inertia_problem(inertia):
+    """Why an inertia tensor is not physical, or None."""
+    j = np.asarray(inertia, dtype=float)
+    if not np.allclose(j, j.T, rtol=0.0, atol=1e-9 * max(1.0, np.abs(j).max())):
+        return "expected a symmetric inertia tensor"
+    eig = np.linalg.eigvalsh(j)
+    if eig.min() <= 0.0:
+        return f"expected a positive definite inertia tensor, eigenvalues {eig.round(6).tolist()}"
+    a, b, c = eig
+    if a + b < c * (1.0 - 1e-12):
+        return f"principal moments {eig.round(6).tolist()} violate the triangle inequality"
+    return None

@@ -1,6 +1,7 @@
 """Read YAML files, validate them against the schema, and report bad input precisely."""
 
 import difflib
+import itertools
 import re
 from pathlib import Path
 
@@ -9,6 +10,7 @@ import numpy as np
 import yaml
 
 from refexmc.config import schema
+from refexmc.config.derived import inertia_problem
 from refexmc.config.errors import ConfigError
 
 
@@ -132,20 +134,6 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         fail(message, "inertia_kg_m2")
 
 
-def inertia_problem(inertia):
-    """Why an inertia tensor is not physical, or None."""
-    j = np.asarray(inertia, dtype=float)
-    if not np.allclose(j, j.T, rtol=0.0, atol=1e-9 * max(1.0, np.abs(j).max())):
-        return "expected a symmetric inertia tensor"
-    eig = np.linalg.eigvalsh(j)
-    if eig.min() <= 0.0:
-        return f"expected a positive definite inertia tensor, eigenvalues {eig.round(6).tolist()}"
-    a, b, c = eig
-    if a + b < c * (1.0 - 1e-12):
-        return f"principal moments {eig.round(6).tolist()} violate the triangle inequality"
-    return None
-
-
 def check_mission(mission, file, lines, prefix=()):
     """Checks the schema cannot express: ascending atmosphere, non-zero sun direction."""
     bases = [row["base_altitude_km"] for row in mission["atmosphere"]]
@@ -192,8 +180,46 @@ def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
     return data, path
 
 
+FAILURE_KEYS = {"none": (), "fixed": ("thrusters",), "random": ("count_probabilities",), "enumerate": ("sizes",)}
+
+
+def failure_sets(sizes, n_thrusters):
+    """Every set of failed thrusters (1-based, ascending) of the given sizes, smallest sizes first."""
+    return [combo for k in sorted(sizes) for combo in itertools.combinations(range(1, n_thrusters + 1), k)]
+
+
+def _check_failures(failures, n_thrusters, path, lines):
+    def fail(message, *sub):
+        key = ("failures", *sub)
+        raise ConfigError(message, file=path, line=lines.get(key) or lines.get(("failures",)), path=key)
+
+    mode = failures["mode"]
+    for key in ("thrusters", "count_probabilities", "sizes"):
+        if key in failures and key not in FAILURE_KEYS[mode]:
+            fail(f"'{key}' is not used with mode {mode}", key)
+    for key in FAILURE_KEYS[mode]:
+        if key not in failures:
+            fail(f"mode {mode} needs '{key}'")
+    if mode == "fixed":
+        for k, tid in enumerate(failures["thrusters"]):
+            if tid > n_thrusters:
+                fail(f"expected a thruster id 1..{n_thrusters}, got {tid}", "thrusters", k)
+    elif mode == "random":
+        probabilities = failures["count_probabilities"]
+        if len(probabilities) > n_thrusters + 1:
+            fail(f"expected at most {n_thrusters + 1} probabilities (0..{n_thrusters} failed)", "count_probabilities")
+        if abs(sum(probabilities) - 1.0) > 1e-9:
+            fail(f"expected probabilities summing to 1, got {sum(probabilities):g}", "count_probabilities")
+    elif mode == "enumerate":
+        for k, size in enumerate(failures["sizes"]):
+            if size > n_thrusters:
+                fail(f"expected a set size 1..{n_thrusters}, got {size}", "sizes", k)
+
+
 def load_campaign(path):
     """Validated campaign with vehicle and mission inlined; ConfigError on any bad input."""
+    from refexmc.config import dispersions  # imports this module
+
     path = Path(path)
     data, lines = read_yaml(path)
     validate(data, schema.CAMPAIGN, path, lines)
@@ -201,36 +227,48 @@ def load_campaign(path):
     mission, mission_path = _resolve_part(data, "mission", path, lines, schema.MISSION, check_mission)
     campaign = {
         "name": data["name"],
-        "runs": data["runs"],
+        "runs": data.get("runs"),
         "seed": data["seed"],
         "nominal_first": data.get("nominal_first", True),
         "sampling": data.get("sampling", "random"),
         "dispersions": data.get("dispersions", {}),
         "failures": data.get("failures", {"mode": "none"}),
+        "run_time_limit_s": data.get("run_time_limit_s", 60.0),
         "output": data.get("output", {"history_rate_hz": 2.0}),
         "requirements": data.get("requirements", []),
         "vehicle": vehicle,
         "mission": mission,
     }
-    failures = campaign["failures"]
     n_thrusters = len(vehicle["rcs"]["thrusters"])
-    if failures["mode"] == "fixed":
-        if "thrusters" not in failures:
+    _check_failures(campaign["failures"], n_thrusters, path, lines)
+    dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
+    if campaign["failures"]["mode"] == "enumerate":
+        derived = len(failure_sets(campaign["failures"]["sizes"], n_thrusters)) + int(campaign["nominal_first"])
+        if campaign["runs"] is not None and campaign["runs"] != derived:
             raise ConfigError(
-                "mode fixed needs 'thrusters'", file=path, line=lines.get(("failures",)), path=("failures",)
+                f"failures mode enumerate gives {derived} runs; remove 'runs' or set it to {derived}",
+                file=path,
+                line=lines.get(("runs",)),
+                path=("runs",),
             )
-        for k, tid in enumerate(failures["thrusters"]):
-            if tid > n_thrusters:
-                raise ConfigError(
-                    f"expected a thruster id 1..{n_thrusters}, got {tid}",
-                    file=path,
-                    line=lines.get(("failures", "thrusters", k)),
-                    path=("failures", "thrusters", k),
-                )
-    elif "thrusters" in failures:
-        raise ConfigError(
-            "'thrusters' is only used with mode fixed", file=path, line=lines.get(("failures",)), path=("failures",)
-        )
+        campaign["runs"] = derived
+    elif campaign["runs"] is None:
+        raise ConfigError("'runs' is required", file=path, line=1, path=("runs",))
+    return campaign
+
+
+def apply_overrides(campaign, runs=None, seed=None):
+    """Command-line ``--runs``/``--seed`` over the file's values; ConfigError when not allowed."""
+    if runs is not None:
+        if campaign["failures"]["mode"] == "enumerate":
+            raise ConfigError("--runs cannot be used with failures mode enumerate (the run count is derived)")
+        if runs < 1:
+            raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
+        campaign["runs"] = runs
+    if seed is not None:
+        if not 0 <= seed < 2**63:
+            raise ConfigError(f"expected 0 <= seed < 2**63, got {seed}", path=("--seed",))
+        campaign["seed"] = seed
     return campaign
 
 

@@ -288,30 +288,53 @@ CAMPAIGN = obj(
         "name": string("campaign name (default output directory runs/<name>)"),
         "vehicle": dict(_reference),
         "mission": dict(_reference),
-        "runs": integer("number of runs", minimum=1, maximum=10_000_000),
+        "runs": integer(
+            "number of runs (with failures mode enumerate: derived, may be omitted)", minimum=1, maximum=10_000_000
+        ),
         "seed": integer("campaign seed", minimum=0, maximum=2**63 - 1),
         "nominal_first": {"type": "boolean", "description": "run 0 is the undispersed nominal case"},
         "sampling": string("sampling of the dispersions", enum=["random", "lhs", "sobol"]),
         "dispersions": {
             "type": "object",
-            "description": "parameter path -> distribution",
-            "maxProperties": 0,
+            "description": "parameter path -> distribution {dist: ..., parameters}; paths and "
+            "distributions: refexmc.config.dispersions, docs/campaigns.md",
+            "additionalProperties": {"type": "object", "description": "a distribution"},
         },
         "failures": {
             "type": "object",
             "description": "thrusters that never open and use no propellant (000 sec. 5)",
             "properties": {
-                "mode": string("none | fixed", enum=["none", "fixed"]),
+                "mode": string(
+                    "none | fixed (the same set every run) | random (count drawn per run) | "
+                    "enumerate (one run per combination of the given sizes)",
+                    enum=["none", "fixed", "random", "enumerate"],
+                ),
                 "thrusters": {
                     "type": "array",
                     "items": integer("thruster id", minimum=1),
                     "uniqueItems": True,
                     "description": "failed thruster ids (mode fixed)",
                 },
+                "count_probabilities": {
+                    "type": "array",
+                    "items": number("probability", minimum=0.0, maximum=1.0),
+                    "minItems": 1,
+                    "description": "P(0 failed), P(1 failed), ... (mode random; sum 1)",
+                },
+                "sizes": {
+                    "type": "array",
+                    "items": integer("number of failed thrusters", minimum=1),
+                    "minItems": 1,
+                    "uniqueItems": True,
+                    "description": "sizes of the failure sets enumerated (mode enumerate)",
+                },
             },
             "required": ["mode"],
             "additionalProperties": False,
         },
+        "run_time_limit_s": number(
+            "wall-clock limit of one run [s]; a run that exceeds it is recorded as an error", exclusive_minimum=0.0
+        ),
         "output": obj(
             "what is stored",
             {"history_rate_hz": number("history sample rate [Hz]", exclusive_minimum=0.0, maximum=1000.0)},
@@ -322,5 +345,14 @@ CAMPAIGN = obj(
             "description": "requirement verdicts for the report",
         },
     },
-    optional=("nominal_first", "sampling", "dispersions", "failures", "output", "requirements"),
+    optional=(
+        "runs",
+        "nominal_first",
+        "sampling",
+        "dispersions",
+        "failures",
+        "run_time_limit_s",
+        "output",
+        "requirements",
+    ),
 )

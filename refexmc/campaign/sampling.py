@@ -1,0 +1,200 @@
+"""Each run's dispersed inputs and failed thrusters, drawn from (campaign seed, run id, path).
+
+Keyed seeding: the uniforms behind parameter ``path`` of run ``i`` come from a generator seeded
+with ``SeedSequence([seed, i, key(path)])`` (random sampling), or from row ``i`` of a design
+seeded with ``SeedSequence([seed, key(path), tag])`` (LHS, Sobol). So run i's inputs are the
+same whatever ``-j``, chunking, backend, resume, or which other dispersions the campaign has.
+With LHS or Sobol each parameter's components form one design over the dispersed runs; designs
+of different parameters are independent (this is what makes them insensitive to the other
+dispersions), and a design depends on the number of runs.
+"""
+
+import functools
+import hashlib
+import math
+
+import numpy as np
+from scipy import special, stats
+from scipy.spatial.transform import Rotation
+from scipy.stats import qmc
+
+from refexmc.config import dispersions
+from refexmc.config.derived import inertia_problem
+from refexmc.config.load import failure_sets
+from refexmc.core import layout as L
+
+_TINY = 2.0**-53  # keep uniforms inside (0, 1) so that inverse CDFs stay finite
+_DESIGN_TAG = {"lhs": 1, "sobol": 2}
+FAILURES_KEY = "failures"
+INERTIA_MAX_ATTEMPTS = 1000
+
+
+def path_key(name):
+    """A stable 64-bit integer for a parameter path (independent of Python's hash seed)."""
+    return int.from_bytes(hashlib.sha256(name.encode()).digest()[:8], "little")
+
+
+def keyed_rng(seed, run_id, name, attempt=0):
+    """The generator of run ``run_id``'s draws for ``name``."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(run_id), path_key(name), int(attempt)]))
+
+
+@functools.lru_cache(maxsize=256)
+def _design(sampling, seed, name, n, dims):
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), path_key(name), _DESIGN_TAG[sampling]]))
+    if sampling == "lhs":
+        design = qmc.LatinHypercube(d=dims, rng=rng).random(n)
+    else:
+        design = qmc.Sobol(d=dims, scramble=True, rng=rng).random_base2(max(0, math.ceil(math.log2(n))))[:n]
+    design.setflags(write=False)
+    return design
+
+
+def dims(spec, n_components):
+    """Uniforms one draw of ``spec`` consumes."""
+    dist = spec["dist"]
+    if dist == "constant":
+        return 0
+    if dist == "choice":
+        return n_components if spec["per_component"] else 1
+    if dist == "uniform_so3":
+        return 3
+    if dist == "inertia":
+        return 6
+    return n_components
+
+
+def so3_rotation_vector_deg(u):
+    """Uniformly random rotation (Shoemake 1992, 'Uniform random rotations') as a rotation vector."""
+    r1, r2 = math.sqrt(1.0 - u[0]), math.sqrt(u[0])
+    a, b = 2.0 * math.pi * u[1], 2.0 * math.pi * u[2]
+    quat = [r1 * math.sin(a), r1 * math.cos(a), r2 * math.sin(b), r2 * math.cos(b)]  # scalar last
+    return Rotation.from_quat(quat).as_rotvec(degrees=True)
+
+
+def dispersed_inertia(nominal_components, spec, u):
+    """Principal moments scaled by (1 + sigma z), principal axes turned by a small rotation."""
+    j0 = dispersions.inertia_matrix(nominal_components)
+    moments, axes = np.linalg.eigh(j0)
+    z = special.ndtri(u)
+    moments = moments * (1.0 + spec["moments_sigma_fraction"] * z[:3])
+    turn = Rotation.from_rotvec(spec["axes_sigma_deg"] * z[3:], degrees=True).as_matrix() @ axes
+    j = turn @ np.diag(moments) @ turn.T
+    j = 0.5 * (j + j.T)
+    return np.array([j[a, b] for a, b in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))])
+
+
+def transform(spec, u, nominal_value):
+    """Values (user units) of one draw from the uniforms ``u``."""
+    dist = spec["dist"]
+    if dist == "constant":
+        return spec["value"].copy()
+    if dist == "normal":
+        return spec["mean"] + spec["sigma"] * special.ndtri(u)
+    if dist == "truncnorm":
+        mean, sigma = spec["mean"], spec["sigma"]
+        a, b = (spec["low"] - mean) / sigma, (spec["high"] - mean) / sigma
+        return np.clip(stats.truncnorm.ppf(u, a, b, loc=mean, scale=sigma), spec["low"], spec["high"])
+    if dist == "uniform":
+        return spec["low"] + (spec["high"] - spec["low"]) * u
+    if dist == "lognormal":
+        return spec["median"] * np.exp(spec["sigma"] * special.ndtri(u))
+    if dist == "choice":
+        cumulative = np.cumsum(spec["probabilities"])
+        index = np.minimum(np.searchsorted(cumulative, u, side="right"), len(cumulative) - 1)
+        values = spec["values"]
+        if spec["per_component"]:
+            return values[index, np.arange(values.shape[1])]
+        return values[index[0]].copy()
+    if dist == "uniform_so3":
+        return so3_rotation_vector_deg(u)
+    if dist == "inertia":
+        return dispersed_inertia(nominal_value, spec, u)
+    raise KeyError(dist)  # pragma: no cover - the campaign was validated
+
+
+class Sampler:
+    """Draws of one campaign. Cheap to build; a worker builds one per chunk."""
+
+    def __init__(self, campaign):
+        self.campaign = campaign
+        self.vehicle = campaign["vehicle"]
+        self.mission = campaign["mission"]
+        self.seed = campaign["seed"]
+        self.sampling = campaign["sampling"]
+        self.offset = 1 if campaign["nominal_first"] else 0
+        self.n_dispersed = campaign["runs"] - self.offset
+        self.n_thrusters = len(self.vehicle["rcs"]["thrusters"])
+        self.specs = dispersions.check(campaign["dispersions"], self.vehicle, self.mission, None, {})
+        self.nominal = {path: dispersions.nominal(path, self.vehicle, self.mission) for path in self.specs}
+        failures = campaign["failures"]
+        self.failure_sets = failure_sets(failures["sizes"], self.n_thrusters) if failures["mode"] == "enumerate" else []
+
+    def is_nominal(self, run_id):
+        return self.offset == 1 and run_id == 0
+
+    def uniforms(self, path, run_id, count, attempt=0):
+        if count == 0:
+            return np.empty(0)
+        if self.sampling == "random" or attempt > 0:
+            u = keyed_rng(self.seed, run_id, path, attempt).random(count)
+        else:
+            u = _design(self.sampling, self.seed, path, self.n_dispersed, count)[run_id - self.offset]
+        return np.clip(u, _TINY, 1.0 - _TINY)
+
+    def values(self, run_id):
+        """{path: values in user units} of run ``run_id`` (the nominal values for the nominal run)."""
+        if self.is_nominal(run_id):
+            return {path: value.copy() for path, value in self.nominal.items()}
+        out = {}
+        for path, spec in self.specs.items():
+            n = dims(spec, dispersions.size(path, self.vehicle))
+            value = transform(spec, self.uniforms(path, run_id, n), self.nominal[path])
+            attempt = 0
+            while spec["dist"] == "inertia" and inertia_problem(dispersions.inertia_matrix(value)):
+                attempt += 1
+                if attempt > INERTIA_MAX_ATTEMPTS:
+                    raise ValueError(f"{path}: no physical inertia in {INERTIA_MAX_ATTEMPTS} draws; reduce the sigmas")
+                value = transform(spec, self.uniforms(path, run_id, n, attempt), self.nominal[path])
+            out[path] = value
+        return out
+
+    def failed(self, run_id):
+        """Failed thruster ids (1-based, ascending) of run ``run_id``."""
+        failures = self.campaign["failures"]
+        mode = failures["mode"]
+        if mode == "fixed":
+            return tuple(sorted(failures["thrusters"]))
+        if mode == "none" or self.is_nominal(run_id):
+            return ()
+        if mode == "enumerate":
+            return self.failure_sets[run_id - self.offset]
+        rng = keyed_rng(self.seed, run_id, FAILURES_KEY)
+        cumulative = np.cumsum(failures["count_probabilities"])
+        count = min(int(np.searchsorted(cumulative, rng.random(), side="right")), len(cumulative) - 1)
+        return tuple(sorted(int(t) + 1 for t in rng.choice(self.n_thrusters, size=count, replace=False)))
+
+    def inputs(self, nominal_inputs, values, failed):
+        """The run's own copy of the packed inputs with ``values`` and ``failed`` applied."""
+        inputs = nominal_inputs._replace(
+            vehicle=nominal_inputs.vehicle.copy(),
+            thrusters=nominal_inputs.thrusters.copy(),
+            mission=nominal_inputs.mission.copy(),
+            nav=nominal_inputs.nav.copy(),
+            atmosphere=nominal_inputs.atmosphere.copy(),
+        )
+        for path, value in values.items():
+            dispersions.apply(inputs, path, value, nominal_inputs.atmosphere)
+        failed_column = L.THRUSTER.slices["failed"][0]
+        inputs.thrusters[:, failed_column] = 0.0
+        for tid in failed:
+            inputs.thrusters[tid - 1, failed_column] = 1.0
+        return inputs
+
+    def columns(self, values):
+        """The ``p.<path>`` columns of one run."""
+        row = {}
+        for path, value in values.items():
+            for name, v in zip(dispersions.columns(path, self.vehicle), np.atleast_1d(value), strict=True):
+                row[name] = float(v)
+        return row

@@ -1,0 +1,396 @@
+"""Dispersible parameters: every input of the run function a campaign may vary, by path.
+
+A path names a quantity in the user's units, mostly the key path of the vehicle or mission
+file (``separation.rates_deg_s``); a few paths exist only as dispersions (``rcs.thrust_scale``,
+``atmosphere.density_scale``). Each is declared once here with its unit, its physical range,
+how many components it has, its nominal value and where it goes in the packed run inputs.
+Distributions are declared in ``DISTRIBUTIONS`` and checked against the path they are applied
+to; ``refexmc.campaign.sampling`` draws them.
+"""
+
+import difflib
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from refexmc.config.errors import ConfigError
+from refexmc.core import layout as L
+
+AXES = ("x", "y", "z")
+INERTIA_COMPONENTS = ("xx", "yy", "zz", "xy", "xz", "yz")
+_INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+TIME_CONSTANT_NAMES = ("on_delay", "rise", "off_delay", "fall")
+
+
+class Parameter(NamedTuple):
+    path: str
+    unit: str
+    doc: str
+    shape: str  # scalar | vector | thruster | derating | inertia | attitude
+    lower: float = -math.inf  # physical range of every component
+    upper: float = math.inf
+    lower_inclusive: bool = True
+
+
+def _params():
+    p = [
+        Parameter("mass_kg", "kg", "vehicle mass (trajectory drag only)", "scalar", 0.0, lower_inclusive=False),
+        Parameter(
+            "inertia_kg_m2",
+            "kg m^2",
+            "inertia tensor about the actual CoM (dist: inertia only; the flight software keeps the nominal)",
+            "inertia",
+        ),
+        Parameter("com_offset_m", "m", "actual minus nominal centre of mass, body axes", "vector"),
+        Parameter("aerodynamics.mistrim_cm", "-", "aerodynamic moment coefficient per body axis", "vector"),
+        Parameter("aerodynamics.drag_area_m2", "m^2", "C_D S of the trajectory", "scalar", 0.0),
+        Parameter("rcs.thrust_n.low", "N", "low thrust level, all thrusters", "scalar", 0.0, lower_inclusive=False),
+        Parameter("rcs.thrust_n.high", "N", "high thrust level, all thrusters", "scalar", 0.0, lower_inclusive=False),
+        Parameter("rcs.thrust_scale", "-", "thrust factor per thruster (nominal 1)", "thruster", 0.0),
+        Parameter("rcs.derating", "-", "thrust factor with 1, 2, ... valves open", "derating", 0.0),
+        Parameter("rcs.isp_s", "s", "specific impulse", "scalar", 0.0, lower_inclusive=False),
+        Parameter("rcs.propellant_kg", "kg", "propellant at separation", "scalar", 0.0, lower_inclusive=False),
+    ]
+    for level in ("low", "high"):
+        for name in TIME_CONSTANT_NAMES:
+            p.append(
+                Parameter(
+                    f"rcs.valve_time_constants_ms.{level}.{name}",
+                    "ms",
+                    f"valve {name.replace('_', ' ')} at {level} thrust, per thruster, independent draws",
+                    "thruster",
+                    0.0,
+                )
+            )
+    p += [
+        Parameter("separation.altitude_m", "m", "altitude at separation", "scalar", 0.0, lower_inclusive=False),
+        Parameter("separation.speed_m_s", "m/s", "speed at separation", "scalar", 0.0, lower_inclusive=False),
+        Parameter("separation.flight_path_angle_deg", "deg", "flight-path angle at separation", "scalar", -90.0, 90.0),
+        Parameter("separation.rates_deg_s", "deg/s", "body rates at separation", "vector"),
+        Parameter(
+            "separation.attitude_error_deg",
+            "deg",
+            "rotation vector from 'body x along velocity, wings level' (dist uniform_so3: any attitude)",
+            "attitude",
+        ),
+        Parameter("navigation.attitude_bias_deg", "deg", "attitude measurement bias (rotation vector)", "vector"),
+        Parameter("navigation.attitude_noise_deg", "deg", "attitude white noise, 1 sigma per axis", "scalar", 0.0),
+        Parameter("navigation.rate_bias_deg_s", "deg/s", "rate measurement bias", "vector"),
+        Parameter("navigation.rate_noise_deg_s", "deg/s", "rate white noise, 1 sigma per axis", "scalar", 0.0),
+        Parameter(
+            "navigation.ssm_calibration_time_s",
+            "s",
+            "attitude-bias decay time constant during SSM",
+            "scalar",
+            0.0,
+            lower_inclusive=False,
+        ),
+        Parameter("atmosphere.density_scale", "-", "factor on every density of the atmosphere table", "scalar", 0.0),
+    ]
+    return {param.path: param for param in p}
+
+
+PARAMETERS = _params()
+
+# distribution -> (required parameters, optional parameters); parameters are numbers, or lists
+# with one number per component of the path (a single number applies to every component)
+DISTRIBUTIONS = {
+    "constant": (("value",), ()),
+    "normal": (("sigma",), ("mean",)),
+    "truncnorm": (("sigma",), ("mean", "low", "high")),
+    "uniform": (("low", "high"), ()),
+    "lognormal": (("sigma",), ("median",)),
+    "choice": (("values",), ("probabilities",)),
+    "uniform_so3": ((), ()),
+    "inertia": (("moments_sigma_fraction",), ("axes_sigma_deg",)),
+}
+DIST_DOC = {
+    "constant": "value: the value",
+    "normal": "mean (default: nominal), sigma >= 0",
+    "truncnorm": "mean (default: nominal), sigma > 0, low and/or high bounds",
+    "uniform": "low <= high",
+    "lognormal": "median (default: nominal) > 0, sigma >= 0 of ln x",
+    "choice": "values: numbers (each component independently) or vectors; probabilities (default equal)",
+    "uniform_so3": "uniformly random rotation (Haar measure); separation.attitude_error_deg only",
+    "inertia": "relative 1-sigma of the principal moments, principal-axis misalignment 1-sigma [deg]; "
+    "draws that are not physical are redrawn",
+}
+_SPECIAL = {"uniform_so3": "attitude", "inertia": "inertia"}
+
+
+def components(path, vehicle):
+    """Column suffixes of ``path``'s components (empty tuple: a scalar)."""
+    shape = PARAMETERS[path].shape
+    if shape in ("vector", "attitude"):
+        return AXES
+    if shape == "thruster":
+        return tuple(str(i + 1) for i in range(len(vehicle["rcs"]["thrusters"])))
+    if shape == "derating":
+        return tuple(str(i + 1) for i in range(len(vehicle["rcs"]["derating"])))
+    if shape == "inertia":
+        return INERTIA_COMPONENTS
+    return ()
+
+
+def size(path, vehicle):
+    return max(1, len(components(path, vehicle)))
+
+
+def columns(path, vehicle):
+    """``p.<path>`` column names of the runs table."""
+    comps = components(path, vehicle)
+    return [f"p.{path}.{c}" for c in comps] if comps else [f"p.{path}"]
+
+
+def nominal(path, vehicle, mission):
+    """Nominal value of ``path`` in its user units, one entry per component."""
+    rcs = vehicle["rcs"]
+    n_thr = len(rcs["thrusters"])
+    if path == "inertia_kg_m2":
+        j = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+        return np.array([j[a, b] for a, b in _INERTIA_INDEX])
+    if path == "rcs.thrust_scale":
+        return np.ones(n_thr)
+    if path == "atmosphere.density_scale":
+        return np.ones(1)
+    if path.startswith("rcs.valve_time_constants_ms."):
+        _, _, level, name = path.split(".")
+        return np.full(n_thr, float(rcs["valve_time_constants_ms"][level][name]))
+    root = mission if path.split(".")[0] in ("separation", "navigation") else vehicle
+    value = root
+    for key in path.split("."):
+        value = value[key]
+    return np.atleast_1d(np.asarray(value, dtype=float)).copy()
+
+
+def _put(array, fields, name, values):
+    offset, count = fields.slices[name]
+    values = np.asarray(values, dtype=float).ravel()
+    assert values.size == count, (name, values.size, count)
+    array[offset : offset + count] = values
+
+
+def inertia_matrix(values):
+    """3x3 tensor from the (xx, yy, zz, xy, xz, yz) components."""
+    j = np.empty((3, 3))
+    for v, (a, b) in zip(values, _INERTIA_INDEX, strict=True):
+        j[a, b] = j[b, a] = v
+    return j
+
+
+_VEHICLE_SCALARS = {
+    "mass_kg": ("mass_kg", 1.0),
+    "aerodynamics.drag_area_m2": ("drag_area_m2", 1.0),
+    "rcs.thrust_n.low": ("thrust_low_n", 1.0),
+    "rcs.thrust_n.high": ("thrust_high_n", 1.0),
+    "rcs.isp_s": ("isp_s", 1.0),
+    "rcs.propellant_kg": ("propellant_kg", 1.0),
+    "com_offset_m": ("com_offset_m", 1.0),
+    "aerodynamics.mistrim_cm": ("aero_mistrim_cm", 1.0),
+}
+_MISSION_FIELDS = {
+    "separation.altitude_m": ("separation_altitude_m", 1.0),
+    "separation.speed_m_s": ("separation_speed_m_s", 1.0),
+    "separation.flight_path_angle_deg": ("separation_flight_path_angle_rad", math.pi / 180.0),
+    "separation.rates_deg_s": ("separation_rates_rad_s", math.pi / 180.0),
+    "separation.attitude_error_deg": ("separation_attitude_rotvec_rad", math.pi / 180.0),
+}
+_NAV_FIELDS = {
+    "navigation.attitude_bias_deg": ("attitude_bias_rad", math.pi / 180.0),
+    "navigation.attitude_noise_deg": ("attitude_noise_rad", math.pi / 180.0),
+    "navigation.rate_bias_deg_s": ("rate_bias_rad_s", math.pi / 180.0),
+    "navigation.rate_noise_deg_s": ("rate_noise_rad_s", math.pi / 180.0),
+    "navigation.ssm_calibration_time_s": ("ssm_calibration_time_s", 1.0),
+}
+
+
+def apply(inputs, path, values, nominal_atmosphere):
+    """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays."""
+    values = np.asarray(values, dtype=float)
+    if path in _VEHICLE_SCALARS:
+        field, scale = _VEHICLE_SCALARS[path]
+        _put(inputs.vehicle, L.VEHICLE, field, values * scale)
+    elif path in _MISSION_FIELDS:
+        field, scale = _MISSION_FIELDS[path]
+        _put(inputs.mission, L.MISSION, field, values * scale)
+    elif path in _NAV_FIELDS:
+        field, scale = _NAV_FIELDS[path]
+        _put(inputs.nav, L.NAV, field, values * scale)
+    elif path == "inertia_kg_m2":
+        _put(inputs.vehicle, L.VEHICLE, "inertia_kg_m2", inertia_matrix(values))
+    elif path == "rcs.derating":
+        padded = list(values) + [values[-1]] * (L.DERATING_MAX_VALVES - len(values))
+        _put(inputs.vehicle, L.VEHICLE, "derating", padded)
+    elif path == "rcs.thrust_scale":
+        inputs.thrusters[:, L.THRUSTER.slices["thrust_scale"][0]] = values
+    elif path.startswith("rcs.valve_time_constants_ms."):
+        _, _, level, name = path.split(".")
+        inputs.thrusters[:, L.THRUSTER.slices[f"{name}_{level}_s"][0]] = values / 1e3
+    elif path == "atmosphere.density_scale":
+        inputs.atmosphere[:, 1] = nominal_atmosphere[:, 1] * values[0]
+    else:  # pragma: no cover - PARAMETERS and apply() are kept in step by tests
+        raise KeyError(path)
+
+
+# --- validation of a campaign's ``dispersions`` mapping ----------------------------------------
+
+
+def _in_range(param, value):
+    if value > param.upper:
+        return False
+    return value >= param.lower if param.lower_inclusive else value > param.lower
+
+
+def _range_text(param):
+    low = "" if param.lower == -math.inf else f"{'>=' if param.lower_inclusive else '>'} {param.lower:g}"
+    high = "" if param.upper == math.inf else f"<= {param.upper:g}"
+    return " and ".join(t for t in (low, high) if t) or "any value"
+
+
+def check(dispersions, vehicle, mission, file, lines):
+    """Validate every dispersion; return {path: spec with parameters broadcast to arrays}."""
+    out = {}
+    for path, spec in dispersions.items():
+        where = ("dispersions", path)
+
+        def fail(message, *sub, _where=where):
+            key = _where + sub
+            line = lines.get(key) or lines.get(_where) or lines.get(("dispersions",))
+            raise ConfigError(message, file=file, line=line, path=key)
+
+        if path not in PARAMETERS:
+            guess = difflib.get_close_matches(str(path), list(PARAMETERS), n=1, cutoff=0.5)
+            hint = f"; did you mean '{guess[0]}'?" if guess else "; see docs/campaigns.md for the dispersible paths"
+            fail(f"unknown parameter path '{path}'{hint}")
+        param = PARAMETERS[path]
+        if not isinstance(spec, dict):
+            fail(f"expected a mapping with 'dist' and its parameters, got {spec!r}")
+        if "dist" not in spec:
+            fail("'dist' is required (one of: " + ", ".join(DISTRIBUTIONS) + ")")
+        dist = spec["dist"]
+        if dist not in DISTRIBUTIONS:
+            guess = difflib.get_close_matches(str(dist), list(DISTRIBUTIONS), n=1)
+            hint = f"; did you mean '{guess[0]}'?" if guess else ""
+            fail(f"unknown distribution {dist!r}{hint}; expected one of: {', '.join(DISTRIBUTIONS)}", "dist")
+        required, optional = DISTRIBUTIONS[dist]
+        allowed = ("dist", *required, *optional)
+        for key in spec:
+            if key not in allowed:
+                guess = difflib.get_close_matches(str(key), allowed, n=1)
+                hint = f"; did you mean '{guess[0]}'?" if guess else f"; {dist} takes: {', '.join(allowed[1:])}"
+                fail(f"unknown key '{key}' for dist {dist}{hint}", key)
+        for key in required:
+            if key not in spec:
+                fail(f"dist {dist} needs '{key}' ({DIST_DOC[dist]})")
+        if _SPECIAL.get(dist, param.shape) != param.shape or (param.shape == "inertia" and dist != "inertia"):
+            if param.shape == "inertia":
+                fail("inertia_kg_m2 takes only dist: inertia (a dispersion that keeps the tensor physical)", "dist")
+            fail(f"dist {dist} does not apply to {path}", "dist")
+        n = size(path, vehicle)
+        n_params = 3 if dist == "inertia" else n
+        unit = f" [{param.unit}]"
+
+        def vector(key, _n=n_params, _fail=fail, _spec=spec):
+            value = _spec[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float, list)):
+                _fail(f"expected a number or a list of {_n} numbers, got {value!r}", key)
+            if isinstance(value, list):
+                if len(value) != _n or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+                    _fail(f"expected a number or a list of {_n} numbers (one per component), got {value!r}", key)
+                return np.asarray(value, dtype=float)
+            return np.full(_n, float(value))
+
+        resolved = {"dist": dist}
+        nominal_value = nominal(path, vehicle, mission)
+        if dist == "constant":
+            resolved["value"] = vector("value")
+            support = (resolved["value"], resolved["value"])
+        elif dist in ("normal", "truncnorm"):
+            resolved["mean"] = vector("mean") if "mean" in spec else nominal_value.copy()
+            resolved["sigma"] = sigma = vector("sigma")
+            if (sigma < 0).any() or (dist == "truncnorm" and (sigma <= 0).any()):
+                fail(f"expected sigma {'>' if dist == 'truncnorm' else '>='} 0{unit}, got {spec['sigma']!r}", "sigma")
+            if dist == "normal":
+                spread = np.where(sigma > 0, np.inf, 0.0)
+                support = (resolved["mean"] - spread, resolved["mean"] + spread)
+            else:
+                if "low" not in spec and "high" not in spec:
+                    fail("truncnorm needs 'low' and/or 'high' (else use normal)")
+                resolved["low"] = vector("low") if "low" in spec else np.full(n, -np.inf)
+                resolved["high"] = vector("high") if "high" in spec else np.full(n, np.inf)
+                if (resolved["low"] >= resolved["high"]).any():
+                    fail("expected low < high", "low")
+                support = (resolved["low"], resolved["high"])
+        elif dist == "uniform":
+            resolved["low"], resolved["high"] = vector("low"), vector("high")
+            if (resolved["low"] > resolved["high"]).any():
+                fail("expected low <= high", "low")
+            support = (resolved["low"], resolved["high"])
+        elif dist == "lognormal":
+            resolved["median"] = vector("median") if "median" in spec else nominal_value.copy()
+            resolved["sigma"] = vector("sigma")
+            if (resolved["median"] <= 0).any():
+                fail("expected a median > 0 (lognormal draws are positive)", "median" if "median" in spec else "dist")
+            if (resolved["sigma"] < 0).any():
+                fail(f"expected sigma >= 0 (of ln x), got {spec['sigma']!r}", "sigma")
+            spread = np.where(resolved["sigma"] > 0, np.inf, 1.0)
+            support = (np.where(spread > 1, 0.0, resolved["median"]), resolved["median"] * spread)
+            support = (np.maximum(support[0], np.nextafter(0.0, 1.0)), support[1])
+        elif dist == "choice":
+            values = spec["values"]
+            if not isinstance(values, list) or not values:
+                fail("expected a non-empty list of values", "values")
+            items = []
+            for k, item in enumerate(values):
+                if isinstance(item, list):
+                    if len(item) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in item):
+                        fail(f"expected a number or a list of {n} numbers, got {item!r}", "values", k)
+                    items.append(np.asarray(item, dtype=float))
+                elif isinstance(item, (int, float)) and not isinstance(item, bool):
+                    items.append(np.full(n, float(item)))
+                else:
+                    fail(f"expected a number or a list of {n} numbers, got {item!r}", "values", k)
+            resolved["values"] = np.array(items)
+            resolved["per_component"] = not any(isinstance(item, list) for item in values)
+            probabilities = spec.get("probabilities")
+            if probabilities is None:
+                resolved["probabilities"] = np.full(len(items), 1.0 / len(items))
+            else:
+                if (
+                    not isinstance(probabilities, list)
+                    or len(probabilities) != len(items)
+                    or any(isinstance(p, bool) or not isinstance(p, (int, float)) or p < 0 for p in probabilities)
+                ):
+                    fail(f"expected {len(items)} probabilities >= 0, one per value", "probabilities")
+                if abs(sum(probabilities) - 1.0) > 1e-9:
+                    fail(f"expected probabilities summing to 1, got {sum(probabilities):g}", "probabilities")
+                resolved["probabilities"] = np.asarray(probabilities, dtype=float)
+            support = (resolved["values"].min(axis=0), resolved["values"].max(axis=0))
+        elif dist == "uniform_so3":
+            support = None
+        else:  # inertia
+            resolved["moments_sigma_fraction"] = vector("moments_sigma_fraction")
+            resolved["axes_sigma_deg"] = vector("axes_sigma_deg") if "axes_sigma_deg" in spec else np.zeros(3)
+            if (resolved["moments_sigma_fraction"] < 0).any() or (resolved["moments_sigma_fraction"] >= 0.5).any():
+                fail("expected 0 <= moments_sigma_fraction < 0.5", "moments_sigma_fraction")
+            if (resolved["axes_sigma_deg"] < 0).any():
+                fail("expected axes_sigma_deg >= 0", "axes_sigma_deg")
+            support = None
+        if support is not None:
+            low, high = support
+            for k in range(n):
+                for bound in (low[k], high[k]):
+                    if not _in_range(param, bound):
+                        comp = components(path, vehicle)
+                        which = f" (component {comp[k]})" if comp else ""
+                        hint = ""
+                        if math.isinf(bound):
+                            hint = "; a normal distribution is unbounded: use truncnorm with bounds or lognormal"
+                        fail(
+                            f"{dist} draws{which} reach {bound:g} {param.unit}, outside the physical range "
+                            f"{_range_text(param)}{hint}",
+                            "dist",
+                        )
+        out[path] = resolved
+    return out
