@@ -23,7 +23,7 @@ from refexmc.config.derived import inertia_problem
 from refexmc.config.load import failure_sets
 from refexmc.core import layout as L
 
-_TINY = 2.0**-53  # keep uniforms inside (0, 1) so that inverse CDFs stay finite
+_TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
 _DESIGN_TAG = {"lhs": 1, "sobol": 2}
 FAILURES_KEY = "failures"
 INERTIA_MAX_ATTEMPTS = 1000

@@ -13,6 +13,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from scipy import special
 
 from refexmc.config.errors import ConfigError
 from refexmc.core import layout as L
@@ -116,6 +117,11 @@ DIST_DOC = {
     "inertia": "relative 1-sigma of the principal moments, principal-axis misalignment 1-sigma [deg]; "
     "draws that are not physical are redrawn",
 }
+# Uniforms are drawn inside [UNIFORM_EPS, 1 - UNIFORM_EPS], so a standard normal draw never
+# exceeds Z_MAX (8.2) in size: the exact support of normal and lognormal draws, checked
+# against each path's physical range.
+UNIFORM_EPS = 2.0**-53
+Z_MAX = float(-special.ndtri(UNIFORM_EPS))
 _SPECIAL = {"uniform_so3": "attitude", "inertia": "inertia"}
 
 
@@ -312,8 +318,7 @@ def check(dispersions, vehicle, mission, file, lines):
             if (sigma < 0).any() or (dist == "truncnorm" and (sigma <= 0).any()):
                 fail(f"expected sigma {'>' if dist == 'truncnorm' else '>='} 0{unit}, got {spec['sigma']!r}", "sigma")
             if dist == "normal":
-                spread = np.where(sigma > 0, np.inf, 0.0)
-                support = (resolved["mean"] - spread, resolved["mean"] + spread)
+                support = (resolved["mean"] - Z_MAX * sigma, resolved["mean"] + Z_MAX * sigma)
             else:
                 if "low" not in spec and "high" not in spec:
                     fail("truncnorm needs 'low' and/or 'high' (else use normal)")
@@ -334,9 +339,8 @@ def check(dispersions, vehicle, mission, file, lines):
                 fail("expected a median > 0 (lognormal draws are positive)", "median" if "median" in spec else "dist")
             if (resolved["sigma"] < 0).any():
                 fail(f"expected sigma >= 0 (of ln x), got {spec['sigma']!r}", "sigma")
-            spread = np.where(resolved["sigma"] > 0, np.inf, 1.0)
-            support = (np.where(spread > 1, 0.0, resolved["median"]), resolved["median"] * spread)
-            support = (np.maximum(support[0], np.nextafter(0.0, 1.0)), support[1])
+            spread = np.exp(Z_MAX * resolved["sigma"])
+            support = (resolved["median"] / spread, resolved["median"] * spread)
         elif dist == "choice":
             values = spec["values"]
             if not isinstance(values, list) or not values:
@@ -385,8 +389,8 @@ def check(dispersions, vehicle, mission, file, lines):
                         comp = components(path, vehicle)
                         which = f" (component {comp[k]})" if comp else ""
                         hint = ""
-                        if math.isinf(bound):
-                            hint = "; a normal distribution is unbounded: use truncnorm with bounds or lognormal"
+                        if dist in ("normal", "lognormal"):
+                            hint = f" (the {Z_MAX:.1f}-sigma extreme); use truncnorm with bounds or a smaller sigma"
                         fail(
                             f"{dist} draws{which} reach {bound:g} {param.unit}, outside the physical range "
                             f"{_range_text(param)}{hint}",
