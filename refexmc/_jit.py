@@ -51,6 +51,22 @@ def jit(function):
     return numba.njit(**JIT_OPTIONS)(function)
 
 
+def jit_noalloc(function):
+    """Like :func:`jit`, for kernels that allocate no arrays: compiled without numba's runtime.
+
+    Numba's reference counting (NRT) increments and decrements the count of every array a
+    jitted function is handed, on every call, with atomic instructions; in the run loop that
+    was most of the flight's time (benchmarks/RESULTS.md, issue 2). A kernel that only reads
+    and writes caller-owned arrays needs none of it. ``_nrt`` is a private numba option (the
+    ``nrt`` compiler flag); it is safe here because every caller holds its own reference to the
+    arrays for the whole call, and a kernel that tried to allocate would fail to compile. The
+    flag is part of the decorator, so the on-disk cache always holds code compiled with it.
+    """
+    if DISABLED:
+        return function
+    return numba.njit(_nrt=False, **JIT_OPTIONS)(function)
+
+
 def jit_inline(function):
     """Like :func:`jit`, but inlined into its callers at numba IR level.
 

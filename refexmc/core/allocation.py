@@ -5,7 +5,7 @@ fuel-optimal allocation, reaction wheels) add a branch to :func:`thruster_comman
 run loop unchanged.
 """
 
-from refexmc._jit import jit, jit_inline
+from refexmc._jit import jit_inline, jit_noalloc
 from refexmc.core import pulse_modulation
 from refexmc.core.layout import (
     ACTUATION_PWPF_TABLE,
@@ -17,13 +17,13 @@ from refexmc.core.layout import (
 )
 
 
-@jit
+@jit_noalloc
 def table_row(wx, wy, wz):
     """Row of the allocation table for modulator outputs (wx, wy, wz) in {-1, 0, 1}^3."""
     return int((wx + 1.0) * 9.0 + (wy + 1.0) * 3.0 + (wz + 1.0))
 
 
-@jit
+@jit_noalloc
 def table_lookup(table, wx, wy, wz, out):
     """Thrusters to open for the modulator outputs (000 Table 3); ``out`` is 0/1 per thruster."""
     row = table_row(wx, wy, wz)

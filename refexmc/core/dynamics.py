@@ -7,12 +7,12 @@ linearly over the step: the run loop places step boundaries on the thrust-profil
 where thrust is piecewise linear in time, so each step sees a smooth right-hand side.
 """
 
-from refexmc._jit import jit
+from refexmc._jit import jit_noalloc
 
 STATE_SIZE = 7
 
 
-@jit
+@jit_noalloc
 def derivative(x, torque, inertia, inertia_inv, out):
     """``out = dx/dt`` for torque (N m, body axes); ``inertia``/``inertia_inv`` are 3x3."""
     qx, qy, qz, qw = x[0], x[1], x[2], x[3]
@@ -34,7 +34,7 @@ def derivative(x, torque, inertia, inertia_inv, out):
     out[6] = inertia_inv[2, 0] * mx + inertia_inv[2, 1] * my + inertia_inv[2, 2] * mz
 
 
-@jit
+@jit_noalloc
 def invert_3x3(m, out):
     """``out = m^-1`` for a 3x3 matrix by cofactors (no LAPACK, no allocation)."""
     c00 = m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1]
@@ -52,7 +52,7 @@ def invert_3x3(m, out):
     out[2, 2] = (m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]) / det
 
 
-@jit
+@jit_noalloc
 def rk4_step(x, h, torque_start, torque_end, inertia, inertia_inv, work):
     """Advance ``x`` in place by ``h`` seconds, torque linear from start to end of the step.
 
@@ -87,7 +87,7 @@ def rk4_step(x, h, torque_start, torque_end, inertia, inertia_inv, work):
         x[i] /= n
 
 
-@jit
+@jit_noalloc
 def propagate_torque_free(x, duration, step, inertia, inertia_inv, work):
     """Propagate with zero torque by fixed RK4 steps (``duration / step`` rounded up).
 

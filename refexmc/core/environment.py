@@ -8,7 +8,7 @@ drag; its state is ``[x, z, v_x, v_z]``.
 
 import math
 
-from refexmc._jit import jit
+from refexmc._jit import jit_noalloc
 from refexmc.core.layout import (
     M_EARTH_MU,
     M_EARTH_RADIUS,
@@ -25,7 +25,7 @@ from refexmc.core.layout import (
 TRAJECTORY_STATE_SIZE = 4
 
 
-@jit
+@jit_noalloc
 def density(atmosphere, altitude):
     """Piecewise-exponential density (kg/m^3); rows ``[base altitude m, rho0, scale height m]``."""
     row = 0
@@ -35,7 +35,7 @@ def density(atmosphere, altitude):
     return atmosphere[row, 1] * math.exp(-(altitude - atmosphere[row, 0]) / atmosphere[row, 2])
 
 
-@jit
+@jit_noalloc
 def initial_state(mission, out):
     """Trajectory state at separation: origin, speed along the flight-path angle."""
     gamma = mission[M_SEP_FLIGHT_PATH]
@@ -45,7 +45,7 @@ def initial_state(mission, out):
     out[3] = -mission[M_SEP_SPEED] * math.sin(gamma)
 
 
-@jit
+@jit_noalloc
 def radial(mission, state):
     """Vector from the Earth's centre to the vehicle (x, z components) and its length."""
     rx = state[0]
@@ -53,27 +53,27 @@ def radial(mission, state):
     return rx, rz, math.sqrt(rx * rx + rz * rz)
 
 
-@jit
+@jit_noalloc
 def altitude(mission, state):
     """Altitude above the spherical Earth (m)."""
     return radial(mission, state)[2] - mission[M_EARTH_RADIUS]
 
 
-@jit
+@jit_noalloc
 def climb_rate(mission, state):
     """Rate of change of altitude (m/s); negative on the descending branch."""
     rx, rz, r = radial(mission, state)
     return (rx * state[2] + rz * state[3]) / r
 
 
-@jit
+@jit_noalloc
 def dynamic_pressure(mission, vehicle, atmosphere, state):
     """q = rho V^2 / 2 (Pa)."""
     v2 = state[2] * state[2] + state[3] * state[3]
     return 0.5 * density(atmosphere, altitude(mission, state)) * v2
 
 
-@jit
+@jit_noalloc
 def acceleration(mission, vehicle, atmosphere, state):
     """Gravity plus drag acceleration (x, z)."""
     rx, rz, r = radial(mission, state)
@@ -85,7 +85,7 @@ def acceleration(mission, vehicle, atmosphere, state):
     return g * rx - drag * vx, g * rz - drag * vz
 
 
-@jit
+@jit_noalloc
 def trajectory_step(mission, vehicle, atmosphere, state, h, stage):
     """Advance the trajectory by ``h`` seconds with classical RK4; ``stage`` is scratch (4,)."""
     x0, z0, vx1, vz1 = state[0], state[1], state[2], state[3]
@@ -114,13 +114,13 @@ def trajectory_step(mission, vehicle, atmosphere, state, h, stage):
     state[3] = vz1 + h / 6.0 * (az1 + 2.0 * az2 + 2.0 * az3 + az4)
 
 
-@jit
+@jit_noalloc
 def velocity_pitch(state):
     """Angle of the velocity above the inertial x axis, a rotation about +y (rad)."""
     return math.atan2(-state[3], state[2])
 
 
-@jit
+@jit_noalloc
 def velocity_pitch_rate(mission, vehicle, atmosphere, state):
     """Time derivative of :func:`velocity_pitch` (rad/s)."""
     ax, az = acceleration(mission, vehicle, atmosphere, state)
@@ -128,7 +128,7 @@ def velocity_pitch_rate(mission, vehicle, atmosphere, state):
     return (vz * ax - vx * az) / (vx * vx + vz * vz)
 
 
-@jit
+@jit_noalloc
 def local_horizontal(mission, state, out):
     """Unit downrange horizontal direction at the vehicle (inertial, y = 0)."""
     rx, rz, r = radial(mission, state)
@@ -137,7 +137,7 @@ def local_horizontal(mission, state, out):
     out[2] = rx / r
 
 
-@jit
+@jit_noalloc
 def aerodynamic_torque(vehicle, qbar, out):
     """Mistrim torque q S L c_m per body axis (N m)."""
     scale = qbar * vehicle[V_AERO_AREA] * vehicle[V_AERO_LENGTH]
@@ -145,7 +145,7 @@ def aerodynamic_torque(vehicle, qbar, out):
         out[i] = scale * vehicle[V_MISTRIM + i]
 
 
-@jit
+@jit_noalloc
 def interpolate(node_a, accel_a, node_b, accel_b, span, tau, out):
     """Cubic Hermite interpolation of the trajectory between two RK4 nodes ``span`` apart.
 
@@ -164,7 +164,7 @@ def interpolate(node_a, accel_a, node_b, accel_b, span, tau, out):
         out[2 + k] = h00 * node_a[2 + k] + h10 * span * accel_a[k] + h01 * node_b[2 + k] + h11 * span * accel_b[k]
 
 
-@jit
+@jit_noalloc
 def advance_nodes(mission, vehicle, atmosphere, nodes, accels, span, stage):
     """Move node b to a and integrate a new node b one ``span`` ahead (RK4)."""
     for k in range(4):

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from refexmc._jit import jit
+from refexmc._jit import jit, jit_noalloc
 from refexmc.core import (
     allocation,
     control,
@@ -99,7 +99,7 @@ from refexmc.core.layout import (
 _DEG = 180.0 / math.pi
 
 
-@jit
+@jit_noalloc
 def _write_history(
     history,
     row,
@@ -154,47 +154,106 @@ def run_flight(
     it is full; ``summary[S_HISTORY_ROWS]`` says how many rows were written.
     """
     n_thr = thrusters.shape[0]
+    work = (
+        np.empty(dynamics.STATE_SIZE),  # x
+        np.empty((8, dynamics.STATE_SIZE)),  # RK4 scratch
+        np.empty((3, 3, 3)),  # inertia, its inverse, the flight software's inertia
+        np.empty((4, environment.TRAJECTORY_STATE_SIZE)),  # interpolated state, 2 RK4 nodes, stage
+        np.empty((2, 2)),  # trajectory node accelerations
+        np.zeros((n_thr, rcs.VALVE_STATE_SIZE)),
+        np.empty((n_thr, 3)),  # torque arms
+        np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
+        np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
+        np.zeros((2, n_thr), dtype=np.int64),  # desired, changes
+        np.zeros(guidance.GUIDANCE_STATE_SIZE),
+        np.zeros((13, 3)),  # 3-vectors
+        np.zeros((5, 4)),  # quaternions
+        np.empty((3, 4)),
+        np.empty((3, 3)),
+        np.empty((3, 3)),  # horizontal, sun, spin rate
+        np.empty((2, 2, 3)),  # gains [level][kp, kd][axis]
+        np.empty((2, 3)),  # guidance accelerations, low and high thrust
+        np.empty(1, dtype=np.uint64),  # navigation noise generator
+    )
+    _fly(
+        vehicle,
+        thrusters,
+        fsw,
+        mission,
+        nav,
+        atmosphere,
+        allocation_table,
+        nav_seed,
+        history_every,
+        summary,
+        pulse_counts,
+        history,
+        work,
+    )
+
+
+@jit_noalloc
+def _fly(
+    vehicle,
+    thrusters,
+    fsw,
+    mission,
+    nav,
+    atmosphere,
+    allocation_table,
+    nav_seed,
+    history_every,
+    summary,
+    pulse_counts,
+    history,
+    work,
+):
+    """The run loop of :func:`run_flight` on the work arrays it allocated (no allocation, no
+    reference counting: see ``refexmc._jit.jit_noalloc``)."""
+    (
+        x,
+        rk4_work,
+        matrices,
+        trajectory,
+        node_accels,
+        valve_state,
+        arms,
+        pwpf_state,
+        switch_state,
+        commands,
+        guid,
+        vec,
+        quat,
+        work34,
+        work33,
+        side,
+        gains,
+        accels,
+        rng_state,
+    ) = work
+    n_thr = thrusters.shape[0]
     dt = fsw[F_CONTROL_PERIOD]
     max_step = mission[M_MAX_STEP]
-    inertia = vehicle[V_INERTIA : V_INERTIA + 9].copy().reshape((3, 3))
-    inertia_inv = np.empty((3, 3))
+    inertia, inertia_inv, fsw_inertia = matrices[0], matrices[1], matrices[2]
+    for i in range(3):
+        for j in range(3):
+            inertia[i, j] = vehicle[V_INERTIA + 3 * i + j]
+            fsw_inertia[i, j] = fsw[F_INERTIA + 3 * i + j]
     dynamics.invert_3x3(inertia, inertia_inv)
-    fsw_inertia = fsw[F_INERTIA : F_INERTIA + 9].copy().reshape((3, 3))
     propellant0 = vehicle[V_PROPELLANT]
-
-    # --- work arrays, allocated once per run ----------------------------------------------
-    x = np.empty(dynamics.STATE_SIZE)
-    work = np.empty((8, dynamics.STATE_SIZE))
-    traj = np.empty(environment.TRAJECTORY_STATE_SIZE)  # interpolated state at t
-    nodes = np.empty((2, environment.TRAJECTORY_STATE_SIZE))  # RK4 nodes bracketing t
-    node_accels = np.empty((2, 2))
-    stage = np.empty(environment.TRAJECTORY_STATE_SIZE)
-    valve_state = np.zeros((n_thr, rcs.VALVE_STATE_SIZE))
-    arms = np.empty((n_thr, 3))
-    pwpf_state = np.empty((3, pulse_modulation.PWPF_STATE_SIZE))
-    switch_state = np.empty((n_thr, switching.SWITCH_STATE_SIZE))
-    desired = np.zeros(n_thr, dtype=np.int64)
-    changes = np.zeros(n_thr, dtype=np.int64)
-    guid = np.zeros(guidance.GUIDANCE_STATE_SIZE)
-    vec = np.zeros((13, 3))
+    traj, nodes, stage = trajectory[0], trajectory[1:3], trajectory[3]
+    desired, changes = commands[0], commands[1]
     rate_meas, rate_ref, accel_ref, rate_error = vec[0], vec[1], vec[2], vec[3]
     torque_cmd, pulse, tau0, tau1, tau_a, tau_b, aero = vec[4], vec[5], vec[6], vec[7], vec[8], vec[9], vec[10]
     rotvec = vec[11]
     inertial_rate = vec[12]  # GEEM reference rate, inertial axes
-    quat = np.zeros((5, 4))
     q_meas, q_ref, q_error, q_final, tmp4 = quat[0], quat[1], quat[2], quat[3], quat[4]
-    work34 = np.empty((3, 4))
-    work33 = np.empty((3, 3))
-    side = np.empty((3, 3))  # horizontal, sun, spin rate
-    gains = np.empty((2, 2, 3))  # [level][kp, kd][axis], no views created in the loop
     for lv in range(2):
         for i in range(3):
             gains[lv, 0, i] = fsw[F_KP + 3 * lv + i]
             gains[lv, 1, i] = fsw[F_KD + 3 * lv + i]
     kp_low, kd_low, kp_high, kd_high = gains[0, 0], gains[0, 1], gains[1, 0], gains[1, 1]
-    accel_low = np.empty(3)
-    accel_high = np.empty(3)
-    rng_state = np.empty(1, dtype=np.uint64)
+    accel_low, accel_high = accels[0], accels[1]
     rng_state[0] = np.uint64(nav_seed)
 
     margin = fsw[F_ACCEL_MARGIN]
@@ -449,7 +508,7 @@ def run_flight(
                 for i in range(3):
                     tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
                     tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb
-                dynamics.rk4_step(x, h, tau_a, tau_b, inertia, inertia_inv, work)
+                dynamics.rk4_step(x, h, tau_a, tau_b, inertia, inertia_inv, rk4_work)
                 rk4_steps += 1
             fuel -= rcs.propellant_for_impulse(vehicle, impulse)
             if fuel <= 0.0 and impulse > 0.0:

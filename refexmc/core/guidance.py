@@ -7,7 +7,7 @@ For t > t1 the final state is held. The guidance state is a caller-owned float a
 
 import math
 
-from refexmc._jit import jit
+from refexmc._jit import jit_noalloc
 from refexmc.core import quaternion
 
 G_T0 = 0  # mode start time
@@ -18,7 +18,7 @@ G_VECTOR = 10  # SLERP rotation vector theta = e * angle, or RDM omega_0, or SSM
 GUIDANCE_STATE_SIZE = 13
 
 
-@jit
+@jit_noalloc
 def quintic(t, t1):
     """h, h_dot, h_ddot of 000 eq. 7-9; held at (1, 0, 0) for t >= t1."""
     if t <= 0.0:
@@ -32,7 +32,7 @@ def quintic(t, t1):
     return h, h_dot, h_ddot
 
 
-@jit
+@jit_noalloc
 def cubic_rate(t, t1):
     """Rate factor and its derivative of 000 eq. 17-18; (0, 0) for t >= t1."""
     if t <= 0.0:
@@ -43,7 +43,7 @@ def cubic_rate(t, t1):
     return 2.0 * s * s * s - 3.0 * s * s + 1.0, 6.0 * s * (s - 1.0) / t1
 
 
-@jit
+@jit_noalloc
 def quartic_spin_up(t, t1):
     """Angle, rate and acceleration factors of 000 eq. 22-27 (multiply by omega_1)."""
     if t <= 0.0:
@@ -57,7 +57,7 @@ def quartic_spin_up(t, t1):
     return angle, rate, accel
 
 
-@jit
+@jit_noalloc
 def slerp_duration(theta, accel_max, t1_design):
     """t1 of 000 eq. 13-14: the slowest axis at the given (already margined) accelerations."""
     t1 = t1_design
@@ -69,7 +69,7 @@ def slerp_duration(theta, accel_max, t1_design):
     return t1
 
 
-@jit
+@jit_noalloc
 def rate_profile_duration(omega, accel_max):
     """t1 of 000 eq. 19 (also used for SSM with omega_1)."""
     t1 = 0.0
@@ -81,7 +81,7 @@ def rate_profile_duration(omega, accel_max):
     return t1
 
 
-@jit
+@jit_noalloc
 def start_slerp(state, t0, q_start, q_final, accel_max, t1_design, work4):
     """Begin a SLERP reorientation (SAM, EAM) from ``q_start`` to ``q_final``."""
     state[G_T0] = t0
@@ -93,7 +93,7 @@ def start_slerp(state, t0, q_start, q_final, accel_max, t1_design, work4):
     state[G_T1] = slerp_duration(state[G_VECTOR : G_VECTOR + 3], accel_max, t1_design)
 
 
-@jit
+@jit_noalloc
 def slerp_reference(state, t, q_out, rate_out, accel_out):
     """Reference of a SLERP reorientation at time ``t`` (000 eq. 4, 10-12)."""
     h, h_dot, h_ddot = quintic(t - state[G_T0], state[G_T1])
@@ -103,7 +103,7 @@ def slerp_reference(state, t, q_out, rate_out, accel_out):
         accel_out[i] = state[G_VECTOR + i] * h_ddot
 
 
-@jit
+@jit_noalloc
 def start_rate_damping(state, t0, omega0, accel_max):
     """Begin rate damping from the measured rates ``omega0`` (000 eq. 15-19)."""
     state[G_T0] = t0
@@ -112,7 +112,7 @@ def start_rate_damping(state, t0, omega0, accel_max):
     state[G_T1] = rate_profile_duration(omega0, accel_max)
 
 
-@jit
+@jit_noalloc
 def rate_damping_reference(state, t, rate_out, accel_out):
     """Reference rate and acceleration of rate damping at ``t`` (000 eq. 17-18)."""
     factor, factor_dot = cubic_rate(t - state[G_T0], state[G_T1])
@@ -121,7 +121,7 @@ def rate_damping_reference(state, t, rate_out, accel_out):
         accel_out[i] = state[G_VECTOR + i] * factor_dot
 
 
-@jit
+@jit_noalloc
 def start_spin_up(state, t0, q_start, omega1, accel_max):
     """Begin the sun-scanning spin-up from attitude ``q_start`` to rate ``omega1`` (eq. 20-21)."""
     state[G_T0] = t0
@@ -132,7 +132,7 @@ def start_spin_up(state, t0, q_start, omega1, accel_max):
     state[G_T1] = rate_profile_duration(omega1, accel_max)
 
 
-@jit
+@jit_noalloc
 def spin_up_reference(state, t, q_out, rate_out, accel_out, work4):
     """Reference of the SSM at ``t``: q = q_start (x) rotation(phi(t)) (000 eq. 22-27)."""
     angle, rate, accel = quartic_spin_up(t - state[G_T0], state[G_T1])
@@ -145,7 +145,7 @@ def spin_up_reference(state, t, q_out, rate_out, accel_out, work4):
         accel_out[i] = state[G_VECTOR + i] * accel
 
 
-@jit
+@jit_noalloc
 def entry_attitude(velocity_pitch, alpha, beta, bank, q_out, work):
     """Attitude with aerodynamic angles (alpha, beta, bank) to a velocity in the x-z plane.
 
@@ -164,7 +164,7 @@ def entry_attitude(velocity_pitch, alpha, beta, bank, q_out, work):
     quaternion.multiply(b, a, q_out)
 
 
-@jit
+@jit_noalloc
 def sun_attitude(sun, horizontal, q_out, work):
     """Body +y at the sun, body x as close as possible to ``horizontal`` (reference-model sec. 4).
 

@@ -7,12 +7,12 @@ scan runs and keeps its decayed value afterwards (000 sec. 2.2, 6.2).
 
 import math
 
-from refexmc._jit import jit, jit_inline
+from refexmc._jit import jit_inline, jit_noalloc
 from refexmc.core import quaternion, rng
 from refexmc.core.layout import N_ATT_BIAS, N_ATT_NOISE, N_CALIBRATION_TIME, N_RATE_BIAS, N_RATE_NOISE
 
 
-@jit
+@jit_noalloc
 def calibration_factor(nav, time_in_ssm):
     """Fraction of the attitude bias left after ``time_in_ssm`` seconds of sun scanning."""
     tau = nav[N_CALIBRATION_TIME]

@@ -3,7 +3,7 @@
 One modulator per body axis; its state is a caller-owned row ``[t_s_on, t_s_off, w]``.
 """
 
-from refexmc._jit import jit, jit_inline
+from refexmc._jit import jit_inline, jit_noalloc
 
 P_T_ON = 0  # time the axis last started a pulse
 P_T_OFF = 1  # time the axis last ended a pulse
@@ -15,7 +15,7 @@ _NEVER = -1.0e9
 _EPS_T = 1e-9
 
 
-@jit
+@jit_noalloc
 def reset(state):
     """No pulse yet: the first may start at once."""
     for axis in range(state.shape[0]):
@@ -24,7 +24,7 @@ def reset(state):
         state[axis, P_OUTPUT] = 0.0
 
 
-@jit
+@jit_noalloc
 def shaped_command(torque_cmd, torque_max, torque_min):
     """f(tau_c) of 000 eq. 43: saturation at tau_max, deadband below tau_min."""
     magnitude = abs(torque_cmd)
@@ -35,7 +35,7 @@ def shaped_command(torque_cmd, torque_max, torque_min):
     return torque_cmd
 
 
-@jit
+@jit_noalloc
 def pulse_timing(f_abs, torque_max, t_on, t_off):
     """Pulse width gamma_k and period T_k of 000 eq. 44-46 for |f| in (0, tau_max)."""
     f_min = torque_max * t_on / (t_on + t_off)  # eq. 44

@@ -8,10 +8,10 @@ All functions write into caller-owned ``out`` arrays; ``out`` may alias an input
 
 import math
 
-from refexmc._jit import jit
+from refexmc._jit import jit_noalloc
 
 
-@jit
+@jit_noalloc
 def multiply(p, q, out):
     """Hamilton product ``out = p (x) q``; ``out`` must not alias ``p`` or ``q``."""
     px, py, pz, pw = p[0], p[1], p[2], p[3]
@@ -22,7 +22,7 @@ def multiply(p, q, out):
     out[3] = pw * qw - px * qx - py * qy - pz * qz
 
 
-@jit
+@jit_noalloc
 def conj_multiply(p, q, out):
     """``out = conj(p) (x) q``: the rotation from frame ``p`` to frame ``q`` in ``p``'s axes."""
     px, py, pz, pw = -p[0], -p[1], -p[2], p[3]
@@ -33,7 +33,7 @@ def conj_multiply(p, q, out):
     out[3] = pw * qw - px * qx - py * qy - pz * qz
 
 
-@jit
+@jit_noalloc
 def normalize(q):
     """Scale ``q`` to unit norm in place."""
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
@@ -41,7 +41,7 @@ def normalize(q):
         q[i] /= n
 
 
-@jit
+@jit_noalloc
 def rotate(q, v, out):
     """``out = R(q) v``: a body vector expressed in the inertial frame; ``out`` may alias ``v``."""
     x, y, z, w = q[0], q[1], q[2], q[3]
@@ -55,7 +55,7 @@ def rotate(q, v, out):
     out[2] = vz + w * tz + x * ty - y * tx
 
 
-@jit
+@jit_noalloc
 def rotate_inverse(q, v, out):
     """``out = R(q)^T v``: an inertial vector expressed in the body frame; may alias ``v``."""
     x, y, z, w = -q[0], -q[1], -q[2], q[3]
@@ -68,7 +68,7 @@ def rotate_inverse(q, v, out):
     out[2] = vz + w * tz + x * ty - y * tx
 
 
-@jit
+@jit_noalloc
 def from_rotation_vector(rx, ry, rz, out):
     """Unit quaternion of a rotation by ``|r|`` about ``r / |r|`` (exponential map)."""
     angle = math.sqrt(rx * rx + ry * ry + rz * rz)
@@ -83,7 +83,7 @@ def from_rotation_vector(rx, ry, rz, out):
     out[3] = math.cos(half)
 
 
-@jit
+@jit_noalloc
 def to_rotation_vector(q, out):
     """Rotation vector of ``q`` along the shortest arc (angle in [0, pi])."""
     x, y, z, w = q[0], q[1], q[2], q[3]
@@ -99,7 +99,7 @@ def to_rotation_vector(q, out):
     out[2] = k * z
 
 
-@jit
+@jit_noalloc
 def angle_between(p, q):
     """Angle in rad of the single-axis rotation from attitude ``p`` to attitude ``q`` (000 sec. 6.1)."""
     d = abs(p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3])
@@ -108,7 +108,7 @@ def angle_between(p, q):
     return 2.0 * math.acos(d)
 
 
-@jit
+@jit_noalloc
 def slerp(q0, q1, h, out):
     """Spherical linear interpolation along the shortest arc, 000 eq. 4; ``h`` in [0, 1]."""
     dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3]
@@ -129,7 +129,7 @@ def slerp(q0, q1, h, out):
         out[i] = a * q0[i] + b * q1[i]
 
 
-@jit
+@jit_noalloc
 def from_axes(x_axis, y_axis, z_axis, out):
     """Quaternion of the rotation whose matrix has the given (orthonormal) body axes as columns."""
     m00, m01, m02 = x_axis[0], y_axis[0], z_axis[0]

@@ -9,7 +9,7 @@ react earlier than a pending one supersedes it. Failed thrusters never open (000
 Valve state: one row per thruster, columns below; all arrays are owned by the caller.
 """
 
-from refexmc._jit import jit
+from refexmc._jit import jit_noalloc
 from refexmc.core.layout import (
     DERATING_MAX_VALVES,
     FALL,
@@ -44,13 +44,13 @@ LEVEL_HIGH = 1
 _EPS_T = 1e-12
 
 
-@jit
+@jit_noalloc
 def reset(valve_state):
     """All valves closed, nothing pending."""
     valve_state[:, :] = 0.0
 
 
-@jit
+@jit_noalloc
 def level_at(valve_state, i, t):
     """Normalised thrust level of thruster ``i`` at time ``t`` (before pending reactions)."""
     v = valve_state[i, VS_LEVEL] + valve_state[i, VS_SLOPE] * (t - valve_state[i, VS_TIME])
@@ -61,13 +61,13 @@ def level_at(valve_state, i, t):
     return v
 
 
-@jit
+@jit_noalloc
 def time_constant(thrusters, i, thrust_level, which):
     """On-delay, rise, off-delay or fall time (s) of thruster ``i`` at the given thrust level."""
     return thrusters[i, T_ON_DELAY_LOW + TIME_CONSTANTS_PER_LEVEL * thrust_level + which]
 
 
-@jit
+@jit_noalloc
 def command(valve_state, thrusters, i, open_valve, t, thrust_level):
     """Send an open (True) or close command to thruster ``i`` at time ``t``."""
     if thrusters[i, T_FAILED] != 0.0:
@@ -87,7 +87,7 @@ def command(valve_state, thrusters, i, open_valve, t, thrust_level):
     valve_state[i, VS_PENDING_COUNT] = n + 1
 
 
-@jit
+@jit_noalloc
 def apply_reactions(valve_state, thrusters, i, t, thrust_level):
     """Start the ramps of all reactions of thruster ``i`` due at or before ``t``."""
     n = int(valve_state[i, VS_PENDING_COUNT])
@@ -112,7 +112,7 @@ def apply_reactions(valve_state, thrusters, i, t, thrust_level):
         valve_state[i, VS_PENDING_COUNT] = n - done
 
 
-@jit
+@jit_noalloc
 def next_breakpoint(valve_state, n_thrusters, t_start, t_end):
     """Earliest kink of any thruster's level in (t_start, t_end), or ``t_end``."""
     t_next = t_end
@@ -131,7 +131,7 @@ def next_breakpoint(valve_state, n_thrusters, t_start, t_end):
     return t_next
 
 
-@jit
+@jit_noalloc
 def torque_arms(thrusters, vehicle, out):
     """Torque per newton of each thruster about the actual CoM: (r - com_offset) x direction."""
     for i in range(thrusters.shape[0]):
@@ -146,7 +146,7 @@ def torque_arms(thrusters, vehicle, out):
         out[i, 2] = rx * dy - ry * dx
 
 
-@jit
+@jit_noalloc
 def derating_factor(vehicle, n_open):
     """Thrust factor with ``n_open`` valves open (000 sec. 2.1); 1 when none is open."""
     if n_open <= 0:
@@ -156,7 +156,7 @@ def derating_factor(vehicle, n_open):
     return vehicle[V_DERATING + n_open - 1]
 
 
-@jit
+@jit_noalloc
 def segment_thrust(valve_state, thrusters, vehicle, arms, thrust_level, t_start, t_end, tau_start, tau_end):
     """Torques at both ends of a segment without kinks, and its total impulse (N s).
 
@@ -187,13 +187,13 @@ def segment_thrust(valve_state, thrusters, vehicle, arms, thrust_level, t_start,
     return impulse
 
 
-@jit
+@jit_noalloc
 def propellant_for_impulse(vehicle, impulse):
     """Propellant mass (kg) that an impulse (N s) uses: impulse / (Isp g0)."""
     return impulse / (vehicle[V_ISP] * STANDARD_GRAVITY)
 
 
-@jit
+@jit_noalloc
 def open_mask(valve_state, n_thrusters, t):
     """Bit mask of thrusters producing thrust at ``t`` (bit i-1 for thruster i)."""
     mask = 0
@@ -203,7 +203,7 @@ def open_mask(valve_state, n_thrusters, t):
     return mask
 
 
-@jit
+@jit_noalloc
 def any_active(valve_state, n_thrusters):
     """True if some thruster produces thrust, ramps, or has a reaction pending."""
     for i in range(n_thrusters):

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from refexmc._jit import jit
+from refexmc._jit import jit_noalloc
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -17,7 +17,7 @@ _MIX2 = np.uint64(0x94D049BB133111EB)
 _TWO_POW_MINUS_53 = 1.0 / 9007199254740992.0
 
 
-@jit
+@jit_noalloc
 def next_uniform(state):
     """Uniform draw in (0, 1); advances ``state``."""
     state[0] += _GOLDEN
@@ -28,7 +28,7 @@ def next_uniform(state):
     return (float(z >> np.uint64(11)) + 0.5) * _TWO_POW_MINUS_53
 
 
-@jit
+@jit_noalloc
 def next_normal(state):
     """Standard normal draw (Box-Muller, one of the pair); advances ``state`` twice."""
     u1 = next_uniform(state)

@@ -4,7 +4,7 @@ A thruster stays open until it has been open for ``min_on`` and stays closed unt
 for ``min_off``. State per thruster: ``[is_open, t_opened, t_closed]``.
 """
 
-from refexmc._jit import jit
+from refexmc._jit import jit_noalloc
 
 SW_OPEN = 0
 SW_T_OPENED = 1
@@ -12,7 +12,7 @@ SW_T_CLOSED = 2
 SWITCH_STATE_SIZE = 3
 
 
-@jit
+@jit_noalloc
 def reset(state):
     """All closed, long rested."""
     for i in range(state.shape[0]):
@@ -21,7 +21,7 @@ def reset(state):
         state[i, SW_T_CLOSED] = -1.0e9
 
 
-@jit
+@jit_noalloc
 def enforce(state, desired, t, min_on, min_off, changes):
     """Apply ``desired`` (0/1) where the limits allow; ``changes[i]`` = +1 opened, -1 closed, 0."""
     eps = 1e-9
