@@ -1,0 +1,139 @@
+"""Fly campaigns/failure-sweep.yaml in-process and print the result table of docs/failure-sweep.md.
+
+Every single and double thruster failure (8 + 28 = 36 sets) plus the nominal run 0, undispersed;
+each set is compared with 000 Table 4 (the compensable failures). Takes a few seconds after the
+numba kernels are compiled (cached on disk).
+
+    .venv/bin/python docs/gen_failure_sweep.py           # print the table
+    .venv/bin/python docs/gen_failure_sweep.py --write   # replace it in docs/failure-sweep.md
+"""
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+from refexmc.campaign.chunk import fly_chunk
+from refexmc.config.load import load_campaign
+
+ROOT = Path(__file__).resolve().parents[1]
+CAMPAIGN = ROOT / "campaigns" / "failure-sweep.yaml"
+DOC = Path(__file__).with_name("failure-sweep.md")
+BEGIN = "<!-- sweep:begin -->"
+END = "<!-- sweep:end -->"
+
+# 000 Table 4: the compensable thruster failures (1-based thruster ids, ascending)
+TABLE_4 = frozenset(
+    [(1,), (2,), (3,), (4,), (7,), (8,)] + [(1, 2), (3, 4), (1, 3), (2, 4), (7, 8), (1, 8), (2, 8), (3, 7), (4, 7)]
+)
+
+
+def fly_sweep(campaign_file=CAMPAIGN):
+    """(campaign, runs rows) of the failure sweep, flown in this process."""
+    campaign = load_campaign(campaign_file)
+    rows, _ = fly_chunk(campaign, range(campaign["runs"]))
+    return campaign, rows
+
+
+def failed_set(row):
+    text = row["failed_thrusters"]
+    return tuple(int(t) for t in text.split(",")) if text else ()
+
+
+def _number(value, fmt):
+    return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, fmt)
+
+
+def table(campaign, rows):
+    """Markdown table: one line per run, with 000 Table 4's verdict and whether the two agree."""
+    propellant_kg = campaign["vehicle"]["rcs"]["propellant_kg"]
+    lines = [
+        "| run | failed thrusters | 000 Table 4 | completes | failure reason | modes completed "
+        "| propellant remaining [%] | propellant remaining [kg] | t_end [s] | hand-over angle error [deg] | agrees |",
+        "|---:|---|---|---|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for row in rows:
+        failed = failed_set(row)
+        completes = row["status"] == "ok" and bool(row["success"])
+        if failed:
+            expected = failed in TABLE_4
+            verdict = "compensable" if expected else "not compensable"
+            agrees = "yes" if completes == expected else "**no**"
+        else:
+            verdict, agrees = "— (nominal)", "—"
+        remaining = row["fuel_remaining"]
+        cells = (
+            str(row["run_id"]),
+            f"[{', '.join(map(str, failed))}]" if failed else "none",
+            verdict,
+            "yes" if completes else "no",
+            row["failure_reason"] or "—",
+            str(row["modes_completed"]),
+            _number(100.0 * remaining, ".1f"),
+            _number(remaining * propellant_kg, ".3f"),
+            _number(row["t_end_s"], ".1f"),
+            _number(row["theta_t_handover_deg"], ".3f"),
+            agrees,
+        )
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def summary(rows):
+    """Agreement with 000 Table 4, and the sets that complete, as markdown lines."""
+    sets = [(failed_set(r), r["status"] == "ok" and bool(r["success"])) for r in rows if r["failed_thrusters"]]
+    agree = sum(completes == (failed in TABLE_4) for failed, completes in sets)
+    complete = [failed for failed, completes in sets if completes]
+    nominal = [r for r in rows if not r["failed_thrusters"]]
+
+    def names(group):
+        return ", ".join(f"[{', '.join(map(str, s))}]" for s in group) or "none"
+
+    lines = [
+        f"- Agreement with 000 Table 4: **{agree} of {len(sets)}** failure sets.",
+        f"- Sets that complete ({len(complete)}): {names(complete)}.",
+        f"- Sets that fail ({len(sets) - len(complete)}): {names([s for s, c in sets if not c])}.",
+    ]
+    if nominal:
+        ok = nominal[0]["status"] == "ok" and bool(nominal[0]["success"])
+        lines.insert(0, f"- Nominal run (no failure): {'completes' if ok else 'does NOT complete'}.")
+    return "\n".join(lines) + "\n"
+
+
+def provenance():
+    """The commit the sweep was flown at, and whether the model sources had uncommitted changes."""
+    source = Path(sys.modules["refexmc"].__file__).resolve().parents[1]
+
+    def git(*args):
+        try:
+            return subprocess.run(
+                ["git", "-C", str(source), *args], capture_output=True, text=True, check=True
+            ).stdout.strip()
+        except (OSError, subprocess.CalledProcessError):
+            return None
+
+    commit = git("rev-parse", "--short", "HEAD")
+    if commit is None:
+        return "Flown from a source tree that is not a git checkout (commit unknown)."
+    dirty = git("status", "--porcelain", "--", "refexmc", "configs", "campaigns")
+    state = " (the working tree had uncommitted changes under refexmc/, configs/ or campaigns/)" if dirty else ""
+    return f"Flown with `.venv/bin/python docs/gen_failure_sweep.py` at commit `{commit}`{state}."
+
+
+def generate(campaign_file=CAMPAIGN):
+    campaign, rows = fly_sweep(campaign_file)
+    return f"{provenance()}\n\n{table(campaign, rows)}\n{summary(rows)}"
+
+
+def main(argv):
+    generated = generate()
+    if "--write" in argv:
+        head, rest = DOC.read_text().split(BEGIN, 1)
+        _, tail = rest.split(END, 1)
+        DOC.write_text(f"{head}{BEGIN}\n{generated}{END}{tail}")
+    else:
+        sys.stdout.write(generated)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
