@@ -23,25 +23,40 @@ def main():
 
 
 @main.command()
-@click.argument("campaign", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("campaign", required=False, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--out", type=click.Path(file_okay=False, path_type=Path), help="Output directory.")
+@click.option("-j", "--jobs", type=int, help="Worker processes [default: all usable cores].")
 @click.option("--runs", type=int, help="Override the number of runs.")
 @click.option("--seed", type=int, help="Override the campaign seed.")
-@click.option("--resume", is_flag=True, help="Finish what is missing in an existing OUT.")
+@click.option("--resume", is_flag=True, help="Finish what is missing in an existing OUT of the same campaign.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing OUT.")
-@click.option("--no-progress", is_flag=True, help="No progress lines.")
-def run(campaign, out, runs, seed, resume, overwrite, no_progress):
-    """Run CAMPAIGN and write OUT (default runs/<name>).
+@click.option("--backend", type=click.Choice(["loky"]), default="loky", show_default=True, help="Execution backend.")
+@click.option("--no-progress", is_flag=True, help="No progress bar or lines on stderr.")
+def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, no_progress):
+    """Run CAMPAIGN (default: campaigns/refex-mc100.yaml) and write OUT (default runs/<name>).
 
-    Example: refexmc run campaigns/nominal.yaml -o runs/nominal --overwrite
+    Chunks of runs are flown in parallel worker processes; a run that raises, crashes its
+    worker or exceeds the campaign's run_time_limit_s (default 60 s) is recorded as an error.
+
+    Example: refexmc run campaigns/nominal.yaml -o runs/nominal -j 2 --overwrite
     """
+    from refexmc.campaign.progress import progress_mode
     from refexmc.campaign.run import run_campaign
 
     if resume and overwrite:
         _bad_input("--resume and --overwrite exclude each other")
-    log = None if no_progress else (lambda line: click.echo(line, err=True))
     try:
-        result = run_campaign(campaign, out=out, runs=runs, seed=seed, overwrite=overwrite, resume=resume, log=log)
+        result = run_campaign(
+            campaign,
+            out=out,
+            runs=runs,
+            seed=seed,
+            jobs=jobs,
+            backend=backend,
+            overwrite=overwrite,
+            resume=resume,
+            progress=None if no_progress else progress_mode(),
+        )
     except ConfigError as exc:
         _bad_input(str(exc))
     except FileExistsError as exc:

@@ -76,17 +76,22 @@ def runs_row(run_id, seed, failed, result, n_thrusters, error=None):
     return row
 
 
+STRING_COLUMNS = ("status", "failure_reason", "failed_thrusters")
+
+
 def runs_table(rows):
     columns = {key: [row[key] for row in rows] for key in rows[0]}
     table = pa.table(columns)
-    return table.cast(
-        pa.schema(
-            [
-                pa.field(name, pa.int64() if name in ("run_id", "seed") else table.schema.field(name).type)
-                for name in table.column_names
-            ]
-        )
-    )
+
+    def column_type(name):
+        # fixed types where a chunk's values may all be null, so that every part has one schema
+        if name in ("run_id", "seed"):
+            return pa.int64()
+        if name in STRING_COLUMNS:
+            return pa.string()
+        return table.schema.field(name).type
+
+    return table.cast(pa.schema([pa.field(name, column_type(name)) for name in table.column_names]))
 
 
 def history_table(run_id, history):
@@ -117,7 +122,24 @@ def history_table(run_id, history):
     return pa.table(columns)
 
 
-def manifest(campaign_file, campaign, chunk_size, status, started, finished=None, counts=None):
+def empty_history_table():
+    """A history table with no rows (the histories part of a chunk whose runs all errored)."""
+    return history_table(0, np.zeros((0, L.HISTORY_SIZE)))
+
+
+def normalized_campaign(campaign):
+    """The resolved campaign as plain YAML data: what ``campaign.resolved.yaml`` reads back as."""
+    return yaml.safe_load(yaml.safe_dump(campaign, sort_keys=False))
+
+
+def campaign_digest(campaign):
+    """sha256 of the resolved campaign (runs and seed included): the identity of a campaign's results."""
+    text = json.dumps(normalized_campaign(campaign), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def manifest(campaign_file, campaign, chunk_size, status, started, finished=None, counts=None, **extra):
+    """manifest.json content; ``extra`` (execution details: jobs, backend, ...) is added as is."""
     data = Path(campaign_file).read_bytes() if campaign_file else b""
     return {
         "refexmc": refexmc.__version__,
@@ -127,6 +149,7 @@ def manifest(campaign_file, campaign, chunk_size, status, started, finished=None
         "pyarrow": pa.__version__,
         "campaign_file": str(campaign_file) if campaign_file else None,
         "campaign_sha256": hashlib.sha256(data).hexdigest(),
+        "resolved_sha256": campaign_digest(campaign),
         "name": campaign["name"],
         "seed": campaign["seed"],
         "runs": campaign["runs"],
@@ -135,7 +158,12 @@ def manifest(campaign_file, campaign, chunk_size, status, started, finished=None
         "started": started,
         "finished": finished,
         "counts": counts or {},
+        **extra,
     }
+
+
+def read_manifest(out):
+    return json.loads((Path(out) / "manifest.json").read_text())
 
 
 def write_manifest(out, info):
@@ -149,13 +177,25 @@ def write_resolved(out, campaign):
 
 
 def prepare_output(out, overwrite=False, resume=False):
-    """Create OUT; an existing OUT is refused unless ``overwrite`` (emptied) or ``resume`` (kept)."""
+    """Create OUT; an existing OUT is refused unless ``overwrite`` (emptied) or ``resume`` (kept).
+
+    On resume, the temporary files a killed campaign left behind are removed.
+    """
     out = Path(out)
     if out.exists():
-        if resume:
-            return
-        if not overwrite:
+        if not resume and not overwrite:
             raise FileExistsError(str(out))
-        shutil.rmtree(out)
-    (out / "runs").mkdir(parents=True)
-    (out / "histories").mkdir()
+        if overwrite:
+            shutil.rmtree(out)
+    if out.exists():
+        remove_temporary_files(out)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    (out / "histories").mkdir(exist_ok=True)
+
+
+def remove_temporary_files(out):
+    """Delete the ``.<name>.tmp-<pid>`` files of interrupted atomic writes in OUT, runs/ and histories/."""
+    out = Path(out)
+    for folder in (out, out / "runs", out / "histories"):
+        for path in folder.glob(".*.tmp-*") if folder.is_dir() else ():
+            path.unlink()

@@ -1,0 +1,191 @@
+"""Execution backends: fly chunks of runs in worker processes, yield each chunk when it is complete.
+
+A backend is a generator function ``backend(campaign, chunks, jobs, guard)``: ``chunks`` is a
+list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`; it
+yields ``(chunk index, rows, history table)`` in completion order, rows sorted by run id, and
+keeps only a bounded number of chunks in flight so that memory does not grow with the campaign.
+
+A run that exceeds the wall-time limit, or that kills its worker process (a segfault), becomes
+an error row; the other runs of its chunk are flown again. After a crash it is not known which
+of the runs in flight caused it, so each of them is flown again alone, with nothing else in
+flight: the one that crashes again is the culprit.
+"""
+
+import re
+from collections import deque
+from concurrent.futures import FIRST_COMPLETED, wait
+
+import pyarrow as pa
+from joblib.externals.loky import get_reusable_executor
+from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+from refexmc.campaign import storage
+from refexmc.campaign.seeding import run_seed
+from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded
+
+TASKS_PER_WORKER = 2  # chunks in flight per worker: one flying, one queued
+MAX_BLIND_RETRIES = 3  # a chunk whose worker died with no run in flight is retried this often
+
+
+class _Task:
+    def __init__(self, chunk, run_ids, isolated=False):
+        self.chunk = chunk
+        self.run_ids = list(run_ids)
+        self.isolated = isolated
+
+
+def _fixed_failed_thrusters(campaign):
+    """The failed thrusters of a run the parent had to record itself (None where they are drawn per run)."""
+    failures = campaign["failures"]
+    if failures["mode"] == "none":
+        return ()
+    if failures["mode"] == "fixed":
+        return tuple(sorted(failures.get("thrusters", ())))
+    return None
+
+
+def error_row(campaign, run_id, reason):
+    """A runs row for a run that produced no result of its own (hung, or crashed its worker)."""
+    failed = _fixed_failed_thrusters(campaign)
+    n_thrusters = len(campaign["vehicle"]["rcs"]["thrusters"])
+    row = storage.runs_row(run_id, run_seed(campaign["seed"], run_id), failed or (), None, n_thrusters, error=reason)
+    if failed is None:
+        row["failed_thrusters"] = None
+    return row
+
+
+class ChunkAssembler:
+    """Collects the pieces of each chunk (results of tasks, error rows) until all its runs are in."""
+
+    def __init__(self, chunks):
+        self._expected = {chunk: len(run_ids) for chunk, run_ids in chunks}
+        self._rows = {}
+        self._histories = {}
+        self._errors = set()
+
+    def add(self, chunk, rows, history=None, parent_made=False):
+        """Add rows (and their history table); return the finished chunk or None."""
+        self._rows.setdefault(chunk, []).extend(rows)
+        if parent_made:
+            self._errors.update((chunk, row["run_id"]) for row in rows)
+        if history is not None and history.num_rows:
+            self._histories.setdefault(chunk, []).append(history)
+        if len(self._rows[chunk]) < self._expected[chunk]:
+            return None
+        rows = sorted(self._rows.pop(chunk), key=lambda row: row["run_id"])
+        rows = self._align(chunk, rows)
+        histories = self._histories.pop(chunk, [])
+        table = pa.concat_tables(histories).sort_by("run_id") if histories else storage.empty_history_table()
+        return chunk, rows, table
+
+    def _align(self, chunk, rows):
+        """Give rows the parent made the columns (and order) of the rows the workers made."""
+        made = [(chunk, row["run_id"]) in self._errors for row in rows]
+        self._errors.difference_update((chunk, row["run_id"]) for row in rows)
+        template = next((row for row, by_parent in zip(rows, made, strict=True) if not by_parent), None)
+        if template is None:
+            return rows
+        return [
+            {key: row.get(key) for key in template} if by_parent else row
+            for row, by_parent in zip(rows, made, strict=True)
+        ]
+
+
+def _exit_codes(exc):
+    """The workers' exit codes as loky reports them, e.g. 'SIGSEGV(-11)'."""
+    found = re.search(r"exit codes of the workers are \{([^}]*)\}", str(exc))
+    return found.group(1) if found else "unknown"
+
+
+def _submit(executor, inflight, task, campaign, guard, source):
+    try:
+        future = executor.submit(fly_guarded, campaign, task.run_ids, guard)
+    except TerminatedWorkerError:
+        source.appendleft(task)  # not started: the pool broke since the last look
+        raise
+    inflight[future] = task
+
+
+def loky_backend(campaign, chunks, jobs, guard):
+    """Fly ``chunks`` on ``jobs`` loky worker processes (a worker process even for jobs=1)."""
+    if not chunks:
+        return
+    jobs = max(1, min(jobs, len(chunks)))
+    window = TASKS_PER_WORKER * jobs
+    assembler = ChunkAssembler(chunks)
+    queue = deque(_Task(chunk, run_ids) for chunk, run_ids in chunks)
+    isolate = deque()  # suspects of a crash, flown one at a time with nothing else in flight
+    blind_retries = {}
+    inflight = {}
+    executor = get_reusable_executor(max_workers=jobs)
+    finished = False
+    try:
+        while queue or isolate or inflight:
+            crash = None
+            try:
+                if isolate:
+                    if not inflight:
+                        _submit(executor, inflight, isolate.popleft(), campaign, guard, isolate)
+                else:
+                    while queue and len(inflight) < window:
+                        _submit(executor, inflight, queue.popleft(), campaign, guard, queue)
+            except TerminatedWorkerError as exc:
+                crash = exc
+            done = list(inflight) if crash else wait(list(inflight), return_when=FIRST_COMPLETED)[0]
+            broken = []
+            while done:
+                for future in done:
+                    task = inflight.pop(future)
+                    try:
+                        rows, history = future.result()
+                    except TerminatedWorkerError as exc:
+                        broken.append(task)
+                        crash = exc
+                        continue
+                    finished_chunk = assembler.add(task.chunk, rows, history)
+                    if finished_chunk:
+                        yield finished_chunk
+                # a broken pool fails every task still in flight (or has just finished it): collect them all
+                done = list(inflight) if crash else []
+            if crash:
+                executor.shutdown(wait=True, kill_workers=True)
+                yield from _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries)
+                executor = get_reusable_executor(max_workers=jobs)
+        finished = True
+    finally:
+        if not finished:  # interrupted or failed: leave no worker running
+            executor.shutdown(wait=False, kill_workers=True)
+
+
+def _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries):
+    """Sort the runs of broken tasks into error rows, runs to fly alone, and tasks to fly again."""
+    states = collect_states(guard.state_dir).values()
+    over_limit = {run_id for run_id, state in states if state == OVER_LIMIT}
+    flying = {run_id for run_id, state in states if state == FLYING}
+    limit = f"wall-time limit exceeded ({guard.time_limit_s:g} s)"
+    died = f"worker process died during this run (exit code {_exit_codes(crash)})"
+    for task in broken:
+        errors, again, alone = [], [], []
+        for run_id in task.run_ids:
+            if run_id in over_limit:
+                errors.append(error_row(campaign, run_id, limit))
+            elif task.isolated and not over_limit:
+                errors.append(error_row(campaign, run_id, died))
+            elif run_id in flying and not over_limit:
+                alone.append(run_id)
+            else:
+                again.append(run_id)
+        if not over_limit and not flying:  # died between runs: no run to blame, fly the task again
+            blind_retries[task.chunk] = blind_retries.get(task.chunk, 0) + 1
+            if blind_retries[task.chunk] > MAX_BLIND_RETRIES:
+                raise RuntimeError(f"worker processes keep dying while flying chunk {task.chunk}: {crash}") from crash
+        if errors:
+            finished_chunk = assembler.add(task.chunk, errors, parent_made=True)
+            if finished_chunk:
+                yield finished_chunk
+        isolate.extend(_Task(task.chunk, [run_id], isolated=True) for run_id in alone)
+        if again:
+            queue.appendleft(_Task(task.chunk, again))
+
+
+BACKENDS = {"loky": loky_backend}

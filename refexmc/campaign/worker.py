@@ -1,0 +1,167 @@
+"""The worker side of execution: fly a chunk's runs one at a time under a wall-time watchdog.
+
+Every backend hands :func:`fly_guarded` to its worker processes. It calls
+``chunk.fly_chunk(campaign, [run_id])`` for one run after another, so the worker always knows
+which run it is flying. A watchdog thread (the flight kernel is numba ``nogil``, so the thread
+runs while a flight does) ends the worker process with ``os._exit`` when one run exceeds
+``Guard.time_limit_s``. Time spent compiling or loading the numba kernels is not counted.
+
+Each worker keeps a 16-byte state file ``<state_dir>/worker-<pid>.state``, memory-mapped so that
+an update costs nothing and outlives the process: the run id being flown and whether it is
+flying or over its time limit. After a worker died, the parent reads these files
+(:func:`collect_states`) to learn which run hung (over the limit) or which runs were in flight
+when a worker crashed.
+
+Test hooks (for tests of this machinery only; never active unless set): the parent reads
+``REFEXMC_TEST_HANG_RUN=<run_id>`` (that run sleeps forever instead of flying) and
+``REFEXMC_TEST_CRASH_RUN=<run_id>`` (that run kills its worker with SIGSEGV) when it builds
+the :class:`Guard` (:meth:`Guard.create`), and passes them to the workers as arguments.
+"""
+
+import mmap
+import os
+import signal
+import struct
+import threading
+import time
+from pathlib import Path
+from typing import NamedTuple
+
+import pyarrow as pa
+
+from refexmc.campaign.chunk import fly_chunk
+from refexmc.core.flight import run_flight
+
+TEST_HANG_ENV = "REFEXMC_TEST_HANG_RUN"
+TEST_CRASH_ENV = "REFEXMC_TEST_CRASH_RUN"
+
+IDLE, FLYING, OVER_LIMIT = 0, 1, 2
+EXIT_OVER_LIMIT = 70  # exit status of a worker ended by its watchdog
+_STATE = struct.Struct("<qq")  # run id (-1 when idle), IDLE | FLYING | OVER_LIMIT
+_POLL_S = 0.1
+
+
+class Guard(NamedTuple):
+    """What a worker needs besides the campaign: where its state file goes, the time limit, test hooks."""
+
+    state_dir: str  # absolute: workers do not follow the parent's working directory
+    time_limit_s: float
+    test_hang_run: int | None = None
+    test_crash_run: int | None = None
+
+    @classmethod
+    def create(cls, state_dir, time_limit_s):
+        """A guard for ``state_dir``, with the test hooks taken from the environment (normally unset)."""
+
+        def hook(name):
+            value = os.environ.get(name, "").strip()
+            return int(value) if value else None
+
+        return cls(str(Path(state_dir).resolve()), float(time_limit_s), hook(TEST_HANG_ENV), hook(TEST_CRASH_ENV))
+
+
+class _Flight:
+    """The run a worker is flying, as its watchdog sees it."""
+
+    def __init__(self, run_id, time_limit_s, state):
+        self.run_id = run_id
+        self.time_limit_s = time_limit_s
+        self.state = state
+        self.start = time.monotonic()
+
+
+_lock = threading.Lock()
+_current = None  # _Flight or None; set and cleared by fly_guarded, read by the watchdog
+_watchdog = None
+_kernels_ready = False
+
+
+def _kernels_compiled():
+    """True once the flight kernel is compiled or loaded from the cache (or JIT is disabled)."""
+    global _kernels_ready
+    if not _kernels_ready:
+        _kernels_ready = bool(getattr(run_flight, "signatures", True))
+    return _kernels_ready
+
+
+def _watch():
+    while True:
+        time.sleep(_POLL_S)
+        with _lock:
+            flight = _current
+            if flight is None:
+                continue
+            if not _kernels_compiled():
+                flight.start = time.monotonic()  # compiling is not the run's time
+                continue
+            if time.monotonic() - flight.start > flight.time_limit_s:
+                _STATE.pack_into(flight.state, 0, flight.run_id, OVER_LIMIT)
+                os._exit(EXIT_OVER_LIMIT)
+
+
+def _start_watchdog():
+    global _watchdog
+    if _watchdog is None or not _watchdog.is_alive():
+        _watchdog = threading.Thread(target=_watch, name="refexmc-watchdog", daemon=True)
+        _watchdog.start()
+
+
+def _open_state(state_dir):
+    path = Path(state_dir) / f"worker-{os.getpid()}.state"
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        os.ftruncate(fd, _STATE.size)
+        state = mmap.mmap(fd, _STATE.size)
+    finally:
+        os.close(fd)
+    _STATE.pack_into(state, 0, -1, IDLE)
+    return state
+
+
+def _set_current(flight):
+    global _current
+    with _lock:
+        _current = flight
+
+
+def _test_hooks(guard, run_id):
+    if run_id == guard.test_hang_run:
+        while True:  # a hung run, for the tests of the watchdog
+            time.sleep(1.0)
+    if run_id == guard.test_crash_run:
+        os.kill(os.getpid(), signal.SIGSEGV)  # a crashing run, for the tests of crash recovery
+
+
+def fly_guarded(campaign, run_ids, guard):
+    """Fly ``run_ids`` one by one under the watchdog; return (runs rows, one history table or None)."""
+    _start_watchdog()
+    state = _open_state(guard.state_dir)
+    rows, histories = [], []
+    try:
+        for run_id in run_ids:
+            _STATE.pack_into(state, 0, run_id, FLYING)
+            _set_current(_Flight(run_id, guard.time_limit_s, state))
+            _test_hooks(guard, run_id)
+            run_rows, run_histories = fly_chunk(campaign, [run_id])
+            _set_current(None)
+            _STATE.pack_into(state, 0, -1, IDLE)
+            rows.extend(run_rows)
+            histories.extend(run_histories)
+    finally:
+        _set_current(None)
+        state.close()
+    return rows, (pa.concat_tables(histories) if histories else None)
+
+
+def collect_states(state_dir):
+    """Read and delete the state files of workers that are gone: {pid: (run id, state)}.
+
+    Call only when no worker of ``state_dir`` can still be running (after their pool broke).
+    """
+    states = {}
+    for path in Path(state_dir).glob("worker-*.state"):
+        data = path.read_bytes()
+        if len(data) == _STATE.size:
+            states[int(path.name[len("worker-") : -len(".state")])] = _STATE.unpack(data)
+        path.unlink()
+    return states
