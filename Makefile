@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast bench lint format clean
+.PHONY: demo smoke test test-fast bench bench-campaign lint format clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -12,9 +12,13 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
-## demo: fly the nominal ReFEx case and print its summary
+## demo: the ReFEx Monte-Carlo study (000 sec. 6.2), 100 dispersed flights, and its summary
 demo: $(STAMP)
-	$(BIN)/refexmc run campaigns/nominal.yaml -o runs/nominal --overwrite
+	$(BIN)/refexmc run campaigns/refex-mc100.yaml -o runs/refex-mc100 --overwrite
+
+## smoke: the CI smoke campaign (20 dispersed flights)
+smoke: $(STAMP)
+	$(BIN)/refexmc run campaigns/smoke.yaml -o runs/smoke --overwrite --no-progress
 
 ## test: the whole test suite (what CI runs)
 test: $(STAMP)
@@ -24,9 +28,13 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"
 
-## bench: performance benchmarks (results go to benchmarks/RESULTS.md by hand)
+## bench: flight-kernel benchmarks (results go to benchmarks/RESULTS.md by hand)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_flight.py
+
+## bench-campaign: campaign throughput, speed-up, memory, bytes per run (a few minutes)
+bench-campaign: $(STAMP)
+	$(BIN)/python benchmarks/bench_campaign.py
 
 ## lint: ruff lint and format check
 lint: $(STAMP)

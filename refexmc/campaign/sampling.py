@@ -1,12 +1,13 @@
 """Each run's dispersed inputs and failed thrusters, drawn from (campaign seed, run id, path).
 
 Keyed seeding: the uniforms behind parameter ``path`` of run ``i`` come from a generator seeded
-with ``SeedSequence([seed, i, key(path)])`` (random sampling), or from row ``i`` of a design
+with ``SeedSequence([seed, i, key(path), 0])`` (random sampling), or from row ``i`` of a design
 seeded with ``SeedSequence([seed, key(path), tag])`` (LHS, Sobol). So run i's inputs are the
 same whatever ``-j``, chunking, backend, resume, or which other dispersions the campaign has.
 With LHS or Sobol each parameter's components form one design over the dispersed runs; designs
 of different parameters are independent (this is what makes them insensitive to the other
-dispersions), and a design depends on the number of runs.
+dispersions). An LHS design depends on the number of runs; a Sobol design does not (its rows
+are a prefix of one scrambled sequence). Redraws (non-physical inertia) use attempts 1, 2, ...
 """
 
 import functools

@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import special
 
+from refexmc.config import schema
 from refexmc.config.errors import ConfigError
 from refexmc.core import layout as L
 
@@ -29,14 +30,14 @@ class Parameter(NamedTuple):
     unit: str
     doc: str
     shape: str  # scalar | vector | thruster | derating | inertia | attitude
-    lower: float = -math.inf  # physical range of every component
+    lower: float = -math.inf  # physical range of every component (config keys: from the schema)
     upper: float = math.inf
     lower_inclusive: bool = True
 
 
 def _params():
     p = [
-        Parameter("mass_kg", "kg", "vehicle mass (trajectory drag only)", "scalar", 0.0, lower_inclusive=False),
+        Parameter("mass_kg", "kg", "vehicle mass (trajectory drag only)", "scalar"),
         Parameter(
             "inertia_kg_m2",
             "kg m^2",
@@ -45,13 +46,13 @@ def _params():
         ),
         Parameter("com_offset_m", "m", "actual minus nominal centre of mass, body axes", "vector"),
         Parameter("aerodynamics.mistrim_cm", "-", "aerodynamic moment coefficient per body axis", "vector"),
-        Parameter("aerodynamics.drag_area_m2", "m^2", "C_D S of the trajectory", "scalar", 0.0),
-        Parameter("rcs.thrust_n.low", "N", "low thrust level, all thrusters", "scalar", 0.0, lower_inclusive=False),
-        Parameter("rcs.thrust_n.high", "N", "high thrust level, all thrusters", "scalar", 0.0, lower_inclusive=False),
+        Parameter("aerodynamics.drag_area_m2", "m^2", "C_D S of the trajectory", "scalar"),
+        Parameter("rcs.thrust_n.low", "N", "low thrust level, all thrusters", "scalar"),
+        Parameter("rcs.thrust_n.high", "N", "high thrust level, all thrusters", "scalar"),
         Parameter("rcs.thrust_scale", "-", "thrust factor per thruster (nominal 1)", "thruster", 0.0),
-        Parameter("rcs.derating", "-", "thrust factor with 1, 2, ... valves open", "derating", 0.0),
-        Parameter("rcs.isp_s", "s", "specific impulse", "scalar", 0.0, lower_inclusive=False),
-        Parameter("rcs.propellant_kg", "kg", "propellant at separation", "scalar", 0.0, lower_inclusive=False),
+        Parameter("rcs.derating", "-", "thrust factor with 1, 2, ... valves open", "derating"),
+        Parameter("rcs.isp_s", "s", "specific impulse", "scalar"),
+        Parameter("rcs.propellant_kg", "kg", "propellant at separation", "scalar"),
     ]
     for level in ("low", "high"):
         for name in TIME_CONSTANT_NAMES:
@@ -61,13 +62,12 @@ def _params():
                     "ms",
                     f"valve {name.replace('_', ' ')} at {level} thrust, per thruster, independent draws",
                     "thruster",
-                    0.0,
                 )
             )
     p += [
-        Parameter("separation.altitude_m", "m", "altitude at separation", "scalar", 0.0, lower_inclusive=False),
-        Parameter("separation.speed_m_s", "m/s", "speed at separation", "scalar", 0.0, lower_inclusive=False),
-        Parameter("separation.flight_path_angle_deg", "deg", "flight-path angle at separation", "scalar", -90.0, 90.0),
+        Parameter("separation.altitude_m", "m", "altitude at separation", "scalar"),
+        Parameter("separation.speed_m_s", "m/s", "speed at separation", "scalar"),
+        Parameter("separation.flight_path_angle_deg", "deg", "flight-path angle at separation", "scalar"),
         Parameter("separation.rates_deg_s", "deg/s", "body rates at separation", "vector"),
         Parameter(
             "separation.attitude_error_deg",
@@ -76,20 +76,35 @@ def _params():
             "attitude",
         ),
         Parameter("navigation.attitude_bias_deg", "deg", "attitude measurement bias (rotation vector)", "vector"),
-        Parameter("navigation.attitude_noise_deg", "deg", "attitude white noise, 1 sigma per axis", "scalar", 0.0),
+        Parameter("navigation.attitude_noise_deg", "deg", "attitude white noise, 1 sigma per axis", "scalar"),
         Parameter("navigation.rate_bias_deg_s", "deg/s", "rate measurement bias", "vector"),
-        Parameter("navigation.rate_noise_deg_s", "deg/s", "rate white noise, 1 sigma per axis", "scalar", 0.0),
-        Parameter(
-            "navigation.ssm_calibration_time_s",
-            "s",
-            "attitude-bias decay time constant during SSM",
-            "scalar",
-            0.0,
-            lower_inclusive=False,
-        ),
+        Parameter("navigation.rate_noise_deg_s", "deg/s", "rate white noise, 1 sigma per axis", "scalar"),
+        Parameter("navigation.ssm_calibration_time_s", "s", "attitude-bias decay time constant in SSM", "scalar"),
         Parameter("atmosphere.density_scale", "-", "factor on every density of the atmosphere table", "scalar", 0.0),
     ]
-    return {param.path: param for param in p}
+    return {param.path: _with_schema_range(param) for param in p}
+
+
+def _schema_node(path):
+    """The schema of a vehicle or mission key path (vector items for arrays), or None."""
+    node = schema.MISSION if path.split(".")[0] in ("separation", "navigation") else schema.VEHICLE
+    for key in path.split("."):
+        node = node.get("properties", {}).get(key)
+        if node is None:
+            return None
+    return node.get("items", node) if node.get("type") == "array" else node
+
+
+def _with_schema_range(param):
+    """A config key's range is the one its schema declares (declared once, in schema.py)."""
+    node = _schema_node(param.path)
+    if node is None or node.get("type") != "number":
+        return param
+    if "exclusiveMinimum" in node:
+        lower, inclusive = float(node["exclusiveMinimum"]), False
+    else:
+        lower, inclusive = float(node.get("minimum", -math.inf)), True
+    return param._replace(lower=lower, upper=float(node.get("maximum", math.inf)), lower_inclusive=inclusive)
 
 
 PARAMETERS = _params()

@@ -1,0 +1,156 @@
+"""Campaign throughput, parallel speed-up, memory and storage (issue 3 targets).
+
+Runs ``refexmc run campaigns/refex-mc100.yaml --runs N -j J`` as a subprocess, as a user does,
+and measures its wall time and the peak resident memory of its process tree (the CLI process
+and its worker processes, sampled from /proc every 50 ms). Benchmarks:
+
+1. 1,000 runs at -j 1 and at -j 2, alternating, ``--repeats`` times: runs/s and the speed-up
+   (target >= 1.8x).
+2. Peak RSS at 1,000 and at 10,000 runs, -j 2 (target: within 15 % of each other).
+3. Parquet bytes per run (runs and histories parts) of the 10,000-run campaign.
+4. Wall time of the 10,000-run campaign at -j 2 (target <= 180 s).
+
+Usage: .venv/bin/python benchmarks/bench_campaign.py [--repeats 3] [--big-runs 10000] [--json PATH]
+"""
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CAMPAIGN = ROOT / "campaigns" / "refex-mc100.yaml"
+REFEXMC = [sys.executable, "-m", "refexmc.cli"]
+
+
+def _children(pid):
+    """All descendants of ``pid`` (from /proc/*/stat parent ids)."""
+    parents = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            parents.setdefault(int(fields[1]), []).append(int(entry.name))
+    out, todo = [], [pid]
+    while todo:
+        kids = parents.get(todo.pop(), [])
+        out += kids
+        todo += kids
+    return out
+
+
+def _rss_kib(pid):
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def run_cli(runs, jobs, out):
+    """(wall s, peak tree RSS MiB, peak single-process RSS MiB) of one `refexmc run`."""
+    command = [*REFEXMC, "run", str(CAMPAIGN), "--runs", str(runs), "-j", str(jobs), "-o", str(out)]
+    command += ["--overwrite", "--no-progress"]
+    peak = {"tree": 0, "process": 0}
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    done = threading.Event()
+
+    def sample():
+        while not done.is_set():
+            rss = [_rss_kib(p) for p in [proc.pid, *_children(proc.pid)]]
+            peak["tree"] = max(peak["tree"], sum(rss))
+            peak["process"] = max(peak["process"], max(rss))
+            time.sleep(0.05)
+
+    thread = threading.Thread(target=sample, daemon=True)
+    thread.start()
+    _, stderr = proc.communicate()
+    wall = time.perf_counter() - t0
+    done.set()
+    thread.join()
+    if proc.returncode not in (0, 1):
+        raise RuntimeError(f"refexmc run failed ({proc.returncode}): {stderr.decode()[-2000:]}")
+    return wall, peak["tree"] / 1024.0, peak["process"] / 1024.0
+
+
+def parquet_bytes(out):
+    sizes = {kind: sum(p.stat().st_size for p in (out / kind).glob("part-*.parquet")) for kind in ("runs", "histories")}
+    return sizes
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--runs", type=int, default=1000)
+    parser.add_argument("--big-runs", type=int, default=10000)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    results = {
+        "machine": {
+            "nproc": os.cpu_count(),
+            "affinity": len(os.sched_getaffinity(0)),
+            "python": platform.python_version(),
+            "platform": platform.platform(),
+        }
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        run_cli(20, 2, tmp / "warm")  # fills or refreshes the numba cache; untimed
+        times = {1: [], 2: []}
+        rss_small = []
+        for _ in range(args.repeats):
+            for jobs in (1, 2):
+                wall, tree, _ = run_cli(args.runs, jobs, tmp / f"j{jobs}")
+                times[jobs].append(wall)
+                if jobs == 2:
+                    rss_small.append(tree)
+                print(f"{args.runs} runs -j {jobs}: {wall:.2f} s, {args.runs / wall:.0f} runs/s, peak RSS {tree:.0f} MiB")
+        speedups = [a / b for a, b in zip(times[1], times[2], strict=True)]
+        results["bench1"] = {
+            "runs": args.runs,
+            "j1_s": times[1],
+            "j2_s": times[2],
+            "j1_median_s": statistics.median(times[1]),
+            "j2_median_s": statistics.median(times[2]),
+            "j1_runs_per_s": args.runs / statistics.median(times[1]),
+            "j2_runs_per_s": args.runs / statistics.median(times[2]),
+            "speedup_pairwise": speedups,
+            "speedup_median": statistics.median(speedups),
+        }
+        print(f"speed-up -j2 / -j1: median {statistics.median(speedups):.2f}x (pairwise {speedups})")
+        wall, tree, process = run_cli(args.big_runs, 2, tmp / "big")
+        sizes = parquet_bytes(tmp / "big")
+        results["bench2"] = {
+            "rss_small_mib": statistics.median(rss_small),
+            "rss_big_mib": tree,
+            "rss_big_max_process_mib": process,
+            "ratio": tree / statistics.median(rss_small),
+        }
+        results["bench3"] = {k: v / args.big_runs for k, v in sizes.items()}
+        results["bench4"] = {"runs": args.big_runs, "wall_s": wall, "runs_per_s": args.big_runs / wall}
+        print(
+            f"{args.big_runs} runs -j 2: {wall:.1f} s ({args.big_runs / wall:.0f} runs/s); peak RSS {tree:.0f} MiB "
+            f"vs {statistics.median(rss_small):.0f} MiB at {args.runs} ({100 * (results['bench2']['ratio'] - 1):+.1f} %)"
+        )
+        print(
+            f"Parquet bytes per run: runs {sizes['runs'] / args.big_runs:.0f}, "
+            f"histories {sizes['histories'] / args.big_runs:.0f}"
+        )
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
