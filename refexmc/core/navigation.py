@@ -24,7 +24,8 @@ def calibration_factor(nav, time_in_ssm):
 @jit_inline
 def measure(x, nav, time_in_ssm, rng_state, q_out, rate_out, work4):
     """Measured attitude quaternion and body rates from the true state ``x``."""
-    factor = calibration_factor(nav, time_in_ssm)
+    no_bias = nav[N_ATT_BIAS] == 0.0 and nav[N_ATT_BIAS + 1] == 0.0 and nav[N_ATT_BIAS + 2] == 0.0
+    factor = 1.0 if no_bias else calibration_factor(nav, time_in_ssm)  # it only scales the bias
     sigma_att = nav[N_ATT_NOISE]
     sigma_rate = nav[N_RATE_NOISE]
     ex = factor * nav[N_ATT_BIAS]
