@@ -377,7 +377,8 @@ def _fly(
             attitude_controlled = False
             has_attitude_reference = False
         elif mode == MODE_SAM or mode == MODE_EAM:
-            guidance.slerp_reference(guid, t, q_ref, rate_ref, accel_ref)
+            if mode != previous_mode or mode == MODE_EAM:  # SAM: already done for its exit test
+                guidance.slerp_reference(guid, t, q_ref, rate_ref, accel_ref)
         elif mode == MODE_SSM:
             guidance.spin_up_reference(guid, t, q_ref, rate_ref, accel_ref, tmp4)
         elif mode == MODE_GEEM or mode == MODE_DONE:

@@ -15,7 +15,8 @@ G_T1 = 1  # transition duration
 G_Q0 = 2  # start attitude (4)
 G_Q1 = 6  # final attitude (4)
 G_VECTOR = 10  # SLERP rotation vector theta = e * angle, or RDM omega_0, or SSM omega_1 (3)
-GUIDANCE_STATE_SIZE = 13
+G_ARC = 13  # SLERP: sign of q1, arc angle and its sine (quaternion.slerp_arc) (3)
+GUIDANCE_STATE_SIZE = 16
 
 
 @jit_noalloc
@@ -91,13 +92,19 @@ def start_slerp(state, t0, q_start, q_final, accel_max, t1_design, work4):
     quaternion.conj_multiply(q_start, q_final, work4)
     quaternion.to_rotation_vector(work4, state[G_VECTOR : G_VECTOR + 3])
     state[G_T1] = slerp_duration(state[G_VECTOR : G_VECTOR + 3], accel_max, t1_design)
+    sign, omega, sin_omega = quaternion.slerp_arc(state[G_Q0 : G_Q0 + 4], state[G_Q1 : G_Q1 + 4])
+    state[G_ARC] = sign
+    state[G_ARC + 1] = omega
+    state[G_ARC + 2] = sin_omega
 
 
 @jit_noalloc
 def slerp_reference(state, t, q_out, rate_out, accel_out):
     """Reference of a SLERP reorientation at time ``t`` (000 eq. 4, 10-12)."""
     h, h_dot, h_ddot = quintic(t - state[G_T0], state[G_T1])
-    quaternion.slerp(state[G_Q0 : G_Q0 + 4], state[G_Q1 : G_Q1 + 4], h, q_out)
+    quaternion.slerp_on_arc(
+        state[G_Q0 : G_Q0 + 4], state[G_Q1 : G_Q1 + 4], state[G_ARC], state[G_ARC + 1], state[G_ARC + 2], h, q_out
+    )
     for i in range(3):
         rate_out[i] = state[G_VECTOR + i] * h_dot
         accel_out[i] = state[G_VECTOR + i] * h_ddot

@@ -109,24 +109,42 @@ def angle_between(p, q):
 
 
 @jit_noalloc
-def slerp(q0, q1, h, out):
-    """Spherical linear interpolation along the shortest arc, 000 eq. 4; ``h`` in [0, 1]."""
+def slerp_arc(q0, q1):
+    """Sign of ``q1`` for the shortest arc, the arc's angle and its sine (000 eq. 4, sec. 3.1).
+
+    The angle is 0 where the attitudes are so close (dot > 1 - 1e-12) that :func:`slerp_on_arc`
+    interpolates linearly. A SLERP reference computes this once per reorientation.
+    """
     dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3]
     sign = 1.0
     if dot < 0.0:  # q1 and -q1 are the same attitude: take the shorter arc (000 sec. 3.1)
         sign = -1.0
         dot = -dot
     if dot > 1.0 - 1e-12:
+        return sign, 0.0, 0.0
+    omega = math.acos(dot)
+    return sign, omega, math.sin(omega)
+
+
+@jit_noalloc
+def slerp_on_arc(q0, q1, sign, omega, sin_omega, h, out):
+    """:func:`slerp` with the arc from :func:`slerp_arc` (acos > 1e-6 rad unless linear)."""
+    if omega == 0.0:
         for i in range(4):
             out[i] = (1.0 - h) * q0[i] + h * sign * q1[i]
         normalize(out)
         return
-    omega = math.acos(dot)
-    sin_omega = math.sin(omega)
     a = math.sin((1.0 - h) * omega) / sin_omega
     b = sign * math.sin(h * omega) / sin_omega
     for i in range(4):
         out[i] = a * q0[i] + b * q1[i]
+
+
+@jit_noalloc
+def slerp(q0, q1, h, out):
+    """Spherical linear interpolation along the shortest arc, 000 eq. 4; ``h`` in [0, 1]."""
+    sign, omega, sin_omega = slerp_arc(q0, q1)
+    slerp_on_arc(q0, q1, sign, omega, sin_omega, h, out)
 
 
 @jit_noalloc
