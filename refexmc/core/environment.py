@@ -29,9 +29,10 @@ TRAJECTORY_STATE_SIZE = 4
 def density(atmosphere, altitude):
     """Piecewise-exponential density (kg/m^3); rows ``[base altitude m, rho0, scale height m]``."""
     row = 0
-    for k in range(atmosphere.shape[0]):
+    for k in range(atmosphere.shape[0] - 1, -1, -1):  # the last row whose base is below
         if altitude >= atmosphere[k, 0]:
             row = k
+            break
     return atmosphere[row, 1] * math.exp(-(altitude - atmosphere[row, 0]) / atmosphere[row, 2])
 
 
@@ -74,6 +75,15 @@ def dynamic_pressure(mission, vehicle, atmosphere, state):
 
 
 @jit_noalloc
+def flight_conditions(mission, atmosphere, state):
+    """:func:`altitude`, :func:`climb_rate` and :func:`dynamic_pressure` at once."""
+    rx, rz, r = radial(mission, state)
+    altitude_m = r - mission[M_EARTH_RADIUS]
+    v2 = state[2] * state[2] + state[3] * state[3]
+    return altitude_m, (rx * state[2] + rz * state[3]) / r, 0.5 * density(atmosphere, altitude_m) * v2
+
+
+@jit_noalloc
 def acceleration(mission, vehicle, atmosphere, state):
     """Gravity plus drag acceleration (x, z)."""
     rx, rz, r = radial(mission, state)
@@ -88,8 +98,14 @@ def acceleration(mission, vehicle, atmosphere, state):
 @jit_noalloc
 def trajectory_step(mission, vehicle, atmosphere, state, h, stage):
     """Advance the trajectory by ``h`` seconds with classical RK4; ``stage`` is scratch (4,)."""
-    x0, z0, vx1, vz1 = state[0], state[1], state[2], state[3]
     ax1, az1 = acceleration(mission, vehicle, atmosphere, state)
+    trajectory_step_from(mission, vehicle, atmosphere, state, ax1, az1, h, stage)
+
+
+@jit_noalloc
+def trajectory_step_from(mission, vehicle, atmosphere, state, ax1, az1, h, stage):
+    """:func:`trajectory_step` given the acceleration ``(ax1, az1)`` at ``state``."""
+    x0, z0, vx1, vz1 = state[0], state[1], state[2], state[3]
     stage[0] = x0 + 0.5 * h * vx1
     stage[1] = z0 + 0.5 * h * vz1
     stage[2] = vx1 + 0.5 * h * ax1
@@ -166,12 +182,15 @@ def interpolate(node_a, accel_a, node_b, accel_b, span, tau, out):
 
 @jit_noalloc
 def advance_nodes(mission, vehicle, atmosphere, nodes, accels, span, stage):
-    """Move node b to a and integrate a new node b one ``span`` ahead (RK4)."""
+    """Move node b to a and integrate a new node b one ``span`` ahead (RK4).
+
+    ``accels[1]`` must hold the acceleration at ``nodes[1]``; it is the new step's first stage.
+    """
     for k in range(4):
         nodes[0, k] = nodes[1, k]
     accels[0, 0] = accels[1, 0]
     accels[0, 1] = accels[1, 1]
-    trajectory_step(mission, vehicle, atmosphere, nodes[1], span, stage)
+    trajectory_step_from(mission, vehicle, atmosphere, nodes[1], accels[0, 0], accels[0, 1], span, stage)
     ax, az = acceleration(mission, vehicle, atmosphere, nodes[1])
     accels[1, 0] = ax
     accels[1, 1] = az

@@ -306,9 +306,7 @@ def _fly(
             environment.advance_nodes(mission, vehicle, atmosphere, nodes, node_accels, span, stage)
             node_index += 1
         environment.interpolate(nodes[0], node_accels[0], nodes[1], node_accels[1], span, t - node_index * span, traj)
-        altitude = environment.altitude(mission, traj)
-        climb = environment.climb_rate(mission, traj)
-        qbar = environment.dynamic_pressure(mission, vehicle, atmosphere, traj)
+        altitude, climb, qbar = environment.flight_conditions(mission, atmosphere, traj)
         navigation.measure(x, nav, time_in_ssm, rng_state, q_meas, rate_meas, tmp4)
 
         # --- mode logic: each mode left by its own exit condition ---------------------------
