@@ -482,11 +482,8 @@ def _fly(
         t_end = t + dt
         exhausted = False
         while t_seg < t_end - 1e-12:
-            active = rcs.any_active(valve_state, n_thr)
+            active = rcs.update(valve_state, thrusters, n_thr, t_seg, level)
             if active:
-                for i in range(n_thr):
-                    if valve_state[i, rcs.VS_PENDING_COUNT] > 0.0:
-                        rcs.apply_reactions(valve_state, thrusters, i, t_seg, level)
                 t_next = rcs.next_breakpoint(valve_state, n_thr, t_seg, t_end)
             else:  # coasting: the whole rest of the period is one thrust-free segment
                 t_next = t_end
@@ -497,13 +494,19 @@ def _fly(
                 for i in range(3):
                     tau0[i] = 0.0
                     tau1[i] = 0.0
-            n_sub = int(math.ceil((t_next - t_seg) / max_step - 1e-9))
-            if n_sub < 1:
+            span_seg = t_next - t_seg
+            if span_seg <= max_step:  # one step: the general branch gives n_sub = 1, h = span_seg
                 n_sub = 1
-            h = (t_next - t_seg) / n_sub
+                h = span_seg
+            else:
+                n_sub = int(math.ceil(span_seg / max_step - 1e-9))
+                if n_sub < 1:
+                    n_sub = 1
+                h = span_seg / n_sub
+            fb = 0.0
             for j in range(n_sub):
-                fa = j / n_sub
-                fb = (j + 1) / n_sub
+                fa = fb  # j / n_sub
+                fb = 1.0 if j + 1 == n_sub else (j + 1) / n_sub
                 for i in range(3):
                     tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
                     tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb

@@ -204,6 +204,33 @@ def open_mask(valve_state, n_thrusters, t):
 
 
 @jit_noalloc
+def update(valve_state, thrusters, n_thrusters, t, thrust_level):
+    """Start the reactions due at ``t`` and settle finished ramps; True if any thruster is active.
+
+    A ramp that had reached 0 or 1 by ``t - 1e-9`` becomes a steady level (slope 0). Levels are
+    only asked for at or after ``t - 1e-12`` from here on, and ``level_at`` is monotone along a
+    ramp in floating point too, so it returns exactly the same clamped 0.0 or 1.0 as before; the
+    segments then see no breakpoint in the past, and a closed thruster counts as idle.
+    """
+    active = False
+    for i in range(n_thrusters):
+        if valve_state[i, VS_PENDING_COUNT] > 0.0 and valve_state[i, VS_PENDING] <= t + _EPS_T:
+            apply_reactions(valve_state, thrusters, i, t, thrust_level)
+        slope = valve_state[i, VS_SLOPE]
+        if slope != 0.0:
+            v = valve_state[i, VS_LEVEL] + slope * ((t - 1e-9) - valve_state[i, VS_TIME])
+            if slope < 0.0 and v <= 0.0:
+                valve_state[i, VS_LEVEL] = 0.0
+                valve_state[i, VS_SLOPE] = 0.0
+            elif slope > 0.0 and v >= 1.0:
+                valve_state[i, VS_LEVEL] = 1.0
+                valve_state[i, VS_SLOPE] = 0.0
+        if valve_state[i, VS_PENDING_COUNT] > 0.0 or valve_state[i, VS_SLOPE] != 0.0 or valve_state[i, VS_LEVEL] > 0.0:
+            active = True
+    return active
+
+
+@jit_noalloc
 def any_active(valve_state, n_thrusters):
     """True if some thruster produces thrust, ramps, or has a reaction pending."""
     for i in range(n_thrusters):
