@@ -255,6 +255,10 @@ def _fly(
     kp_low, kd_low, kp_high, kd_high = gains[0, 0], gains[0, 1], gains[1, 0], gains[1, 1]
     accel_low, accel_high = accels[0], accels[1]
     rng_state[0] = np.uint64(nav_seed)
+    # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
+    # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
+    one_step_limit = max_step * (1.0 + 1e-10)
+    valves_active = 0  # bit mask of thrusters not closed and settled (rcs.update)
 
     margin = fsw[F_ACCEL_MARGIN]
     for i in range(3):
@@ -449,6 +453,7 @@ def _fly(
         for i in range(n_thr):
             if changes[i] != 0:
                 rcs.command(valve_state, thrusters, i, changes[i] > 0, t, level)
+                valves_active |= 1 << i
                 if changes[i] > 0:
                     pulse_counts[i] += 1
 
@@ -482,20 +487,23 @@ def _fly(
         t_end = t + dt
         exhausted = False
         while t_seg < t_end - 1e-12:
-            active = rcs.update(valve_state, thrusters, n_thr, t_seg, level)
+            valves_active = rcs.update(valve_state, thrusters, n_thr, t_seg, level, valves_active)
+            active = valves_active != 0
             if active:
-                t_next = rcs.next_breakpoint(valve_state, n_thr, t_seg, t_end)
+                t_next = rcs.next_breakpoint(valve_state, n_thr, t_seg, t_end, valves_active)
             else:  # coasting: the whole rest of the period is one thrust-free segment
                 t_next = t_end
             if active and fuel > 0.0:
-                impulse = rcs.segment_thrust(valve_state, thrusters, vehicle, arms, level, t_seg, t_next, tau0, tau1)
+                impulse = rcs.segment_thrust(
+                    valve_state, thrusters, vehicle, arms, level, t_seg, t_next, tau0, tau1, valves_active
+                )
             else:
                 impulse = 0.0
                 for i in range(3):
                     tau0[i] = 0.0
                     tau1[i] = 0.0
             span_seg = t_next - t_seg
-            if span_seg <= max_step:  # one step: the general branch gives n_sub = 1, h = span_seg
+            if span_seg <= one_step_limit:  # the general branch gives n_sub = 1, h = span_seg
                 n_sub = 1
                 h = span_seg
             else:

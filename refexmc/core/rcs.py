@@ -41,6 +41,7 @@ VALVE_STATE_SIZE = VS_PENDING + 2 * MAX_PENDING
 
 LEVEL_LOW = 0
 LEVEL_HIGH = 1
+ALL_THRUSTERS = -1  # bit mask with every thruster's bit set
 _EPS_T = 1e-12
 
 
@@ -113,10 +114,15 @@ def apply_reactions(valve_state, thrusters, i, t, thrust_level):
 
 
 @jit_noalloc
-def next_breakpoint(valve_state, n_thrusters, t_start, t_end):
-    """Earliest kink of any thruster's level in (t_start, t_end), or ``t_end``."""
+def next_breakpoint(valve_state, n_thrusters, t_start, t_end, active=ALL_THRUSTERS):
+    """Earliest kink of any thruster's level in (t_start, t_end), or ``t_end``.
+
+    Only thrusters in the bit mask ``active`` (see :func:`update`) are looked at.
+    """
     t_next = t_end
     for i in range(n_thrusters):
+        if not (active >> i) & 1:
+            continue
         n = int(valve_state[i, VS_PENDING_COUNT])
         if n > 0:
             tr = valve_state[i, VS_PENDING]
@@ -157,17 +163,20 @@ def derating_factor(vehicle, n_open):
 
 
 @jit_noalloc
-def segment_thrust(valve_state, thrusters, vehicle, arms, thrust_level, t_start, t_end, tau_start, tau_end):
+def segment_thrust(
+    valve_state, thrusters, vehicle, arms, thrust_level, t_start, t_end, tau_start, tau_end, active=ALL_THRUSTERS
+):
     """Torques at both ends of a segment without kinks, and its total impulse (N s).
 
     Within the segment each level is linear; the number of open valves (level > 0 at the
-    midpoint) and hence the derating are constant.
+    midpoint) and hence the derating are constant. Thrusters outside the bit mask ``active``
+    (closed and settled, see :func:`update`) are skipped.
     """
     n = thrusters.shape[0]
     t_mid = 0.5 * (t_start + t_end)
     n_open = 0
     for i in range(n):
-        if level_at(valve_state, i, t_mid) > 0.0:
+        if (active >> i) & 1 and level_at(valve_state, i, t_mid) > 0.0:
             n_open += 1
     nominal = vehicle[V_THRUST_HIGH] if thrust_level == LEVEL_HIGH else vehicle[V_THRUST_LOW]
     force = nominal * derating_factor(vehicle, n_open)
@@ -176,6 +185,8 @@ def segment_thrust(valve_state, thrusters, vehicle, arms, thrust_level, t_start,
         tau_end[k] = 0.0
     impulse = 0.0
     for i in range(n):
+        if not (active >> i) & 1:
+            continue
         f0 = force * thrusters[i, T_SCALE] * level_at(valve_state, i, t_start)
         f1 = force * thrusters[i, T_SCALE] * level_at(valve_state, i, t_end)
         if f0 == 0.0 and f1 == 0.0:
@@ -204,16 +215,22 @@ def open_mask(valve_state, n_thrusters, t):
 
 
 @jit_noalloc
-def update(valve_state, thrusters, n_thrusters, t, thrust_level):
-    """Start the reactions due at ``t`` and settle finished ramps; True if any thruster is active.
+def update(valve_state, thrusters, n_thrusters, t, thrust_level, active):
+    """Start the reactions due at ``t`` and settle finished ramps; the new mask of active thrusters.
+
+    ``active`` is a bit mask (bit i for thruster i) that includes every thruster that has a
+    reaction pending, a ramp or a level above 0; the others are skipped. A thruster is dropped
+    from the mask once it is closed and settled.
 
     A ramp that had reached 0 or 1 by ``t - 1e-9`` becomes a steady level (slope 0). Levels are
     only asked for at or after ``t - 1e-12`` from here on, and ``level_at`` is monotone along a
     ramp in floating point too, so it returns exactly the same clamped 0.0 or 1.0 as before; the
     segments then see no breakpoint in the past, and a closed thruster counts as idle.
     """
-    active = False
+    still_active = 0
     for i in range(n_thrusters):
+        if not (active >> i) & 1:
+            continue
         if valve_state[i, VS_PENDING_COUNT] > 0.0 and valve_state[i, VS_PENDING] <= t + _EPS_T:
             apply_reactions(valve_state, thrusters, i, t, thrust_level)
         slope = valve_state[i, VS_SLOPE]
@@ -226,8 +243,8 @@ def update(valve_state, thrusters, n_thrusters, t, thrust_level):
                 valve_state[i, VS_LEVEL] = 1.0
                 valve_state[i, VS_SLOPE] = 0.0
         if valve_state[i, VS_PENDING_COUNT] > 0.0 or valve_state[i, VS_SLOPE] != 0.0 or valve_state[i, VS_LEVEL] > 0.0:
-            active = True
-    return active
+            still_active |= 1 << i
+    return still_active
 
 
 @jit_noalloc
