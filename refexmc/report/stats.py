@@ -1,0 +1,207 @@
+"""Statistics of a campaign: binomial intervals, sample statistics, tolerance bounds, sensitivity.
+
+Every function takes plain numbers or numpy arrays; NaN means "not computable" (too few runs).
+"""
+
+import math
+
+import numpy as np
+from scipy import stats as sps
+
+CONFIDENCE = 0.95
+THREE_SIGMA_LOW_FRACTION = 0.00135  # P(Z < -3) of a normal distribution: the "3-sigma" tail, 0.135 %
+THREE_SIGMA_COVERAGE = 1.0 - THREE_SIGMA_LOW_FRACTION
+
+
+def clopper_pearson(successes, n, confidence=CONFIDENCE):
+    """Two-sided Clopper-Pearson ("exact") interval of a binomial proportion; (nan, nan) for n = 0."""
+    if n == 0:
+        return math.nan, math.nan
+    alpha = 1.0 - confidence
+    low = 0.0 if successes == 0 else float(sps.beta.ppf(alpha / 2, successes, n - successes + 1))
+    high = 1.0 if successes == n else float(sps.beta.ppf(1 - alpha / 2, successes + 1, n - successes))
+    return low, high
+
+
+def clopper_pearson_lower(successes, n, confidence=CONFIDENCE):
+    """One-sided Clopper-Pearson lower bound: P(true rate >= bound) >= confidence.
+
+    With no failure in n runs it is (1 - confidence)^(1/n), about 1 - 3/n at 95 % ("rule of three").
+    """
+    if n == 0:
+        return math.nan
+    if successes == 0:
+        return 0.0
+    return float(sps.beta.ppf(1.0 - confidence, successes, n - successes + 1))
+
+
+def clopper_pearson_upper(successes, n, confidence=CONFIDENCE):
+    """One-sided Clopper-Pearson upper bound: P(true rate <= bound) >= confidence."""
+    if n == 0:
+        return math.nan
+    if successes == n:
+        return 1.0
+    return float(sps.beta.ppf(confidence, successes + 1, n - successes))
+
+
+def normal_tolerance_factor(n, coverage=THREE_SIGMA_COVERAGE, confidence=CONFIDENCE):
+    """One-sided normal tolerance factor k: mean - k sd lies below the `coverage` quantile's complement.
+
+    With probability `confidence`, at least `coverage` of a normal population exceeds
+    mean - k sd (and lies below mean + k sd). k = t'_{confidence}(n - 1, z_coverage sqrt(n)) / sqrt(n),
+    the noncentral t quantile (ISO 16269-6; NIST e-Handbook 7.2.6.3). NaN for n < 2.
+    """
+    if n < 2:
+        return math.nan
+    z = sps.norm.ppf(coverage)
+    return float(sps.nct.ppf(confidence, n - 1, z * math.sqrt(n)) / math.sqrt(n))
+
+
+def order_statistic_lower_rank(n, fraction, confidence=CONFIDENCE):
+    """Largest rank r (1-based) with P(X_(r) <= x_fraction) >= confidence; 0 when none exists.
+
+    Distribution-free: X_(r) <= x_p exactly when at least r of the n runs fall below x_p, a
+    Binomial(n, p) count, so P = P(Binomial(n, p) >= r) = binom.sf(r - 1, n, p), decreasing in r.
+    """
+    if n < 1:
+        return 0
+    coverage = sps.binom.sf(np.arange(n), n, fraction)  # index r - 1
+    return int(np.count_nonzero(coverage >= confidence))
+
+
+def order_statistic_upper_rank(n, fraction, confidence=CONFIDENCE):
+    """Smallest rank s (1-based) with P(X_(s) >= x_fraction) >= confidence; n + 1 when none exists.
+
+    P(X_(s) >= x_p) = P(Binomial(n, p) <= s - 1) = binom.cdf(s - 1, n, p), increasing in s.
+    """
+    if n < 1:
+        return n + 1
+    coverage = sps.binom.cdf(np.arange(n), n, fraction)  # index s - 1
+    return int(n - np.count_nonzero(coverage >= confidence) + 1)
+
+
+def percentile_bound(sorted_values, percent, side, confidence=CONFIDENCE):
+    """Distribution-free one-sided confidence bound on the `percent` percentile (order statistics).
+
+    ``side`` "lower": a value that the true percentile exceeds with probability >= confidence;
+    "upper": one it stays below. NaN when the sample is too small (a lower bound on the 0.135th
+    percentile at 95 % needs n >= 2218: 1 - (1 - 0.00135)^n >= 0.95).
+    """
+    n = len(sorted_values)
+    fraction = percent / 100.0
+    if side == "lower":
+        r = order_statistic_lower_rank(n, fraction, confidence)
+        return float(sorted_values[r - 1]) if r >= 1 else math.nan
+    s = order_statistic_upper_rank(n, fraction, confidence)
+    return float(sorted_values[s - 1]) if s <= n else math.nan
+
+
+BASIC_STATS = ("count", "min", "max", "mean", "median", "std", "mean_minus_3sd", "mean_plus_3sd")
+BOUND_STATS = ("tol_lower", "tol_upper")
+PERCENTILE_STATS = ("p0.135", "p1", "p5", "p50", "p95", "p99", "p99.865")
+
+
+def percentile(values, percent):
+    """numpy's default (linear, Hyndman-Fan type 7) percentile; NaN for no values."""
+    return float(np.percentile(values, percent)) if len(values) else math.nan
+
+
+def column_stat(values, stat, confidence=CONFIDENCE):
+    """One statistic of a column (finite values only): the ``<stat>`` of ``<column>.<stat>``.
+
+    See ``refexmc.report.requirements`` for the grammar. ``values`` is a 1-D float array.
+    """
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values)]
+    n = len(values)
+    if stat == "count":
+        return float(n)
+    if n == 0:
+        return math.nan
+    if stat == "min":
+        return float(values.min())
+    if stat == "max":
+        return float(values.max())
+    if stat == "mean":
+        return float(values.mean())
+    if stat == "median":
+        return float(np.median(values))
+    if stat in ("std", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper"):
+        if n < 2:
+            return math.nan
+        mean, sd = float(values.mean()), float(values.std(ddof=1))
+        if stat == "std":
+            return sd
+        if stat == "mean_minus_3sd":
+            return mean - 3.0 * sd
+        if stat == "mean_plus_3sd":
+            return mean + 3.0 * sd
+        k = normal_tolerance_factor(n, THREE_SIGMA_COVERAGE, confidence)
+        return mean - k * sd if stat == "tol_lower" else mean + k * sd
+    percent, bound = parse_percentile_stat(stat)
+    if bound is None:
+        return percentile(values, percent)
+    return percentile_bound(np.sort(values), percent, bound, confidence)
+
+
+def parse_percentile_stat(stat):
+    """``p<q>`` -> (q, None); ``p<q>_lower95`` / ``p<q>_upper95`` -> (q, "lower" / "upper"). ValueError else."""
+    if not stat.startswith("p"):
+        raise ValueError(stat)
+    body, bound = stat[1:], None
+    for side in ("lower", "upper"):
+        suffix = f"_{side}95"
+        if body.endswith(suffix):
+            body, bound = body[: -len(suffix)], side
+    if not body or not all(c.isdigit() or c == "." for c in body):
+        raise ValueError(stat)
+    percent = float(body)
+    if not 0.0 <= percent <= 100.0:
+        raise ValueError(stat)
+    return percent, bound
+
+
+def describe(values, confidence=CONFIDENCE):
+    """The standard statistics of one column, a dict stat -> value (NaN where not computable)."""
+    names = BASIC_STATS + PERCENTILE_STATS + BOUND_STATS + ("p0.135_lower95", "p99.865_upper95")
+    return {name: column_stat(values, name, confidence) for name in names}
+
+
+def spearman(x, y):
+    """Spearman rank correlation and its two-sided p-value (t approximation, as scipy.stats.spearmanr).
+
+    Pairs where either value is not finite are dropped; (nan, nan) for fewer than 3 pairs or a
+    constant input.
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    keep = np.isfinite(x) & np.isfinite(y)
+    x, y = x[keep], y[keep]
+    n = len(x)
+    if n < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+        return math.nan, math.nan
+    rx = sps.rankdata(x) - (n + 1) / 2.0
+    ry = sps.rankdata(y) - (n + 1) / 2.0
+    rho = float(np.dot(rx, ry) / math.sqrt(np.dot(rx, rx) * np.dot(ry, ry)))
+    rho = min(1.0, max(-1.0, rho))
+    if abs(rho) == 1.0:
+        return rho, 0.0
+    t = rho * math.sqrt((n - 2) / ((1.0 - rho) * (1.0 + rho)))
+    return rho, float(2.0 * sps.t.sf(abs(t), n - 2))
+
+
+def spearman_critical(n, confidence=CONFIDENCE):
+    """|rho| above which a rank correlation differs from 0 at the two-sided level 1 - confidence."""
+    if n < 4:
+        return math.nan
+    t = sps.t.ppf(1 - (1 - confidence) / 2, n - 2)
+    return float(t / math.sqrt(n - 2 + t * t))
+
+
+def convergence_points(n, count=40, start=10):
+    """Run counts at which running statistics are evaluated: about `count` log-spaced values up to n."""
+    if n <= 0:
+        return np.zeros(0, dtype=int)
+    start = min(start, n)
+    points = np.unique(np.round(np.geomspace(start, n, count)).astype(int))
+    return points

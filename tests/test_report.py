@@ -1,0 +1,330 @@
+"""`make_report` on constructed campaign outputs: every number against an independent computation."""
+
+import base64
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from scipy import stats as sps
+
+from refexmc.campaign import storage
+from refexmc.config.errors import ConfigError
+from refexmc.core.layout import MODE_NAMES
+from refexmc.report import make_report, stats
+from refexmc.report.requirements import parse_requirement
+
+ROOT = Path(__file__).resolve().parents[1]
+MODE_COLUMNS = [f"t_{name.lower()}_s" for name in MODE_NAMES]
+MODE_SECONDS = np.array([5.0, 10.0, 30.0, 120.0, 8.0, 40.0, 15.0])
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def synthetic_runs(n=60, errored=(7, 23), failed=(3, 11, 40), sets=None, seed=1):
+    """Rows of a runs table: known columns, two p. parameters (one drives the propellant)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n):
+        drive = 1.0 if i == 0 else rng.normal(1.0, 0.1)
+        noise = 0.5 if i == 0 else rng.uniform(0, 1)
+        fuel = 0.5 - 0.3 * (drive - 1.0) + 0.01 * rng.normal()
+        times = MODE_SECONDS * (1.0 if i == 0 else rng.uniform(0.9, 1.1, len(MODE_SECONDS)))
+        row = {
+            "run_id": i,
+            "seed": 1000 + i,
+            "status": "ok",
+            "success": i not in failed,
+            "failure_reason": "sam_timeout" if i in failed else None,
+            "failed_thrusters": sets[i] if sets else "",
+            "fuel_remaining": fuel,
+            "fuel_used_kg": 1.96 * (1 - fuel),
+            "t_end_s": float(times.sum()),
+            **{c: float(t) for c, t in zip(MODE_COLUMNS, times, strict=True)},
+            "theta_t_handover_deg": float(rng.uniform(0.05, 1.0)),
+            "modes_completed": 7,
+            **{f"pulses_{k}": int(rng.integers(50, 150)) for k in range(1, 9)},
+            "p.rcs.isp_s": 70.0 * drive,
+            "p.navigation.rate_noise_deg_s": 0.02 * noise,
+        }
+        if i in errored:  # an errored run: absurd finite values that must not reach any statistic
+            row.update(status="error", success=False, failure_reason="RuntimeError: boom", fuel_remaining=-5.0)
+            row["theta_t_handover_deg"] = 1e6
+        rows.append(row)
+    return rows
+
+
+def synthetic_history(row, rate_hz=2.0):
+    """Samples of one run: theta_t = 100 exp(-tau) in every mode (tau: time since mode start)."""
+    times = np.array([row[c] for c in MODE_COLUMNS])
+    starts = np.concatenate([[0.0], np.cumsum(times)[:-1]])
+    t = np.arange(0.0, row["t_end_s"], 1.0 / rate_hz)
+    mode = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(MODE_NAMES) - 1)
+    tau = t - starts[mode]
+    n = len(t)
+    return pa.table(
+        {
+            "run_id": pa.array(np.full(n, row["run_id"], dtype=np.int64)),
+            "t_s": pa.array(t),
+            "mode": pa.DictionaryArray.from_arrays(pa.array(mode.astype(np.int32)), pa.array(list(MODE_NAMES))),
+            "theta_t_deg": pa.array(100.0 * np.exp(-tau)),
+            "omega_m_deg_s": pa.array(np.full(n, 2.0)),
+            "fuel_remaining": pa.array(1.0 - (1.0 - row["fuel_remaining"]) * t / row["t_end_s"]),
+        }
+    )
+
+
+def write_out(out, rows, requirements=(), nominal_first=True, histories=True, parts=2):
+    """An OUT directory as `refexmc run` writes it (runs and histories in `parts` part files)."""
+    storage.prepare_output(out)
+    campaign = {
+        "name": "synthetic",
+        "runs": len(rows),
+        "seed": 5,
+        "nominal_first": nominal_first,
+        "sampling": "random",
+        "failures": {"mode": "none"},
+        "output": {"history_rate_hz": 2.0},
+        "requirements": list(requirements),
+        "vehicle": {"name": "refex"},
+    }
+    storage.write_resolved(out, campaign)
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "refexmc": "test"})
+    bounds = np.linspace(0, len(rows), parts + 1).astype(int)
+    for k in range(parts):
+        chunk = rows[bounds[k] : bounds[k + 1]]
+        storage.write_table_atomic(storage.runs_table(chunk), out / "runs" / storage.part_name(k))
+        if histories:
+            tables = [synthetic_history(r) for r in chunk if r["status"] == "ok"]
+            storage.write_table_atomic(pa.concat_tables(tables), out / "histories" / storage.part_name(k))
+    return out
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    rows = synthetic_runs()
+    out = write_out(
+        tmp_path_factory.mktemp("report") / "out",
+        rows,
+        requirements=["fuel_remaining.min >= 0.20", "success_rate >= 1.0"],
+    )
+    report = make_report(out, require=["theta_t_handover_deg.p99 <= 2.0"], html=True)
+    return out, rows, report
+
+
+def ok_values(rows, column):
+    return np.array([r[column] for r in rows if r["status"] == "ok"], dtype=float)
+
+
+def test_success_rate_and_clopper_pearson_exclude_errored_runs(synthetic):
+    _, rows, report = synthetic
+    s = report["summary"]
+    assert s["counts"] == {"runs": 60, "ok_count": 58, "error_count": 2, "success_count": 55, "failure_count": 3}
+    expected = sps.binomtest(55, 58).proportion_ci(confidence_level=0.95, method="exact")
+    assert s["success"]["rate"] == pytest.approx(55 / 58)
+    assert s["success"]["ci95"] == pytest.approx([expected.low, expected.high], abs=1e-12)
+    lower = sps.binomtest(55, 58, alternative="greater").proportion_ci(method="exact").low
+    assert s["metrics"]["success_rate_lower95"] == pytest.approx(lower, abs=1e-12)
+    assert any("2 of 60 runs raised errors" in note for note in s["notes"])
+
+
+def test_column_statistics_match_numpy_over_ok_runs(synthetic):
+    _, rows, report = synthetic
+    columns = report["summary"]["columns"]
+    fuel = ok_values(rows, "fuel_remaining")
+    f = columns["fuel_remaining"]
+    assert f["count"] == 58
+    assert f["min"] == fuel.min()  # the errored run's -5.0 is excluded
+    for percent in (0.135, 1, 50, 99):
+        assert f[f"p{percent:g}"] == pytest.approx(np.percentile(fuel, percent), abs=1e-15)
+    assert f["mean"] == pytest.approx(fuel.mean())
+    assert f["mean_minus_3sd"] == pytest.approx(fuel.mean() - 3 * fuel.std(ddof=1))
+    k = stats.normal_tolerance_factor(58)
+    assert f["tol_lower"] == pytest.approx(fuel.mean() - k * fuel.std(ddof=1))
+    assert f["p0.135_lower95"] is None  # 58 runs cannot bound the 0.135th percentile (needs 2218)
+    theta = ok_values(rows, "theta_t_handover_deg")
+    assert columns["theta_t_handover_deg"]["max"] == theta.max()  # not the errored run's 1e6
+    for name in MODE_COLUMNS:
+        assert columns[name]["median"] == pytest.approx(np.median(ok_values(rows, name)))
+    pulses = sum(ok_values(rows, f"pulses_{k}") for k in range(1, 9))
+    assert columns["pulses_total"]["max"] == pulses.max()
+    assert columns["pulses_3"]["mean"] == pytest.approx(ok_values(rows, "pulses_3").mean())
+
+
+def test_requirement_verdicts_and_sources(synthetic):
+    _, rows, report = synthetic
+    verdicts = report["requirements"]
+    assert [v["requirement"] for v in verdicts] == [
+        "fuel_remaining.min >= 0.20",
+        "success_rate >= 1.0",
+        "theta_t_handover_deg.p99 <= 2.0",
+    ]
+    assert [v["source"] for v in verdicts] == ["campaign", "campaign", "--require"]
+    assert [v["passed"] for v in verdicts] == [True, False, True]  # 3 runs failed
+    assert verdicts[0]["actual"] == ok_values(rows, "fuel_remaining").min()
+    assert report["passed"] is False
+    assert "FAIL  success_rate >= 1.0" in report["text"]
+    assert "verdict: FAIL (2 of 3 requirements met)" in report["text"]
+
+
+def test_summary_json_is_strict_json_with_the_report(synthetic):
+    out, _, report = synthetic
+    text = (out / "report" / "summary.json").read_text()
+    data = json.loads(text, parse_constant=lambda name: pytest.fail(f"non-strict JSON constant {name}"))
+    assert data == report["summary"]
+    assert data["passed"] is False
+    assert set(data) >= {"campaign", "counts", "success", "columns", "requirements", "worst_cases", "sensitivity"}
+    worst = data["worst_cases"]["fuel_remaining"]["runs"]
+    assert [w["fuel_remaining"] for w in worst] == sorted(ok_values(synthetic[1], "fuel_remaining"))[:5]
+    assert worst[0]["command"] == f"refexmc rerun {out} {worst[0]['run_id']}"
+    assert [r["run_id"] for r in data["worst_cases"]["errored"]["runs"]] == [7, 23]
+    assert [r["run_id"] for r in data["worst_cases"]["unsuccessful"]["runs"]] == [3, 11, 40]
+
+
+def test_sensitivity_matches_scipy_spearman(synthetic):
+    _, rows, report = synthetic
+    section = report["summary"]["sensitivity"]
+    used = ok_values(rows, "fuel_used_kg")
+    top = section["fuel_used_kg"][0]
+    assert top["parameter"] == "p.rcs.isp_s"  # the parameter that drives the propellant
+    expected = sps.spearmanr(ok_values(rows, "p.rcs.isp_s"), used)
+    assert top["rho"] == pytest.approx(expected.statistic, abs=1e-12)
+    assert top["p_value"] == pytest.approx(expected.pvalue, rel=1e-9)
+
+
+def test_html_is_self_contained(synthetic):
+    out, _, report = synthetic
+    page = (out / "report" / "index.html").read_text()
+    assert not re.search(r"https?://", page), "the page must not reference the network"
+    sources = re.findall(r"<img[^>]*\ssrc=\"([^\"]*)\"", page)
+    assert len(sources) == page.count("<img") >= 4  # modes, propellant, sensitivity, convergence
+    for src in sources:
+        assert src.startswith("data:image/png;base64,")
+        assert base64.b64decode(src.split(",", 1)[1]).startswith(PNG_MAGIC)
+    assert not re.search(r"<(script|link|iframe)\b", page)
+    assert "refexmc rerun" in page and "FAIL" in page
+    assert report["summary"]["figures"][0].startswith("Angle and rate errors per mode")
+
+
+def test_mode_envelopes_align_runs_at_mode_start(synthetic):
+    from refexmc.report import aggregate, data
+
+    out, _, _ = synthetic
+    result = aggregate.aggregate_histories(data.load(out))
+    binned, q = result["modes"]["theta_t_deg"]
+    sam = MODE_NAMES.index("SAM")
+    # every run has theta = 100 exp(-tau): aligned at mode start, all percentiles coincide
+    for b in range(0, 8):
+        tau = (b + 0.5) * binned.dt
+        lo, hi = 100 * np.exp(-(tau + 0.5 * binned.dt)), 100 * np.exp(-(tau - 0.5 * binned.dt))
+        ratio = 10 ** (1 / 80)
+        assert lo / ratio <= q[sam, b, 0] and q[sam, b, 4] <= hi * ratio
+    assert result["nominal"] is not None and (np.diff(result["nominal"]["t_s"]) > 0).all()
+    assert result["rows"] == sum(len(synthetic_history(r)) for r in synthetic[1] if r["status"] == "ok")
+
+
+def test_requirement_parser_good_and_bad():
+    columns = ["run_id", "fuel_remaining", "theta_t_handover_deg", "p.rcs.thrust_scale.1", "t_sam_s"]
+    good = parse_requirement(" fuel_remaining.p0.135 >= 0.2 ", columns)
+    assert (good.metric, good.op, good.value) == ("fuel_remaining.p0.135", ">=", 0.2)
+    assert parse_requirement("p.rcs.thrust_scale.1.p50<1.1", columns).metric == "p.rcs.thrust_scale.1.p50"
+    assert parse_requirement("success_rate_lower95 > 0.9", columns).op == ">"
+    assert parse_requirement("fuel_remaining.p1_lower95 >= 0.3", columns).value == 0.3
+    assert parse_requirement("t_sam_s.mean_plus_3sd <= 1e2", columns).value == 100.0
+    with pytest.raises(ConfigError, match="did you mean 'fuel_remaining.min'"):
+        parse_requirement("fuel_remaning.min >= 0.2", columns)
+    with pytest.raises(ConfigError, match="did you mean 'success_rate'"):
+        parse_requirement("sucess_rate >= 1", columns)
+    with pytest.raises(ConfigError, match="unknown statistic 'minn'.*did you mean 'fuel_remaining.min'"):
+        parse_requirement("fuel_remaining.minn >= 0.2", columns)
+    with pytest.raises(ConfigError, match="unknown metric 'run_id.max'"):
+        parse_requirement("run_id.max < 5", columns)
+    with pytest.raises(ConfigError, match="unknown operator '=>'"):
+        parse_requirement("fuel_remaining.min => 0.2", columns)
+    with pytest.raises(ConfigError, match="expected a number after '>=', got 'twenty'"):
+        parse_requirement("fuel_remaining.min >= twenty", columns)
+    with pytest.raises(ConfigError, match="expected 'METRIC OP VALUE'"):
+        parse_requirement("fuel_remaining.min", columns)
+    with pytest.raises(ConfigError, match="finite"):
+        parse_requirement("fuel_remaining.min >= nan", columns)
+
+
+def test_bad_requirement_in_campaign_file_names_file_and_line_and_writes_nothing(tmp_path):
+    rows = synthetic_runs(n=12, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, requirements=["success_rate >= 1", "fuel_left.min >= 0.2"], histories=False)
+    with pytest.raises(ConfigError) as info:
+        make_report(out)
+    message = str(info.value)
+    assert "campaign.resolved.yaml:" in message and "requirements.1" in message and "fuel_left.min" in message
+    assert info.value.line is not None
+    assert not (out / "report").exists()
+    out = write_out(tmp_path / "good", rows, requirements=["success_rate >= 1"], histories=False)
+    with pytest.raises(ConfigError, match="did you mean 'pulses_total.max'"):
+        make_report(out, require=["pulses_totl.max < 1000"])
+    assert not (out / "report").exists()
+    with pytest.raises(ConfigError, match="no campaign.resolved.yaml"):
+        make_report(tmp_path)
+
+
+def test_all_runs_succeeding_gives_the_no_failure_bound_and_passes(tmp_path):
+    rows = synthetic_runs(n=40, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, requirements=["success_rate >= 1.0"], histories=False, parts=1)
+    report = make_report(out, require=["failure_rate_upper95 <= 0.08", "fuel_remaining.count == 40"], html=False)
+    assert report["passed"] is True
+    success = report["summary"]["success"]
+    assert success["lower95"] == pytest.approx(0.05 ** (1 / 40))
+    assert "no failure in 40 runs" in success["statement"]
+    assert not (out / "report" / "index.html").exists()
+    assert (out / "report" / "summary.json").is_file()
+
+
+def test_failure_sweep_sets_and_matrix(tmp_path):
+    singles = [str(t) for t in range(1, 9)]
+    pairs = [f"{a},{b}" for a in range(1, 9) for b in range(a + 1, 9)]
+    sets = ["", *singles, *pairs]
+    failed = {i for i, s in enumerate(sets) if "5" in s.split(",") or "6" in s.split(",")}
+    rows = synthetic_runs(n=len(sets), errored=(), failed=failed, sets=sets)
+    out = write_out(tmp_path / "out", rows, histories=False, parts=1)
+    report = make_report(out, html=True)
+    by_set = {s["failed_thrusters"]: s for s in report["summary"]["failure_sets"]}
+    assert len(by_set) == 37
+    assert by_set["5"]["success_rate"] == 0 and by_set["1,2"]["success_rate"] == 1
+    assert by_set["5,6"]["failure_reasons"] == ["sam_timeout"]
+    assert [s["size"] for s in report["summary"]["failure_sets"]][:3] == [0, 1, 1]
+    figures = report["summary"]["figures"]
+    assert any("failure matrix" in title for title in figures)
+    assert (out / "report" / "figures" / "failure_matrix.png").read_bytes().startswith(PNG_MAGIC)
+
+
+def test_requirement_that_cannot_be_computed_fails(tmp_path):
+    rows = synthetic_runs(n=10, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, histories=False, parts=1)
+    report = make_report(out, require=["fuel_remaining.p0.135_lower95 >= 0.1"], html=False)
+    verdict = report["requirements"][0]
+    assert verdict["passed"] is False and verdict["actual"] is None and "not computable" in verdict["note"]
+
+
+@pytest.mark.slow
+def test_report_on_flown_campaign(tmp_path):
+    """End to end on real flights: a small smoke campaign with random failures, stored as `run` stores it."""
+    from refexmc.campaign.chunk import fly_chunk
+    from refexmc.config.load import load_campaign
+
+    source = tmp_path / "campaign.yaml"
+    text = (ROOT / "campaigns/smoke.yaml").read_text()
+    text = text.replace("../configs/", f"{ROOT}/configs/").replace("runs: 20", "runs: 8")
+    source.write_text(text)
+    campaign = load_campaign(source)
+    out = tmp_path / "out"
+    storage.prepare_output(out)
+    storage.write_resolved(out, campaign)
+    rows, histories = fly_chunk(campaign, range(campaign["runs"]))
+    storage.write_table_atomic(storage.runs_table(rows), out / "runs" / storage.part_name(0))
+    storage.write_table_atomic(pa.concat_tables(histories), out / "histories" / storage.part_name(0))
+    report = make_report(out, require=["fuel_remaining.min >= 0.05"])
+    assert report["summary"]["counts"]["runs"] == 8
+    assert report["summary"]["nominal"]["run_id"] == 0
+    fuel = np.array([r["fuel_remaining"] for r in rows if r["status"] == "ok"])
+    assert report["summary"]["columns"]["fuel_remaining"]["min"] == fuel.min()
+    assert "Angle and rate errors per mode" in report["summary"]["figures"][0]
