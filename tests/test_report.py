@@ -297,6 +297,19 @@ def test_failure_sweep_sets_and_matrix(tmp_path):
     assert (out / "report" / "figures" / "failure_matrix.png").read_bytes().startswith(PNG_MAGIC)
 
 
+def test_incomplete_campaign_without_nominal_run(tmp_path):
+    rows = synthetic_runs(n=30, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, nominal_first=False, parts=1)
+    text = (out / "campaign.resolved.yaml").read_text().replace("runs: 30", "runs: 50")
+    (out / "campaign.resolved.yaml").write_text(text)
+    report = make_report(out, html=True)
+    summary = report["summary"]
+    assert "incomplete campaign: 30 of 50 runs stored" in summary["notes"]
+    assert summary["nominal"] is None
+    assert "no failure in 30 runs" in summary["success"]["statement"]
+    assert "no requirements" in report["text"]
+
+
 def test_requirement_that_cannot_be_computed_fails(tmp_path):
     rows = synthetic_runs(n=10, errored=(), failed=())
     out = write_out(tmp_path / "out", rows, histories=False, parts=1)

@@ -14,7 +14,7 @@ table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; }
 th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
 th:first-child, td:first-child { text-align: left; }
 td.text { text-align: left; }
-.pass { background: #d8f0d8; } .fail { background: #f6d0d0; }
+.pass { background: #d8f0d8; } .fail { background: #f6d0d0; } .none { background: #eeeeee; }
 .verdict { font-size: 1.3em; padding: 0.5em 0.8em; display: inline-block; border-radius: 4px; }
 code { background: #f2f2f2; padding: 0 0.2em; }
 figure { margin: 1em 0; } figcaption { font-size: 0.9em; color: #444; max-width: 1100px; }
@@ -139,15 +139,17 @@ def page(summary, figures, sensitivity_labels):
     success = summary["success"]
     reqs = summary["requirements"]
     passed = summary["passed"]
-    verdict = ("PASS" if passed else "FAIL") + (
-        f": {sum(r['passed'] for r in reqs)} of {len(reqs)} requirements met" if reqs else ": no requirements"
-    )
+    if reqs:
+        verdict = f"{'PASS' if passed else 'FAIL'}: {sum(r['passed'] for r in reqs)} of {len(reqs)} requirements met"
+        verdict_class = "pass" if passed else "fail"
+    else:
+        verdict, verdict_class = "no requirements to judge", "none"
     body = [
         f"<h1>Campaign {e(c['name'])}</h1>",
         f"<p>{counts['runs']} runs ({counts['ok_count']} ok, {counts['error_count']} errored), seed {e(c['seed'])}, "
         f"sampling {e(c['sampling'])}, failures {e(c['failures'])}; output <code>{e(c['out'])}</code>; "
         f"refexmc {e(c['refexmc'])}.</p>",
-        f'<p class="verdict {"pass" if passed else "fail"}">{e(verdict)}</p>',
+        f'<p class="verdict {verdict_class}">{e(verdict)}</p>',
     ]
     body += [f'<p class="note">{e(note)}</p>' for note in summary["notes"]]
     body += ["<h2>Requirements</h2>", requirements_section(summary)]

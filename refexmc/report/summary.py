@@ -64,10 +64,11 @@ def success_section(campaign, level):
         "method": "Clopper-Pearson (exact binomial): two-sided 95 % interval; one-sided 95 % lower bound",
     }
     if n and k == n:
+        rule_of_three = f"; rule of three: 3/N = {100 * 3 / n:.3g} %" if n >= 30 else ""
         section["statement"] = (
-            f"no failure in {n} runs: failure probability < {100 * level['failure_rate_upper95']:.3g} % "
-            f"at 95 % confidence (one-sided Clopper-Pearson, 1 - 0.05^(1/{n}); rule of three: 3/N = "
-            f"{100 * 3 / n:.3g} %)"
+            f"no failure in {n} run{'s' if n > 1 else ''}: failure probability < "
+            f"{100 * level['failure_rate_upper95']:.3g} % at 95 % confidence (one-sided Clopper-Pearson, "
+            f"1 - 0.05^(1/{n}){rule_of_three})"
         )
     elif n:
         section["statement"] = (
