@@ -292,6 +292,11 @@ def test_failure_sweep_sets_and_matrix(tmp_path):
     assert by_set["5"]["success_rate"] == 0 and by_set["1,2"]["success_rate"] == 1
     assert by_set["5,6"]["failure_reasons"] == ["sam_timeout"]
     assert [s["size"] for s in report["summary"]["failure_sets"]][:3] == [0, 1, 1]
+    # synthetic: every set without a yaw thruster (5, 6) succeeds; 000 Table 4 also rules out 6 pairs
+    table4 = report["summary"]["failure_sets_vs_000_table4"]
+    assert table4["compared"] == 36
+    assert table4["disagree"] == ["1,4", "1,7", "2,3", "2,7", "3,8", "4,8"]
+    assert "against 000 Table 4: 30 of 36" in report["text"]
     figures = report["summary"]["figures"]
     assert any("failure matrix" in title for title in figures)
     assert (out / "report" / "figures" / "failure_matrix.png").read_bytes().startswith(PNG_MAGIC)

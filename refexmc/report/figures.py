@@ -16,6 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from refexmc.core.layout import MODE_NAMES
+from refexmc.report.summary import PAPER_COMPENSABLE
 
 DPI = 100
 BAND_COLORS = ("#d9d9d9", "#a6a6a6")  # min-max, 1-99 %
@@ -23,25 +24,6 @@ MEDIAN_COLOR = "#595959"
 NOMINAL_COLOR = "black"
 TORNADO_BARS = 12
 MAX_FAILURE_SETS = 60
-
-# 000 Table 4: the thruster failures the allocation compensates (ReFEx, 8 thrusters)
-PAPER_COMPENSABLE = {
-    (1,),
-    (2,),
-    (3,),
-    (4,),
-    (7,),
-    (8,),
-    (1, 2),
-    (3, 4),
-    (1, 3),
-    (2, 4),
-    (7, 8),
-    (1, 8),
-    (2, 8),
-    (3, 7),
-    (4, 7),
-}
 
 
 def png(figure):

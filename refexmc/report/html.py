@@ -178,6 +178,13 @@ def page(summary, figures, sensitivity_labels):
         ]
     if summary["failure_sets"]:
         body += ["<h2>Failure sets</h2>", failure_sets_section(summary["failure_sets"])]
+        table4 = summary.get("failure_sets_vs_000_table4")
+        if table4:
+            differ = ", ".join(f"[{d}]" for d in table4["disagree"]) or "none"
+            body.append(
+                f"<p>Against 000 Table 4 (compensable = every run of the set succeeded): {table4['agree']} of "
+                f"{table4['compared']} single and double failure sets agree; differ: {e(differ)}.</p>"
+            )
     if summary["sensitivity"]:
         body += ["<h2>Sensitivity</h2>", sensitivity_section(summary["sensitivity"], sensitivity_labels)]
     body += ["<h2>Worst cases</h2>", worst_section(summary["worst_cases"])]

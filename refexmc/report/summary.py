@@ -17,6 +17,11 @@ WORST_CASES = (  # (column, "low"/"high": which end is worst, what it means)
     ("t_end_s", "high", "longest flight"),
 )
 WORST_COUNT = 5
+
+# 000 Table 4: the thruster failures the ReFEx allocation compensates (8 thrusters)
+PAPER_COMPENSABLE = frozenset(
+    [(1,), (2,), (3,), (4,), (7,), (8,), (1, 2), (3, 4), (1, 3), (2, 4), (7, 8), (1, 8), (2, 8), (3, 7), (4, 7)]
+)
 LISTED_RUNS = 20
 
 
@@ -131,6 +136,27 @@ def failure_sets(campaign):
     return rows
 
 
+def paper_table4_agreement(campaign, sets):
+    """For a ReFEx failure sweep: which flown single/double sets agree with 000 Table 4; else None.
+
+    A set agrees when "compensable" in 000 Table 4 equals "every run of the set succeeded".
+    """
+    vehicle = (campaign.resolved.get("vehicle") or {}).get("name")
+    if not sets or vehicle != "refex" or campaign.thruster_count != 8:
+        return None
+    compared, disagree = 0, []
+    for s in sets:
+        ids = tuple(int(t) for t in s["failed_thrusters"].split(",") if t)
+        if not 1 <= len(ids) <= 2:
+            continue
+        compared += 1
+        if (ids in PAPER_COMPENSABLE) != (s["successes"] == s["runs"]):
+            disagree.append(s["failed_thrusters"])
+    if not compared:
+        return None
+    return {"compared": compared, "agree": compared - len(disagree), "disagree": disagree}
+
+
 def sensitivity(campaign):
     """Spearman rank correlation of every varying ``p.`` column with each output, by |rho|."""
     ok = campaign.ok
@@ -234,6 +260,7 @@ def build(campaign):
     if nominal is not None:
         notes.append("run 0 is the undispersed nominal case; it counts as a run in every statistic")
     nominal_row = campaign.ok[campaign.ok["run_id"] == nominal].iloc[0] if nominal is not None else None
+    sets = failure_sets(campaign)
     summary = {
         "campaign": {
             "name": campaign.name,
@@ -260,7 +287,8 @@ def build(campaign):
             "success": bool(nominal_row["success"]),
             **{c: float(nominal_row[c]) for c in KEY_COLUMNS if c in nominal_row},
         },
-        "failure_sets": failure_sets(campaign),
+        "failure_sets": sets,
+        "failure_sets_vs_000_table4": paper_table4_agreement(campaign, sets),
         "sensitivity": sensitivity(campaign) if campaign.parameter_columns and n_ok >= 3 else None,
         "convergence": convergence(campaign) if n_ok >= 2 else None,
         "worst_cases": worst_cases(campaign),

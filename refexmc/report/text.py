@@ -53,6 +53,16 @@ def format_summary(summary, report_dir=None):
             modes.append(f"{name} {number(values['median'], 3)}/{number(values['max'], 3)}")
     if modes:
         lines.append("time in mode [s], median/max: " + ", ".join(modes))
+    sets = summary.get("failure_sets")
+    if sets:
+        complete = sum(s["successes"] == s["runs"] for s in sets)
+        lines.append(f"failure sets: {len(sets)}, every run succeeded in {complete}")
+        table4 = summary.get("failure_sets_vs_000_table4")
+        if table4:
+            lines.append(
+                f"  against 000 Table 4: {table4['agree']} of {table4['compared']} single/double sets agree"
+                + (f"; differ: {'; '.join(f'[{d}]' for d in table4['disagree'])}" if table4["disagree"] else "")
+            )
     worst = summary["worst_cases"].get("fuel_remaining", {}).get("runs")
     if worst:
         run = worst[0]
