@@ -205,6 +205,57 @@ def test_random_command_streams_match_naive(inputs, toggles, thrust_level):
     np.testing.assert_allclose(angular, expected_angular, rtol=1e-11, atol=1e-12)
 
 
+@settings(deadline=None, max_examples=40)
+@given(streams, st.sampled_from([rcs.LEVEL_LOW, rcs.LEVEL_HIGH]), st.sets(st.integers(0, 7), max_size=2))
+def test_update_settles_ramps_and_skips_idle_valves_without_changing_a_bit(
+    vehicle_config, inputs, toggles, thrust_level, failed
+):
+    """rcs.update (settled ramps, bit mask of active thrusters), as the run loop uses it, gives
+    exactly the segments, torques and impulses of applying every reaction and looking at every
+    thruster; with the mask at 0 the segment is the thrust-free coasting segment."""
+    vehicle = inputs.vehicle
+    thrusters = pack_thrusters(vehicle_config, failed=tuple(i + 1 for i in failed))
+    n = thrusters.shape[0]
+    plain, masked = np.zeros((n, rcs.VALVE_STATE_SIZE)), np.zeros((n, rcs.VALVE_STATE_SIZE))
+    arms = arms_of(thrusters, vehicle)
+    tau = np.empty((4, 3))
+    active = 0
+    is_open = [False] * n
+    for step in range(24 + 12):  # then let the last falls finish and settle
+        t = step * DT
+        for i in range(n):
+            if (step < 24 and toggles[i][step]) or (step == 24 and is_open[i]):  # all closed at 24
+                is_open[i] = not is_open[i]
+                rcs.command(plain, thrusters, i, is_open[i], t, thrust_level)
+                rcs.command(masked, thrusters, i, is_open[i], t, thrust_level)
+                active |= 1 << i
+        t_seg = t
+        while t_seg < t + DT - 1e-12:
+            for i in range(n):
+                rcs.apply_reactions(plain, thrusters, i, t_seg, thrust_level)
+            t_next = rcs.next_breakpoint(plain, n, t_seg, t + DT)
+            impulse = rcs.segment_thrust(plain, thrusters, vehicle, arms, thrust_level, t_seg, t_next, tau[0], tau[1])
+            active = rcs.update(masked, thrusters, n, t_seg, thrust_level, active)
+            if active:
+                assert rcs.next_breakpoint(masked, n, t_seg, t + DT, active) == t_next
+                assert (
+                    rcs.segment_thrust(
+                        masked, thrusters, vehicle, arms, thrust_level, t_seg, t_next, tau[2], tau[3], active
+                    )
+                    == impulse
+                )
+                assert np.array_equal(tau[0:2], tau[2:4])
+            else:  # coasting: the run loop integrates to the period's end without thrust
+                assert t_next == t + DT and impulse == 0.0 and not tau[0:2].any()
+            for i in range(n):
+                assert rcs.level_at(masked, i, t_seg) == rcs.level_at(plain, i, t_seg)
+                assert rcs.level_at(masked, i, t_next) == rcs.level_at(plain, i, t_next)
+                if not (active >> i) & 1:
+                    assert rcs.level_at(masked, i, t_seg) == 0.0 and masked[i, rcs.VS_PENDING_COUNT] == 0
+            t_seg = t_next
+    assert active == 0, "every valve closed and settled 300 ms after the last command"
+
+
 # --- derating, failures, torque arms, propellant ----------------------------------------------
 
 IDEAL = ValveTimes(0.0, 0.0, 0.0, 0.0)
