@@ -211,6 +211,20 @@ def test_slerp_end_points_and_sign_choice():
     assert out @ q0 > 0 and -q1 @ out > 0, "the midpoint lies on the short arc"
 
 
+@settings(deadline=None)
+@given(unit_quaternions(), unit_quaternions())
+def test_slerp_end_points_are_exact(q0, q1):
+    """h = 1 is taken without sines (the SLERP hold phase): exactly the shortest-arc q1."""
+    assume(abs(float(q0 @ q1)) < 1.0 - 1e-12)  # the linear branch normalises: not exact
+    sign, omega, sin_omega = quaternion.slerp_arc(q0, q1)
+    assert sign == (1.0 if q0 @ q1 >= 0.0 else -1.0) and omega > 0.0 and sin_omega == math.sin(omega)
+    out = np.empty(4)
+    quaternion.slerp(q0, q1, 1.0, out)
+    assert np.array_equal(out, 0.0 * q0 + sign * q1)
+    quaternion.slerp(q0, q1, 0.0, out)
+    assert np.array_equal(out, q0 + sign * 0.0 * q1)
+
+
 def test_slerp_nearly_identical_quaternions():
     """The linear branch (dot > 1 - 1e-12) stays unit and between the end points."""
     q0 = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_quat()

@@ -134,8 +134,12 @@ def slerp_on_arc(q0, q1, sign, omega, sin_omega, h, out):
             out[i] = (1.0 - h) * q0[i] + h * sign * q1[i]
         normalize(out)
         return
-    a = math.sin((1.0 - h) * omega) / sin_omega
-    b = sign * math.sin(h * omega) / sin_omega
+    if h == 1.0:  # held at the end: sin(0) / sin(omega) and sign * sin(omega) / sin(omega), exactly
+        a = 0.0
+        b = sign
+    else:
+        a = math.sin((1.0 - h) * omega) / sin_omega
+        b = sign * math.sin(h * omega) / sin_omega
     for i in range(4):
         out[i] = a * q0[i] + b * q1[i]
 
