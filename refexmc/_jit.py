@@ -51,7 +51,7 @@ def jit(function):
     return numba.njit(**JIT_OPTIONS)(function)
 
 
-def jit_noalloc(function):
+def jit_noalloc(function=None, *, force_inline=False):
     """Like :func:`jit`, for kernels that allocate no arrays: compiled without numba's runtime.
 
     Numba's reference counting (NRT) increments and decrements the count of every array a
@@ -61,10 +61,20 @@ def jit_noalloc(function):
     ``nrt`` compiler flag); it is safe here because every caller holds its own reference to the
     arrays for the whole call, and a kernel that tried to allocate would fail to compile. The
     flag is part of the decorator, so the on-disk cache always holds code compiled with it.
+
+    ``@jit_noalloc(force_inline=True)`` also has LLVM inline the kernel into its callers
+    (numba's public ``forceinline``; unlike ``inline="always"`` it costs no extra numba
+    compilation): for mid-sized kernels called every control step, whose array arguments
+    would otherwise each be passed as seven machine words.
     """
+    if function is None:
+        return lambda f: jit_noalloc(f, force_inline=force_inline)
     if DISABLED:
         return function
-    return numba.njit(_nrt=False, **JIT_OPTIONS)(function)
+    options = dict(JIT_OPTIONS, _nrt=False)
+    if force_inline:
+        options["forceinline"] = True
+    return numba.njit(**options)(function)
 
 
 def jit_inline(function):

@@ -98,7 +98,7 @@ def start_slerp(state, t0, q_start, q_final, accel_max, t1_design, work4):
     state[G_ARC + 2] = sin_omega
 
 
-@jit_noalloc
+@jit_noalloc(force_inline=True)
 def slerp_reference(state, t, q_out, rate_out, accel_out):
     """Reference of a SLERP reorientation at time ``t`` (000 eq. 4, 10-12)."""
     h, h_dot, h_ddot = quintic(t - state[G_T0], state[G_T1])
@@ -139,7 +139,7 @@ def start_spin_up(state, t0, q_start, omega1, accel_max):
     state[G_T1] = rate_profile_duration(omega1, accel_max)
 
 
-@jit_noalloc
+@jit_noalloc(force_inline=True)
 def spin_up_reference(state, t, q_out, rate_out, accel_out, work4):
     """Reference of the SSM at ``t``: q = q_start (x) rotation(phi(t)) (000 eq. 22-27)."""
     angle, rate, accel = quartic_spin_up(t - state[G_T0], state[G_T1])

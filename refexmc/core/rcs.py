@@ -88,7 +88,7 @@ def command(valve_state, thrusters, i, open_valve, t, thrust_level):
     valve_state[i, VS_PENDING_COUNT] = n + 1
 
 
-@jit_noalloc
+@jit_noalloc(force_inline=True)
 def apply_reactions(valve_state, thrusters, i, t, thrust_level):
     """Start the ramps of all reactions of thruster ``i`` due at or before ``t``."""
     n = int(valve_state[i, VS_PENDING_COUNT])
@@ -162,7 +162,7 @@ def derating_factor(vehicle, n_open):
     return vehicle[V_DERATING + n_open - 1]
 
 
-@jit_noalloc
+@jit_noalloc(force_inline=True)
 def segment_thrust(
     valve_state, thrusters, vehicle, arms, thrust_level, t_start, t_end, tau_start, tau_end, active=ALL_THRUSTERS
 ):
@@ -214,7 +214,7 @@ def open_mask(valve_state, n_thrusters, t):
     return mask
 
 
-@jit_noalloc
+@jit_noalloc(force_inline=True)
 def update(valve_state, thrusters, n_thrusters, t, thrust_level, active):
     """Start the reactions due at ``t`` and settle finished ramps; the new mask of active thrusters.
 
