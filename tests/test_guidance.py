@@ -293,6 +293,17 @@ def test_entry_attitude_without_sideslip_and_bank_is_a_pitch_rotation(pitch, alp
         assert -body_x[2] > -velocity[2], "nose above the velocity"
 
 
+@pytest.mark.parametrize("pitch", [-0.6, 0.0, 0.66])
+@pytest.mark.parametrize(("alpha", "beta", "bank"), [(0.0, 0.0, 0.0), (0.5, -0.1, 0.3), (-0.2, 0.25, -1.2)])
+def test_entry_attitude_from_its_constant_rotations_is_the_same_to_the_bit(pitch, alpha, beta, bank):
+    """The run loop computes the alpha/beta/bank factors once and only the pitch per step."""
+    rotations, q, q_from = np.empty((3, 4)), np.empty(4), np.empty(4)
+    guidance.aerodynamic_rotations(alpha, beta, bank, rotations)
+    guidance.entry_attitude(pitch, alpha, beta, bank, q, np.empty((3, 4)))
+    guidance.entry_attitude_from(pitch, rotations, q_from, np.empty((2, 4)))
+    assert np.array_equal(q, q_from)
+
+
 @pytest.mark.parametrize("bank", [-0.5, 0.3, 1.2])
 def test_entry_attitude_bank_turns_about_the_velocity(bank):
     """alpha = beta = 0: body x stays on the velocity whatever the bank, and the bank angle is

@@ -168,7 +168,7 @@ def run_flight(
         np.zeros(guidance.GUIDANCE_STATE_SIZE),
         np.zeros((13, 3)),  # 3-vectors
         np.zeros((5, 4)),  # quaternions
-        np.empty((3, 4)),
+        np.empty((5, 4)),  # entry attitude: its constant rotations, scratch
         np.empty((3, 3)),
         np.empty((3, 3)),  # horizontal, sun, spin rate
         np.empty((2, 2, 3)),  # gains [level][kp, kd][axis]
@@ -224,7 +224,7 @@ def _fly(
         guid,
         vec,
         quat,
-        work34,
+        quat_work,
         work33,
         side,
         gains,
@@ -254,6 +254,8 @@ def _fly(
             gains[lv, 1, i] = fsw[F_KD + 3 * lv + i]
     kp_low, kd_low, kp_high, kd_high = gains[0, 0], gains[0, 1], gains[1, 0], gains[1, 1]
     accel_low, accel_high = accels[0], accels[1]
+    aero_rotations, work24 = quat_work[0:3], quat_work[3:5]
+    guidance.aerodynamic_rotations(mission[M_EAM_ALPHA], mission[M_EAM_BETA], mission[M_EAM_BANK], aero_rotations)
     rng_state[0] = np.uint64(nav_seed)
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
@@ -348,14 +350,7 @@ def _fly(
         elif mode == MODE_RDM2:
             if modes.rdm2_done(mission, time_in_mode):
                 mode = MODE_EAM
-                guidance.entry_attitude(
-                    environment.velocity_pitch(traj),
-                    mission[M_EAM_ALPHA],
-                    mission[M_EAM_BETA],
-                    mission[M_EAM_BANK],
-                    q_final,
-                    work34,
-                )
+                guidance.entry_attitude_from(environment.velocity_pitch(traj), aero_rotations, q_final, work24)
                 guidance.start_slerp(guid, t, q_meas, q_final, accel_high, mission[M_EAM_T1_DESIGN], tmp4)
         elif mode == MODE_EAM:
             if modes.eam_done(mission, altitude):
@@ -384,14 +379,7 @@ def _fly(
         elif mode == MODE_SSM:
             guidance.spin_up_reference(guid, t, q_ref, rate_ref, accel_ref, tmp4)
         elif mode == MODE_GEEM or mode == MODE_DONE:
-            guidance.entry_attitude(
-                environment.velocity_pitch(traj),
-                mission[M_EAM_ALPHA],
-                mission[M_EAM_BETA],
-                mission[M_EAM_BANK],
-                q_ref,
-                work34,
-            )
+            guidance.entry_attitude_from(environment.velocity_pitch(traj), aero_rotations, q_ref, work24)
             pitch_rate = environment.velocity_pitch_rate(mission, vehicle, atmosphere, traj)
             inertial_rate[1] = pitch_rate  # the velocity turns about inertial y
             quaternion.rotate_inverse(q_ref, inertial_rate, rate_ref)

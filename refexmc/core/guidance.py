@@ -172,6 +172,28 @@ def entry_attitude(velocity_pitch, alpha, beta, bank, q_out, work):
 
 
 @jit_noalloc
+def aerodynamic_rotations(alpha, beta, bank, out):
+    """The constant factors Rx(bank), Rz(-beta), Ry(alpha) of :func:`entry_attitude`, rows of ``out``."""
+    quaternion.from_rotation_vector(bank, 0.0, 0.0, out[0])
+    quaternion.from_rotation_vector(0.0, 0.0, -beta, out[1])
+    quaternion.from_rotation_vector(0.0, alpha, 0.0, out[2])
+
+
+@jit_noalloc(force_inline=True)
+def entry_attitude_from(velocity_pitch, rotations, q_out, work):
+    """:func:`entry_attitude` with its constant factors from :func:`aerodynamic_rotations`.
+
+    The same products in the same order, so the same result to the bit; ``work`` is (2, 4).
+    """
+    a = work[0]
+    c = work[1]
+    quaternion.from_rotation_vector(0.0, velocity_pitch, 0.0, a)
+    quaternion.multiply(a, rotations[0], c)
+    quaternion.multiply(c, rotations[1], a)
+    quaternion.multiply(a, rotations[2], q_out)
+
+
+@jit_noalloc
 def sun_attitude(sun, horizontal, q_out, work):
     """Body +y at the sun, body x as close as possible to ``horizontal`` (reference-model sec. 4).
 
