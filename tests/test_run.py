@@ -162,25 +162,29 @@ def test_existing_output_without_a_flag_is_refused_untouched(tmp_path):
 
 
 def test_hung_run_is_an_error_and_the_others_complete(tmp_path, monkeypatch):
-    monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "4")
-    campaign = campaign_file(tmp_path, runs=10, run_time_limit_s=1)
+    monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "1")  # the hung run is a chunk of its own
+    campaign = tmp_path / "smoke.yaml"
+    campaign.write_text(SMOKE.read_text().replace("../configs", str(ROOT / "configs")) + "run_time_limit_s: 1\n")
     clean = tmp_path / "clean"
-    assert invoke(campaign, "-o", clean, "--no-progress").exit_code == 0
+    assert invoke(campaign, "-o", clean, "--runs", 8, "--no-progress").exit_code == 0
     monkeypatch.setenv(TEST_HANG_ENV, "5")
     out = tmp_path / "out"
-    result = invoke(campaign, "-o", out, "-j", 2, "--no-progress")
+    result = invoke(campaign, "-o", out, "--runs", 8, "-j", 2, "--no-progress")
     assert result.exit_code == 1, result.output
     assert "runs with errors: 5" in result.stderr
-    table = runs_table(out)
-    hung = table.set_index("run_id").loc[5]
+    table, reference = runs_table(out), runs_table(clean)
+    assert list(table.columns) == list(reference.columns)  # p.<path> columns included
+    hung, expected = table.loc[5], reference.loc[5]
     assert hung["status"] == "error" and hung["failure_reason"] == "wall-time limit exceeded (1 s)"
-    others = table[table["run_id"] != 5].reset_index(drop=True)
-    assert others["status"].eq("ok").all() and len(others) == 9
-    reference = runs_table(clean)  # the runs flown again after the worker died are the same runs
-    pd.testing.assert_frame_equal(others, reference[reference["run_id"] != 5].reset_index(drop=True))
+    params = ["seed", "failed_thrusters", *(c for c in table.columns if c.startswith("p."))]
+    assert hung[params].tolist() == expected[params].tolist()  # the hung run's own draws
+    others = table["run_id"] != 5
+    assert table.loc[others, "status"].eq("ok").all() and others.sum() == 7
+    # the runs flown again after the worker died are the same runs
+    pd.testing.assert_frame_equal(table[others], reference[others])
     assert not (out / run_module.WORK_DIR).exists()
     history_ids = set(pq.read_table(out / "histories", columns=["run_id"]).column("run_id").to_pylist())
-    assert history_ids == set(range(10)) - {5}
+    assert history_ids == set(range(8)) - {5}
 
 
 def test_crashing_run_costs_no_other_run(tmp_path, monkeypatch):

@@ -4,7 +4,8 @@ Every backend hands :func:`fly_guarded` to its worker processes. It calls
 ``chunk.fly_chunk(campaign, [run_id])`` for one run after another, so the worker always knows
 which run it is flying. A watchdog thread (the flight kernel is numba ``nogil``, so the thread
 runs while a flight does) ends the worker process with ``os._exit`` when one run exceeds
-``Guard.time_limit_s``. Time spent compiling or loading the numba kernels is not counted.
+``Guard.time_limit_s``. Time spent compiling or loading the numba kernels is not counted (up to
+``COMPILE_GRACE_S``, so that a run that hangs before the first flight of its worker is caught too).
 
 Each worker keeps a 16-byte state file ``<state_dir>/worker-<pid>.state``, memory-mapped so that
 an update costs nothing and outlives the process: the run id being flown and whether it is
@@ -13,7 +14,7 @@ flying or over its time limit. After a worker died, the parent reads these files
 when a worker crashed.
 
 Test hooks (for tests of this machinery only; never active unless set): the parent reads
-``REFEXMC_TEST_HANG_RUN=<run_id>`` (that run sleeps forever instead of flying) and
+``REFEXMC_TEST_HANG_RUN=<run_id>`` (that run is flown, then sleeps forever) and
 ``REFEXMC_TEST_CRASH_RUN=<run_id>`` (that run kills its worker with SIGSEGV) when it builds
 the :class:`Guard` (:meth:`Guard.create`), and passes them to the workers as arguments.
 """
@@ -39,6 +40,7 @@ IDLE, FLYING, OVER_LIMIT = 0, 1, 2
 EXIT_OVER_LIMIT = 70  # exit status of a worker ended by its watchdog
 _STATE = struct.Struct("<qq")  # run id (-1 when idle), IDLE | FLYING | OVER_LIMIT
 _POLL_S = 0.1
+COMPILE_GRACE_S = 300.0  # the most time a worker's first run may spend compiling kernels, uncounted
 
 
 class Guard(NamedTuple):
@@ -68,6 +70,7 @@ class _Flight:
         self.time_limit_s = time_limit_s
         self.state = state
         self.start = time.monotonic()
+        self.grace_until = self.start + COMPILE_GRACE_S
 
 
 _lock = threading.Lock()
@@ -91,10 +94,11 @@ def _watch():
             flight = _current
             if flight is None:
                 continue
-            if not _kernels_compiled():
-                flight.start = time.monotonic()  # compiling is not the run's time
+            now = time.monotonic()
+            if not _kernels_compiled() and now < flight.grace_until:
+                flight.start = now  # compiling is not the run's time
                 continue
-            if time.monotonic() - flight.start > flight.time_limit_s:
+            if now - flight.start > flight.time_limit_s:
                 _STATE.pack_into(flight.state, 0, flight.run_id, OVER_LIMIT)
                 os._exit(EXIT_OVER_LIMIT)
 
@@ -125,6 +129,7 @@ def _set_current(flight):
 
 
 def _test_hooks(guard, run_id):
+    """Called after the run has flown (so the kernels are compiled): hang or crash on request."""
     if run_id == guard.test_hang_run:
         while True:  # a hung run, for the tests of the watchdog
             time.sleep(1.0)
@@ -141,8 +146,8 @@ def fly_guarded(campaign, run_ids, guard):
         for run_id in run_ids:
             _STATE.pack_into(state, 0, run_id, FLYING)
             _set_current(_Flight(run_id, guard.time_limit_s, state))
-            _test_hooks(guard, run_id)
             run_rows, run_histories = fly_chunk(campaign, [run_id])
+            _test_hooks(guard, run_id)
             _set_current(None)
             _STATE.pack_into(state, 0, -1, IDLE)
             rows.extend(run_rows)
