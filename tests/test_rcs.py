@@ -256,6 +256,28 @@ def test_update_settles_ramps_and_skips_idle_valves_without_changing_a_bit(
     assert active == 0, "every valve closed and settled 300 ms after the last command"
 
 
+def test_set_bits_of_a_thruster_mask_are_visited_in_order():
+    """The run loop's idiom over a thruster mask (refexmc/core/bits.py), jitted like the core."""
+    from refexmc._jit import jit_noalloc
+    from refexmc.core.bits import lowest_bit
+
+    @jit_noalloc
+    def visit(mask, out):
+        n = 0
+        m = mask
+        while m != 0:
+            out[n] = lowest_bit(m)
+            m &= m - 1
+            n += 1
+        return n
+
+    out = np.empty(64, dtype=np.int64)
+    for mask in [*range(256), 1 << 62, (1 << 63) - 1]:
+        expected = [i for i in range(64) if (mask >> i) & 1]
+        n = visit(mask, out)
+        assert list(out[:n]) == expected, f"mask {mask:#x}"
+
+
 # --- derating, failures, torque arms, propellant ----------------------------------------------
 
 IDEAL = ValveTimes(0.0, 0.0, 0.0, 0.0)

@@ -10,6 +10,7 @@ Valve state: one row per thruster, columns below; all arrays are owned by the ca
 """
 
 from refexmc._jit import jit_noalloc
+from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     DERATING_MAX_VALVES,
     FALL,
@@ -120,9 +121,10 @@ def next_breakpoint(valve_state, n_thrusters, t_start, t_end, active=ALL_THRUSTE
     Only thrusters in the bit mask ``active`` (see :func:`update`) are looked at.
     """
     t_next = t_end
-    for i in range(n_thrusters):
-        if not (active >> i) & 1:
-            continue
+    m = active & ((1 << n_thrusters) - 1)
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
         n = int(valve_state[i, VS_PENDING_COUNT])
         if n > 0:
             tr = valve_state[i, VS_PENDING]
@@ -175,26 +177,34 @@ def segment_thrust(
     n = thrusters.shape[0]
     t_mid = 0.5 * (t_start + t_end)
     n_open = 0
-    for i in range(n):
-        if (active >> i) & 1 and level_at(valve_state, i, t_mid) > 0.0:
+    m = active & ((1 << n) - 1)
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
+        if level_at(valve_state, i, t_mid) > 0.0:
             n_open += 1
     nominal = vehicle[V_THRUST_HIGH] if thrust_level == LEVEL_HIGH else vehicle[V_THRUST_LOW]
     force = nominal * derating_factor(vehicle, n_open)
-    for k in range(3):
-        tau_start[k] = 0.0
-        tau_end[k] = 0.0
+    sx, sy, sz = 0.0, 0.0, 0.0  # sums in registers, in the same order as into the arrays
+    ex, ey, ez = 0.0, 0.0, 0.0
     impulse = 0.0
-    for i in range(n):
-        if not (active >> i) & 1:
-            continue
+    m = active & ((1 << n) - 1)
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
         f0 = force * thrusters[i, T_SCALE] * level_at(valve_state, i, t_start)
         f1 = force * thrusters[i, T_SCALE] * level_at(valve_state, i, t_end)
         if f0 == 0.0 and f1 == 0.0:
             continue
-        for k in range(3):
-            tau_start[k] += f0 * arms[i, k]
-            tau_end[k] += f1 * arms[i, k]
+        sx += f0 * arms[i, 0]
+        sy += f0 * arms[i, 1]
+        sz += f0 * arms[i, 2]
+        ex += f1 * arms[i, 0]
+        ey += f1 * arms[i, 1]
+        ez += f1 * arms[i, 2]
         impulse += 0.5 * (f0 + f1) * (t_end - t_start)
+    tau_start[0], tau_start[1], tau_start[2] = sx, sy, sz
+    tau_end[0], tau_end[1], tau_end[2] = ex, ey, ez
     return impulse
 
 
@@ -228,9 +238,10 @@ def update(valve_state, thrusters, n_thrusters, t, thrust_level, active):
     segments then see no breakpoint in the past, and a closed thruster counts as idle.
     """
     still_active = 0
-    for i in range(n_thrusters):
-        if not (active >> i) & 1:
-            continue
+    m = active & ((1 << n_thrusters) - 1)
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
         if valve_state[i, VS_PENDING_COUNT] > 0.0 and valve_state[i, VS_PENDING] <= t + _EPS_T:
             apply_reactions(valve_state, thrusters, i, t, thrust_level)
         slope = valve_state[i, VS_SLOPE]
