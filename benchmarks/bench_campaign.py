@@ -116,7 +116,8 @@ def main():
                 times[jobs].append(wall)
                 if jobs == 2:
                     rss_small.append(tree)
-                print(f"{args.runs} runs -j {jobs}: {wall:.2f} s, {args.runs / wall:.0f} runs/s, peak RSS {tree:.0f} MiB")
+                rate = args.runs / wall
+                print(f"{args.runs} runs -j {jobs}: {wall:.2f} s, {rate:.0f} runs/s, peak RSS {tree:.0f} MiB")
         speedups = [a / b for a, b in zip(times[1], times[2], strict=True)]
         results["bench1"] = {
             "runs": args.runs,
@@ -142,7 +143,8 @@ def main():
         results["bench4"] = {"runs": args.big_runs, "wall_s": wall, "runs_per_s": args.big_runs / wall}
         print(
             f"{args.big_runs} runs -j 2: {wall:.1f} s ({args.big_runs / wall:.0f} runs/s); peak RSS {tree:.0f} MiB "
-            f"vs {statistics.median(rss_small):.0f} MiB at {args.runs} ({100 * (results['bench2']['ratio'] - 1):+.1f} %)"
+            f"vs {statistics.median(rss_small):.0f} MiB at {args.runs} "
+            f"({100 * (results['bench2']['ratio'] - 1):+.1f} %)"
         )
         print(
             f"Parquet bytes per run: runs {sizes['runs'] / args.big_runs:.0f}, "

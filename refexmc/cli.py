@@ -95,6 +95,60 @@ def format_run_summary(result):
 
 
 @main.command()
+@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--no-html", is_flag=True, help="Write summary.json only, no index.html and figures.")
+@click.option("--require", "require", multiple=True, metavar="'METRIC OP VALUE'", help="An extra requirement.")
+def report(out, no_html, require):
+    """Summarise campaign OUT: statistics, requirement verdicts, figures (OUT/report/).
+
+    Exit 1 when a requirement fails (the CI gate).
+    Example: refexmc report runs/refex-mc100 --require 'fuel_remaining.min >= 0.2'
+    """
+    from refexmc.report import make_report
+
+    try:
+        result = make_report(out, require=require, html=not no_html)
+    except ConfigError as exc:
+        _bad_input(str(exc))
+    click.echo(result["text"])
+    sys.exit(0 if result["passed"] else 1)
+
+
+@main.command()
+@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("run_id", type=int)
+@click.option("--history-rate", type=float, help="History sample rate [Hz] (default: every control step).")
+@click.option("-o", "--output", "dest", type=click.Path(dir_okay=False, path_type=Path), help="History file.")
+def rerun(out, run_id, history_rate, dest):
+    """Re-fly run RUN_ID of campaign OUT bit for bit, with a full-rate history.
+
+    Prints the run's summary row and whether it equals the stored one (exit 1 if not).
+    Example: refexmc rerun runs/refex-mc100 42 -o worst.parquet
+    """
+    from refexmc.campaign.rerun import rerun as rerun_run
+
+    try:
+        result = rerun_run(out, run_id, history_rate_hz=history_rate, dest=dest)
+    except ConfigError as exc:
+        _bad_input(str(exc))
+    row = result["row"]
+    verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
+    click.echo(f"run {run_id} of {result['campaign']['name']}: {verdict}, status {row['status']}")
+    click.echo(
+        f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, hand-over at t = {row['t_end_s']:.2f} s, "
+        f"theta_t {row['theta_t_handover_deg']:.3f} deg, failed thrusters [{row['failed_thrusters']}]"
+    )
+    click.echo(f"  history: {result['path']}")
+    if result["stored"] is None:
+        click.echo("  (this run is not in OUT/runs: nothing to compare with)")
+    elif result["differ"]:
+        click.echo(f"  DIFFERS from the stored row in: {', '.join(result['differ'])}", err=True)
+        sys.exit(1)
+    else:
+        click.echo("  summary row identical to the stored one")
+
+
+@main.command()
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 def validate(files):
     """Check campaign, vehicle or mission FILES without running anything.

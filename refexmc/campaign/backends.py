@@ -11,7 +11,6 @@ of the runs in flight caused it, so each of them is flown again alone, with noth
 flight: the one that crashes again is the culprit.
 """
 
-import math
 import re
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, wait
@@ -21,8 +20,7 @@ from joblib.externals.loky import get_reusable_executor
 from joblib.externals.loky.process_executor import TerminatedWorkerError
 
 from refexmc.campaign import storage
-from refexmc.campaign.chunk import RunPlan
-from refexmc.campaign.seeding import run_seed
+from refexmc.campaign.chunk import plan_for
 from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded
 
 TASKS_PER_WORKER = 2  # chunks in flight per worker: one flying, one queued
@@ -37,19 +35,8 @@ class _Task:
 
 
 def error_row(campaign, run_id, reason):
-    """A runs row for a run that produced no result of its own (it hung, or crashed its worker).
-
-    Like a run that raised (``RunPlan.fly``): the run's seed, failed thrusters and ``p.<path>``
-    values are drawn again here (cheap and deterministic), so that the row has every column.
-    """
-    plan = RunPlan(campaign)
-    try:
-        seed, failed, params, _ = plan.prepare(run_id)
-    except Exception:  # noqa: BLE001 - the row is still recorded, without its parameters
-        seed, failed, params = run_seed(campaign["seed"], run_id), (), dict.fromkeys(plan.param_columns(), math.nan)
-    row = storage.runs_row(run_id, seed, failed, None, plan.n_thrusters, error=reason)
-    row.update(params)
-    return row
+    """A runs row for a run that produced no result of its own (it hung, or crashed its worker)."""
+    return plan_for(campaign).error_row(run_id, reason)
 
 
 class ChunkAssembler:

@@ -47,6 +47,20 @@ class RunPlan:
         inputs = self.sampler.inputs(self.nominal_inputs, values, failed)
         return run_seed(self.campaign["seed"], run_id), failed, self.sampler.columns(values), inputs
 
+    def error_row(self, run_id, reason):
+        """The runs row of a run without a result of its own (it raised, hung, or crashed its worker).
+
+        Its seed, failed thrusters and ``p.<path>`` values are drawn again (cheap, deterministic),
+        so that the row has every column of the table.
+        """
+        try:
+            seed, failed, params, _ = self.prepare(run_id)
+        except Exception:  # noqa: BLE001 - the row is still recorded, without its parameters
+            seed, failed, params = run_seed(self.campaign["seed"], run_id), (), {}
+        row = storage.runs_row(run_id, seed, failed, None, self.n_thrusters, error=reason)
+        row.update(params or dict.fromkeys(self.param_columns(), float("nan")))
+        return row
+
     def fly(self, run_id, history_rate_hz):
         """(runs row, history table, FlightResult); an error gives an error row and no history/result."""
         seed = run_seed(self.campaign["seed"], run_id)
@@ -69,9 +83,20 @@ class RunPlan:
         return [c for path in self.sampler.specs for c in dispersions.columns(path, self.campaign["vehicle"])]
 
 
+_last_plan = (None, None)  # (campaign object, its RunPlan): workers fly a chunk's runs one call each
+
+
+def plan_for(campaign):
+    """The RunPlan of ``campaign``, reused while the same campaign object comes back."""
+    global _last_plan
+    if _last_plan[0] is not campaign:
+        _last_plan = (campaign, RunPlan(campaign))
+    return _last_plan[1]
+
+
 def fly_chunk(campaign, run_ids):
     """Fly ``run_ids``; return (runs rows as dicts, history tables). A run that raises is an error row."""
-    plan = RunPlan(campaign)
+    plan = plan_for(campaign)
     rate = campaign["output"]["history_rate_hz"]
     rows, histories = [], []
     for run_id in run_ids:

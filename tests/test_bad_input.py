@@ -1,0 +1,142 @@
+"""Bad input, one test per class: one clear message, exit 2, no traceback, nothing written or lost.
+
+Every case runs `refexmc run ... -o OUT --overwrite` against an OUT that already holds a
+finished campaign's files: bad input must neither create an output directory nor touch one.
+"""
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from refexmc.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SMOKE = (ROOT / "campaigns/smoke.yaml").read_text().replace("../configs/", f"{ROOT}/configs/")
+INLINE_VEHICLE = (ROOT / "configs/vehicles/refex.yaml").read_text()
+
+
+def _edit(old, new, count=1):
+    assert old in SMOKE, old
+    return SMOKE.replace(old, new, count)
+
+
+def _line(prefix):
+    return next(n for n, line in enumerate(SMOKE.splitlines(), 1) if line.startswith(prefix))
+
+
+def _inline_vehicle(inertia_rows):
+    body = INLINE_VEHICLE
+    start = body.index("inertia_kg_m2:")
+    end = body.index("com_offset_m:")
+    body = body[:start] + "inertia_kg_m2: " + inertia_rows + "\n" + body[end:]
+    indented = "\n".join("  " + line for line in body.splitlines())
+    return _edit(f"vehicle: {ROOT}/configs/vehicles/refex.yaml", "vehicle:\n" + indented)
+
+
+# (case id, campaign text or None for a missing file, extra CLI args, words the message must contain)
+CASES = [
+    ("missing-file", None, [], ["file not found"]),
+    # an unclosed flow sequence: the parser stops at the next line's ':'
+    ("yaml-syntax", _edit("runs: 20", "runs: [20"), [], ["YAML syntax error", f":{_line('seed:')}:"]),
+    (
+        "unknown-key",
+        _edit("sampling: lhs", "sampleing: lhs"),
+        [],
+        ["unknown key 'sampleing'", "did you mean 'sampling'"],
+    ),
+    (
+        "unknown-path",
+        _edit("separation.rates_deg_s:", "separation.rate_deg_s:"),
+        [],
+        ["dispersions.separation.rate_deg_s", "did you mean 'separation.rates_deg_s'"],
+    ),
+    ("wrong-type", _edit("runs: 20", "runs: twenty"), [], ["runs", "expected integer", "'twenty'"]),
+    (
+        "negative-sigma",
+        _edit("sigma: [1.0, 1.0, 1.0]", "sigma: [1.0, -1.0, 1.0]"),
+        [],
+        ["dispersions.separation.rates_deg_s.sigma", "expected sigma >= 0"],
+    ),
+    ("runs-zero", _edit("runs: 20", "runs: 0"), [], ["runs", "expected a value >= 1"]),
+    ("runs-option-zero", SMOKE, ["--runs", "0"], ["--runs", "expected runs >= 1"]),
+    (
+        "thruster-9",
+        _edit("failures:\n  mode: none", "failures:\n  mode: fixed\n  thrusters: [1, 9]"),
+        [],
+        ["failures.thrusters.1", "thruster id 1..8, got 9"],
+    ),
+    ("seed-not-integer", _edit("seed: 20231121", "seed: 1.5"), [], ["seed", "expected integer", "1.5"]),
+    ("seed-option-not-integer", SMOKE, ["--seed", "abc"], ["--seed", "abc"]),
+    (
+        "non-physical-inertia",
+        _inline_vehicle("[[20, 0, 0], [0, 100, 0], [0, 0, 250]]"),
+        [],
+        ["vehicle.inertia_kg_m2", "triangle inequality"],
+    ),
+    (
+        "unknown-distribution",
+        _edit("{dist: lognormal, median: 1.0, sigma: 0.1}", "{dist: log_normal, median: 1.0, sigma: 0.1}"),
+        [],
+        ["dispersions.atmosphere.density_scale.dist", "unknown distribution 'log_normal'", "did you mean 'lognormal'"],
+    ),
+    (
+        "unbounded-normal-on-positive-quantity",
+        _edit("{dist: truncnorm, sigma: 6.95, low: 0.0}", "{dist: normal, sigma: 60.0}"),
+        [],
+        ["rcs.valve_time_constants_ms.high.fall", "outside the physical range >= 0"],
+    ),
+]
+
+
+@pytest.fixture
+def existing_out(tmp_path):
+    out = tmp_path / "out"
+    (out / "runs").mkdir(parents=True)
+    (out / "runs" / "part-00000.parquet").write_bytes(b"results of an earlier campaign")
+    (out / "manifest.json").write_text("{}")
+    return out
+
+
+def _snapshot(out):
+    return {p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize(("text", "args", "words"), [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_campaign_is_refused_with_one_message(tmp_path, existing_out, text, args, words):
+    campaign = tmp_path / "campaign.yaml"
+    if text is not None:
+        campaign.write_text(text)
+    before = _snapshot(existing_out)
+    fresh = tmp_path / "fresh"
+    for out, flags in ((fresh, []), (existing_out, ["--overwrite"])):
+        result = CliRunner().invoke(main, ["run", str(campaign), "-o", str(out), "--no-progress", *flags, *args])
+        assert result.exit_code == 2, result.output
+        assert "Traceback" not in result.output and result.exception is None or isinstance(result.exception, SystemExit)
+        message = result.output.strip()
+        for word in words:
+            assert word in message, (word, message)
+        if text is not None and "option" not in message.lower() and not args:
+            assert str(campaign) in message  # names the file
+    assert not fresh.exists()
+    assert _snapshot(existing_out) == before
+
+
+def test_existing_out_without_a_flag_is_refused_and_untouched(tmp_path, existing_out):
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(SMOKE)
+    before = _snapshot(existing_out)
+    result = CliRunner().invoke(main, ["run", str(campaign), "-o", str(existing_out), "--no-progress"])
+    assert result.exit_code == 2
+    assert "exists" in result.output and "--resume" in result.output and "--overwrite" in result.output
+    assert "Traceback" not in result.output
+    assert _snapshot(existing_out) == before
+
+
+@pytest.mark.parametrize(("text", "words"), [(c[1], c[3]) for c in CASES if c[1] is not None and not c[2]])
+def test_validate_reports_the_same_problems(tmp_path, text, words):
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(text)
+    result = CliRunner().invoke(main, ["validate", str(campaign)])
+    assert result.exit_code == 2
+    assert all(word in result.output for word in words), result.output
