@@ -258,8 +258,9 @@ def test_switching_check_enforces_min_pulse_and_rest(inputs, segments, thrust_le
     pwpf_state = new_state(3)
     switch_state = np.empty((n, switching.SWITCH_STATE_SIZE))
     switching.reset(switch_state)
-    desired = np.zeros(n, dtype=np.int64)
-    changes = np.zeros(n, dtype=np.int64)
+    row_masks = np.empty(table.shape[0], dtype=np.int64)
+    allocation.table_masks(table, row_masks)
+    open_mask = 0
     pulse = np.zeros(3)
     is_open = np.zeros(n, dtype=bool)
     last_change = np.full(n, -math.inf)
@@ -268,16 +269,21 @@ def test_switching_check_enforces_min_pulse_and_rest(inputs, segments, thrust_le
         torque = np.array(fractions) * tau_max
         for _ in range(hold):
             t = k * DT
-            allocation.thruster_commands(
-                layout.ACTUATION_PWPF_TABLE, fsw, thrust_level, torque, pwpf_state, table, t, pulse, desired
+            desired_mask = allocation.thruster_commands(
+                layout.ACTUATION_PWPF_TABLE, fsw, thrust_level, torque, pwpf_state, row_masks, t, pulse
             )
-            switching.enforce(switch_state, desired, t, min_on, min_off, changes)
+            desired = table[allocation.table_row(*pulse)]
+            assert desired_mask == sum(1 << i for i in range(n) if desired[i]), "mask = Table 3 row"
+            opened, closed = switching.enforce(switch_state, desired_mask, open_mask, t, min_on, min_off)
+            assert not opened & closed
+            open_mask = (open_mask | opened) & ~closed
             for i in range(n):
-                if changes[i] != 0:
-                    assert (changes[i] > 0) != is_open[i], "a change must toggle the valve"
+                change = (opened >> i) & 1 or -((closed >> i) & 1)
+                if change != 0:
+                    assert (change > 0) != is_open[i], "a change must toggle the valve"
                     limit = min_on if is_open[i] else min_off
                     assert t - last_change[i] >= limit - SLACK, f"thruster {i + 1} at {t} s"
-                    is_open[i] = changes[i] > 0
+                    is_open[i] = change > 0
                     last_change[i] = t
                 elif bool(desired[i]) != is_open[i]:  # held back: only while the limit forbids it
                     limit = min_on if is_open[i] else min_off
@@ -287,12 +293,13 @@ def test_switching_check_enforces_min_pulse_and_rest(inputs, segments, thrust_le
 
 
 def test_zero_command_opens_nothing(inputs):
-    desired = np.ones(inputs.allocation.shape[1], dtype=np.int64)
+    row_masks = np.empty(inputs.allocation.shape[0], dtype=np.int64)
+    allocation.table_masks(inputs.allocation, row_masks)
     pulse = np.ones(3)
-    allocation.thruster_commands(
-        layout.ACTUATION_PWPF_TABLE, inputs.fsw, 0, np.zeros(3), new_state(3), inputs.allocation, 0.0, pulse, desired
+    desired = allocation.thruster_commands(
+        layout.ACTUATION_PWPF_TABLE, inputs.fsw, 0, np.zeros(3), new_state(3), row_masks, 0.0, pulse
     )
-    assert not desired.any() and not pulse.any()
+    assert desired == 0 and not pulse.any()
 
 
 def test_naive_shaped_command_matches_kernel():

@@ -31,11 +31,23 @@ def table_lookup(table, wx, wy, wz, out):
         out[i] = table[row, i]
 
 
-@jit_inline
-def thruster_commands(actuation_id, fsw, thrust_level, torque_cmd, pwpf_state, table, t, pulse_out, desired):
-    """Desired open (1) / closed (0) state of each thruster for this control step.
+@jit_noalloc
+def table_masks(table, out):
+    """Each row of the allocation table as a bit mask of thrusters (bit i for thruster i)."""
+    for row in range(table.shape[0]):
+        mask = 0
+        for i in range(table.shape[1]):
+            if table[row, i] != 0:
+                mask |= 1 << i
+        out[row] = mask
 
-    ``pulse_out`` receives the per-axis modulator outputs for the history.
+
+@jit_inline
+def thruster_commands(actuation_id, fsw, thrust_level, torque_cmd, pwpf_state, row_masks, t, pulse_out):
+    """Bit mask of the thrusters to open for this control step (bit i for thruster i).
+
+    ``row_masks`` is the allocation table as bit masks (:func:`table_masks`); ``pulse_out``
+    receives the per-axis modulator outputs for the history.
     """
     if actuation_id == ACTUATION_PWPF_TABLE:
         for axis in range(3):
@@ -50,7 +62,5 @@ def thruster_commands(actuation_id, fsw, thrust_level, torque_cmd, pwpf_state, t
                 fsw[F_PWPF_CORRECTION],
                 t,
             )
-        table_lookup(table, pulse_out[0], pulse_out[1], pulse_out[2], desired)
-    else:
-        for i in range(desired.shape[0]):
-            desired[i] = 0
+        return row_masks[table_row(pulse_out[0], pulse_out[1], pulse_out[2])]
+    return 0

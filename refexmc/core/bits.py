@@ -16,6 +16,7 @@ if DISABLED:
 
     def lowest_bit(mask):
         """Index of the lowest set bit of a non-zero integer."""
+        mask = int(mask)  # also numpy integers
         return (mask & -mask).bit_length() - 1
 
 else:

@@ -26,6 +26,7 @@ from refexmc.core import (
     rcs,
     switching,
 )
+from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     F_ACCEL_MARGIN,
     F_ACCEL_MAX,
@@ -164,7 +165,7 @@ def run_flight(
         np.empty((n_thr, 3)),  # torque arms
         np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
         np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
-        np.zeros((2, n_thr), dtype=np.int64),  # desired, changes
+        np.empty(allocation_table.shape[0], dtype=np.int64),  # allocation table rows as bit masks
         np.zeros(guidance.GUIDANCE_STATE_SIZE),
         np.zeros((13, 3)),  # 3-vectors
         np.zeros((5, 4)),  # quaternions
@@ -220,7 +221,7 @@ def _fly(
         arms,
         pwpf_state,
         switch_state,
-        commands,
+        row_masks,
         guid,
         vec,
         quat,
@@ -242,7 +243,7 @@ def _fly(
     dynamics.invert_3x3(inertia, inertia_inv)
     propellant0 = vehicle[V_PROPELLANT]
     traj, nodes, stage = trajectory[0], trajectory[1:3], trajectory[3]
-    desired, changes = commands[0], commands[1]
+    allocation.table_masks(allocation_table, row_masks)
     rate_meas, rate_ref, accel_ref, rate_error = vec[0], vec[1], vec[2], vec[3]
     torque_cmd, pulse, tau0, tau1, tau_a, tau_b, aero = vec[4], vec[5], vec[6], vec[7], vec[8], vec[9], vec[10]
     rotvec = vec[11]
@@ -261,6 +262,7 @@ def _fly(
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
     one_step_limit = max_step * (1.0 + 1e-10)
     valves_active = 0  # bit mask of thrusters not closed and settled (rcs.update)
+    valves_open = 0  # bit mask of thrusters commanded open (switching.enforce)
 
     margin = fsw[F_ACCEL_MARGIN]
     for i in range(3):
@@ -417,8 +419,7 @@ def _fly(
             for i in range(3):
                 rate_error[i] = rate_meas[i] - rate_ref[i]
         if mode == MODE_NCM or mode == MODE_DONE or failure != FAIL_NONE:
-            for i in range(n_thr):
-                desired[i] = 0
+            desired = 0
             for i in range(3):
                 pulse[i] = 0.0
         else:
@@ -434,16 +435,19 @@ def _fly(
                 attitude_controlled,
                 torque_cmd,
             )
-            allocation.thruster_commands(
-                int(fsw[F_ACTUATION]), fsw, level, torque_cmd, pwpf_state, allocation_table, t, pulse, desired
+            desired = allocation.thruster_commands(
+                int(fsw[F_ACTUATION]), fsw, level, torque_cmd, pwpf_state, row_masks, t, pulse
             )
-        switching.enforce(switch_state, desired, t, fsw[F_MIN_ON], fsw[F_MIN_OFF], changes)
-        for i in range(n_thr):
-            if changes[i] != 0:
-                rcs.command(valve_state, thrusters, i, changes[i] > 0, t, level)
-                valves_active |= 1 << i
-                if changes[i] > 0:
-                    pulse_counts[i] += 1
+        opened, closed = switching.enforce(switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
+        valves_open = (valves_open | opened) & ~closed
+        valves_active |= opened | closed
+        m = opened | closed
+        while m != 0:
+            i = lowest_bit(m)
+            m &= m - 1
+            rcs.command(valve_state, thrusters, i, (opened >> i) & 1 != 0, t, level)
+            if (opened >> i) & 1:
+                pulse_counts[i] += 1
 
         # --- history ----------------------------------------------------------------------------
         finished = mode == MODE_DONE or failure != FAIL_NONE

@@ -5,6 +5,7 @@ for ``min_off``. State per thruster: ``[is_open, t_opened, t_closed]``.
 """
 
 from refexmc._jit import jit_noalloc
+from refexmc.core.bits import lowest_bit
 
 SW_OPEN = 0
 SW_T_OPENED = 1
@@ -21,20 +22,27 @@ def reset(state):
         state[i, SW_T_CLOSED] = -1.0e9
 
 
-@jit_noalloc
-def enforce(state, desired, t, min_on, min_off, changes):
-    """Apply ``desired`` (0/1) where the limits allow; ``changes[i]`` = +1 opened, -1 closed, 0."""
+@jit_noalloc(force_inline=True)
+def enforce(state, desired, is_open, t, min_on, min_off):
+    """Apply the ``desired`` open set where the limits allow; returns ``(opened, closed)``.
+
+    ``desired``, ``is_open`` (the thrusters now open, as ``state`` has them) and the results
+    are bit masks, bit i for thruster i; only thrusters whose state would change are visited.
+    """
     eps = 1e-9
-    for i in range(state.shape[0]):
-        changes[i] = 0
-        is_open = state[i, SW_OPEN] != 0.0
-        if desired[i] != 0 and not is_open:
+    opened = 0
+    closed = 0
+    m = desired ^ is_open
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
+        if (desired >> i) & 1:
             if t - state[i, SW_T_CLOSED] >= min_off - eps:
                 state[i, SW_OPEN] = 1.0
                 state[i, SW_T_OPENED] = t
-                changes[i] = 1
-        elif desired[i] == 0 and is_open:
-            if t - state[i, SW_T_OPENED] >= min_on - eps:
-                state[i, SW_OPEN] = 0.0
-                state[i, SW_T_CLOSED] = t
-                changes[i] = -1
+                opened |= 1 << i
+        elif t - state[i, SW_T_OPENED] >= min_on - eps:
+            state[i, SW_OPEN] = 0.0
+            state[i, SW_T_CLOSED] = t
+            closed |= 1 << i
+    return opened, closed
