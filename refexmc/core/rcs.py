@@ -38,7 +38,8 @@ VS_TIME = 1
 VS_SLOPE = 2  # 1/s
 VS_PENDING_COUNT = 3
 VS_PENDING = 4  # pairs (reaction time, 1 open / 0 close), ascending in time
-VALVE_STATE_SIZE = VS_PENDING + 2 * MAX_PENDING
+VS_KINK = VS_PENDING + 2 * MAX_PENDING  # while ramping: time the level reaches 0 or 1
+VALVE_STATE_SIZE = VS_KINK + 1
 
 LEVEL_LOW = 0
 LEVEL_HIGH = 1
@@ -104,8 +105,10 @@ def apply_reactions(valve_state, thrusters, i, t, thrust_level):
             valve_state[i, VS_LEVEL] = 1.0 if opening else 0.0
             valve_state[i, VS_SLOPE] = 0.0
         else:
+            slope = 1.0 / ramp if opening else -1.0 / ramp
             valve_state[i, VS_LEVEL] = level
-            valve_state[i, VS_SLOPE] = 1.0 / ramp if opening else -1.0 / ramp
+            valve_state[i, VS_SLOPE] = slope
+            valve_state[i, VS_KINK] = t_react + ((1.0 if opening else 0.0) - level) / slope
         done += 1
     if done > 0:
         for k in range(n - done):
@@ -125,15 +128,12 @@ def next_breakpoint(valve_state, n_thrusters, t_start, t_end, active=ALL_THRUSTE
     while m != 0:
         i = lowest_bit(m)
         m &= m - 1
-        n = int(valve_state[i, VS_PENDING_COUNT])
-        if n > 0:
+        if valve_state[i, VS_PENDING_COUNT] > 0.0:
             tr = valve_state[i, VS_PENDING]
             if t_start + _EPS_T < tr < t_next:
                 t_next = tr
-        slope = valve_state[i, VS_SLOPE]
-        if slope != 0.0:
-            target = 1.0 if slope > 0.0 else 0.0
-            t_kink = valve_state[i, VS_TIME] + (target - valve_state[i, VS_LEVEL]) / slope
+        if valve_state[i, VS_SLOPE] != 0.0:
+            t_kink = valve_state[i, VS_KINK]
             if t_start + _EPS_T < t_kink < t_next:
                 t_next = t_kink
     return t_next
