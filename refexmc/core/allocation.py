@@ -23,7 +23,7 @@ def table_row(wx, wy, wz):
     return int((wx + 1.0) * 9.0 + (wy + 1.0) * 3.0 + (wz + 1.0))
 
 
-@jit_noalloc(force_inline=True)
+@jit_noalloc
 def table_lookup(table, wx, wy, wz, out):
     """Thrusters to open for the modulator outputs (000 Table 3); ``out`` is 0/1 per thruster."""
     row = table_row(wx, wy, wz)

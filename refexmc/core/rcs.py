@@ -256,12 +256,3 @@ def update(valve_state, thrusters, n_thrusters, t, thrust_level, active):
         if valve_state[i, VS_PENDING_COUNT] > 0.0 or valve_state[i, VS_SLOPE] != 0.0 or valve_state[i, VS_LEVEL] > 0.0:
             still_active |= 1 << i
     return still_active
-
-
-@jit_noalloc
-def any_active(valve_state, n_thrusters):
-    """True if some thruster produces thrust, ramps, or has a reaction pending."""
-    for i in range(n_thrusters):
-        if valve_state[i, VS_PENDING_COUNT] > 0.0 or valve_state[i, VS_SLOPE] != 0.0 or valve_state[i, VS_LEVEL] > 0.0:
-            return True
-    return False
