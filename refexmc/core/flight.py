@@ -64,6 +64,7 @@ from refexmc.core.layout import (
     M_MAX_STEP,
     M_MAX_TIME,
     M_RDM1_TIMEOUT,
+    M_SAM_RATE,
     M_SAM_TIMEOUT,
     M_SEP_ATTITUDE,
     M_SEP_FLIGHT_PATH,
@@ -334,13 +335,16 @@ def _fly(
                 failure = FAIL_RDM1_TIMEOUT
         elif mode == MODE_SAM:
             guidance.slerp_reference(guid, t, q_ref, rate_ref, accel_ref)
-            angle = quaternion.angle_between(q_meas, q_final)
             rate_error_norm = math.sqrt(
                 (rate_meas[0] - rate_ref[0]) ** 2
                 + (rate_meas[1] - rate_ref[1]) ** 2
                 + (rate_meas[2] - rate_ref[2]) ** 2
             )
-            if modes.sam_done(mission, angle, rate_error_norm):
+            # both errors must be below their thresholds: the angle (an acos) is only needed
+            # once the rate error is (about one SAM step in ten in the nominal flight)
+            if rate_error_norm < mission[M_SAM_RATE] and modes.sam_done(
+                mission, quaternion.angle_between(q_meas, q_final), rate_error_norm
+            ):
                 mode = MODE_SSM
                 guidance.start_spin_up(guid, t, q_final, side[2], accel_low)
             elif time_in_mode > mission[M_SAM_TIMEOUT]:
