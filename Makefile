@@ -16,9 +16,10 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/refexmc run campaigns/refex-mc100.yaml -o runs/refex-mc100 --overwrite
 
-## smoke: the CI smoke campaign (20 dispersed flights)
+## smoke: the CI smoke campaign (20 dispersed flights) and its report; exit 1 if a requirement fails
 smoke: $(STAMP)
 	$(BIN)/refexmc run campaigns/smoke.yaml -o runs/smoke --overwrite --no-progress
+	$(BIN)/refexmc report runs/smoke
 
 ## test: the whole test suite (what CI runs)
 test: $(STAMP)
