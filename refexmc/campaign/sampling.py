@@ -15,9 +15,6 @@ import hashlib
 import math
 
 import numpy as np
-from scipy import special
-from scipy.spatial.transform import Rotation
-from scipy.stats import qmc
 
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem
@@ -42,6 +39,8 @@ def keyed_rng(seed, run_id, name, attempt=0):
 
 @functools.lru_cache(maxsize=256)
 def _design(sampling, seed, name, n, dims):
+    from scipy.stats import qmc  # scipy is imported where needed: it doubles `refexmc run` start-up
+
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), path_key(name), _DESIGN_TAG[sampling]]))
     if sampling == "lhs":
         design = qmc.LatinHypercube(d=dims, rng=rng).random(n)
@@ -70,11 +69,16 @@ def so3_rotation_vector_deg(u):
     r1, r2 = math.sqrt(1.0 - u[0]), math.sqrt(u[0])
     a, b = 2.0 * math.pi * u[1], 2.0 * math.pi * u[2]
     quat = [r1 * math.sin(a), r1 * math.cos(a), r2 * math.sin(b), r2 * math.cos(b)]  # scalar last
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_quat(quat).as_rotvec(degrees=True)
 
 
 def dispersed_inertia(nominal_components, spec, u):
     """Principal moments scaled by (1 + sigma z), principal axes turned by a small rotation."""
+    from scipy import special
+    from scipy.spatial.transform import Rotation
+
     j0 = dispersions.inertia_matrix(nominal_components)
     moments, axes = np.linalg.eigh(j0)
     z = special.ndtri(u)
@@ -91,6 +95,8 @@ def truncated_normal_ppf(u, a, b):
     Inverts Phi(z) = Phi(a) + u (Phi(b) - Phi(a)); where the interval lies in the upper tail
     (a > 0) the mirrored form on the survival function keeps the precision.
     """
+    from scipy import special
+
     a, b, u = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float), np.asarray(u, dtype=float))
     lower = special.ndtri(special.ndtr(a) + u * (special.ndtr(b) - special.ndtr(a)))
     upper = -special.ndtri(special.ndtr(-a) - u * (special.ndtr(-a) - special.ndtr(-b)))
@@ -99,6 +105,8 @@ def truncated_normal_ppf(u, a, b):
 
 def transform(spec, u, nominal_value):
     """Values (user units) of one draw from the uniforms ``u``."""
+    from scipy import special
+
     dist = spec["dist"]
     if dist == "constant":
         return spec["value"].copy()
