@@ -109,9 +109,11 @@ def main():
         tmp = Path(tmp)
         run_cli(20, 2, tmp / "warm")  # fills or refreshes the numba cache; untimed
         times = {1: [], 2: []}
+        fixed = {1: [], 2: []}  # a 20-run campaign: start-up, worker spawn, final read
         rss_small = []
         for _ in range(args.repeats):
             for jobs in (1, 2):
+                fixed[jobs].append(run_cli(20, jobs, tmp / f"f{jobs}")[0])
                 wall, tree, _ = run_cli(args.runs, jobs, tmp / f"j{jobs}")
                 times[jobs].append(wall)
                 if jobs == 2:
@@ -130,7 +132,16 @@ def main():
             "speedup_pairwise": speedups,
             "speedup_median": statistics.median(speedups),
         }
+        steady = {j: (args.runs - 20) / (statistics.median(times[j]) - statistics.median(fixed[j])) for j in (1, 2)}
+        results["bench1"]["fixed_20_runs_s"] = fixed
+        results["bench1"]["steady_runs_per_s"] = steady
+        results["bench1"]["steady_speedup"] = steady[2] / steady[1]
         print(f"speed-up -j2 / -j1: median {statistics.median(speedups):.2f}x (pairwise {speedups})")
+        print(
+            f"20-run campaign (fixed cost): -j1 {statistics.median(fixed[1]):.2f} s, "
+            f"-j2 {statistics.median(fixed[2]):.2f} s; "
+            f"steady state {steady[1]:.0f} vs {steady[2]:.0f} runs/s = {steady[2] / steady[1]:.2f}x"
+        )
         wall, tree, process = run_cli(args.big_runs, 2, tmp / "big")
         sizes = parquet_bytes(tmp / "big")
         results["bench2"] = {
