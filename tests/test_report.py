@@ -325,8 +325,9 @@ def test_requirement_that_cannot_be_computed_fails(tmp_path):
 
 @pytest.mark.slow
 def test_report_on_flown_campaign(tmp_path):
-    """End to end on real flights: a small smoke campaign with random failures, stored as `run` stores it."""
-    from refexmc.campaign.chunk import fly_chunk
+    """End to end on real flights: a small dispersed smoke campaign, stored as `run` stores it."""
+    from stored import store_campaign
+
     from refexmc.config.load import load_campaign
 
     source = tmp_path / "campaign.yaml"
@@ -335,11 +336,7 @@ def test_report_on_flown_campaign(tmp_path):
     source.write_text(text)
     campaign = load_campaign(source)
     out = tmp_path / "out"
-    storage.prepare_output(out)
-    storage.write_resolved(out, campaign)
-    rows, histories = fly_chunk(campaign, range(campaign["runs"]))
-    storage.write_table_atomic(storage.runs_table(rows), out / "runs" / storage.part_name(0))
-    storage.write_table_atomic(pa.concat_tables(histories), out / "histories" / storage.part_name(0))
+    rows = store_campaign(campaign, out)
     report = make_report(out, require=["fuel_remaining.min >= 0.05"])
     assert report["summary"]["counts"]["runs"] == 8
     assert report["summary"]["nominal"]["run_id"] == 0

@@ -5,9 +5,8 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+from stored import store_campaign
 
-from refexmc.campaign import storage
-from refexmc.campaign.chunk import fly_chunk
 from refexmc.campaign.rerun import rerun
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_campaign
@@ -26,11 +25,7 @@ def finished(tmp_path_factory):
     source.write_text(text)
     campaign = load_campaign(source)
     out = tmp / "out"
-    storage.prepare_output(out)
-    storage.write_resolved(out, campaign)
-    rows, histories = fly_chunk(campaign, range(campaign["runs"]))
-    storage.write_table_atomic(storage.runs_table(rows), out / "runs" / storage.part_name(0))
-    return out, rows
+    return out, store_campaign(campaign, out)
 
 
 def test_rerun_reproduces_every_stored_row_exactly(finished):

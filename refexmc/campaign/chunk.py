@@ -63,18 +63,14 @@ class RunPlan:
 
     def fly(self, run_id, history_rate_hz):
         """(runs row, history table, FlightResult); an error gives an error row and no history/result."""
-        seed = run_seed(self.campaign["seed"], run_id)
-        failed, params = (), {}
         try:
             seed, failed, params, inputs = self.prepare(run_id)
             result = fly(inputs, nav_seed=seed, history_rate_hz=history_rate_hz)
             reason = non_finite_reason(result)
         except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
-            result, reason = None, f"{type(exc).__name__}: {exc}"
+            reason = f"{type(exc).__name__}: {exc}"
         if reason is not None:
-            row = storage.runs_row(run_id, seed, failed, None, self.n_thrusters, error=reason)
-            row.update(params or dict.fromkeys(self.param_columns(), float("nan")))
-            return row, None, None
+            return self.error_row(run_id, reason), None, None
         row = storage.runs_row(run_id, seed, failed, result, self.n_thrusters)
         row.update(params)
         return row, storage.history_table(run_id, result.history), result
