@@ -2,8 +2,10 @@
 
 A backend is a generator function ``backend(campaign, chunks, jobs, guard)``: ``chunks`` is a
 list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`; it
-yields ``(chunk index, rows, history table)`` in completion order, rows sorted by run id, and
-keeps only a bounded number of chunks in flight so that memory does not grow with the campaign.
+yields ``(chunk index, rows, history Parquet bytes)`` in completion order, rows sorted by run
+id, and keeps only a bounded number of chunks in flight so that memory does not grow with the
+campaign. Workers return their history already encoded (:func:`refexmc.campaign.worker.fly_guarded`);
+only a chunk that came back in pieces (after a crash) is decoded and encoded again here.
 
 A run that exceeds the wall-time limit, or that kills its worker process (a segfault), becomes
 an error row; the other runs of its chunk are flown again. After a crash it is not known which
@@ -49,19 +51,27 @@ class ChunkAssembler:
         self._errors = set()
 
     def add(self, chunk, rows, history=None, parent_made=False):
-        """Add rows (and their history table); return the finished chunk or None."""
+        """Add rows (and their history as Parquet bytes); return the finished chunk or None."""
         self._rows.setdefault(chunk, []).extend(rows)
         if parent_made:
             self._errors.update((chunk, row["run_id"]) for row in rows)
-        if history is not None and history.num_rows:
+        if history is not None:
             self._histories.setdefault(chunk, []).append(history)
         if len(self._rows[chunk]) < self._expected[chunk]:
             return None
         rows = sorted(self._rows.pop(chunk), key=lambda row: row["run_id"])
         rows = self._align(chunk, rows)
-        histories = self._histories.pop(chunk, [])
-        table = pa.concat_tables(histories).sort_by("run_id") if histories else storage.empty_history_table()
-        return chunk, rows, table
+        return chunk, rows, self._history(self._histories.pop(chunk, []))
+
+    @staticmethod
+    def _history(pieces):
+        """One chunk's history file: the workers' bytes as they are when they came back in one piece."""
+        if len(pieces) == 1:
+            return pieces[0]  # one task flew the whole chunk, in run order
+        if not pieces:
+            return storage.encode_table(storage.empty_history_table())
+        tables = [storage.decode_table(piece) for piece in pieces]
+        return storage.encode_table(pa.concat_tables(tables).sort_by("run_id"))
 
     def _align(self, chunk, rows):
         """Give rows the parent made the columns (and order) of the rows the workers made."""

@@ -147,7 +147,7 @@ def run_campaign(
     try:
         for chunk, rows, history in BACKENDS[backend](campaign, todo, jobs, Guard.create(work, time_limit_s)):
             name = storage.part_name(chunk)
-            storage.write_table_atomic(history, out / "histories" / name)
+            storage.write_bytes_atomic(history, out / "histories" / name)
             storage.write_table_atomic(storage.runs_table(rows), out / "runs" / name)
             meter.update(len(rows))
     finally:

@@ -25,12 +25,37 @@ def now():
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
+PARQUET_COMPRESSION = "zstd"
+
+
+def encode_table(table):
+    """A table as the bytes of a Parquet file: workers compress, the writing process only writes."""
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink, compression=PARQUET_COMPRESSION)
+    return sink.getvalue().to_pybytes()
+
+
+def decode_table(data):
+    """The table of Parquet file bytes (:func:`encode_table`)."""
+    return pq.read_table(pa.BufferReader(data))
+
+
+def write_bytes_atomic(data, path):
+    """Write bytes under a temporary name, then rename: readers never see a partial file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    with open(tmp, "wb") as file:
+        file.write(data)
+    os.replace(tmp, path)
+
+
 def write_table_atomic(table, path):
     """Write a Parquet file under a temporary name, then rename: readers never see a partial file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    pq.write_table(table, tmp, compression="zstd")
+    pq.write_table(table, tmp, compression=PARQUET_COMPRESSION)
     os.replace(tmp, path)
 
 

@@ -30,6 +30,7 @@ from typing import NamedTuple
 
 import pyarrow as pa
 
+from refexmc.campaign import storage
 from refexmc.campaign.chunk import fly_chunk
 from refexmc.core.flight import run_flight
 
@@ -138,7 +139,11 @@ def _test_hooks(guard, run_id):
 
 
 def fly_guarded(campaign, run_ids, guard):
-    """Fly ``run_ids`` one by one under the watchdog; return (runs rows, one history table or None)."""
+    """Fly ``run_ids`` one by one under the watchdog; return (runs rows, history Parquet bytes or None).
+
+    The history comes back as the bytes of a Parquet file (runs in the order given): compressing
+    it here keeps the process that writes the parts from being the bottleneck.
+    """
     _start_watchdog()
     state = _open_state(guard.state_dir)
     rows, histories = [], []
@@ -155,7 +160,7 @@ def fly_guarded(campaign, run_ids, guard):
     finally:
         _set_current(None)
         state.close()
-    return rows, (pa.concat_tables(histories) if histories else None)
+    return rows, (storage.encode_table(pa.concat_tables(histories)) if histories else None)
 
 
 def collect_states(state_dir):
