@@ -22,7 +22,6 @@ from joblib.externals.loky import get_reusable_executor
 from joblib.externals.loky.process_executor import TerminatedWorkerError
 
 from refexmc.campaign import storage
-from refexmc.campaign.chunk import plan_for
 from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded
 
 TASKS_PER_WORKER = 2  # chunks in flight per worker: one flying, one queued
@@ -38,6 +37,8 @@ class _Task:
 
 def error_row(campaign, run_id, reason):
     """A runs row for a run that produced no result of its own (it hung, or crashed its worker)."""
+    from refexmc.campaign.chunk import plan_for  # the flight kernels: only needed after a crash
+
     return plan_for(campaign).error_row(run_id, reason)
 
 

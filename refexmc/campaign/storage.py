@@ -6,9 +6,9 @@ import os
 import platform
 import shutil
 from datetime import UTC, datetime
+from importlib import metadata
 from pathlib import Path
 
-import numba
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -105,18 +105,18 @@ STRING_COLUMNS = ("status", "failure_reason", "failed_thrusters")
 
 
 def runs_table(rows):
-    columns = {key: [row[key] for row in rows] for key in rows[0]}
-    table = pa.table(columns)
+    """The ``runs`` table of ``rows`` (dicts with the same keys, in column order)."""
 
-    def column_type(name):
+    def column(name):
+        values = [row[name] for row in rows]
         # fixed types where a chunk's values may all be null, so that every part has one schema
         if name in ("run_id", "seed"):
-            return pa.int64()
+            return pa.array(values, type=pa.int64())
         if name in STRING_COLUMNS:
-            return pa.string()
-        return table.schema.field(name).type
+            return pa.array(values, type=pa.string())
+        return pa.array(values)
 
-    return table.cast(pa.schema([pa.field(name, column_type(name)) for name in table.column_names]))
+    return pa.table({name: column(name) for name in rows[0]})
 
 
 def history_table(run_id, history):
@@ -159,9 +159,19 @@ def empty_history_table():
     return history_table(0, np.zeros((0, L.HISTORY_SIZE)))
 
 
+# libyaml when PyYAML has it (the same documents, ~8x faster than the pure-Python emitter and parser)
+_YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+_YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def resolved_yaml(campaign):
+    """The resolved campaign as YAML text (``campaign.resolved.yaml`` without its comment line)."""
+    return yaml.dump(campaign, Dumper=_YAML_DUMPER, sort_keys=False)
+
+
 def normalized_campaign(campaign):
     """The resolved campaign as plain YAML data: what ``campaign.resolved.yaml`` reads back as."""
-    return yaml.safe_load(yaml.safe_dump(campaign, sort_keys=False))
+    return yaml.load(resolved_yaml(campaign), Loader=_YAML_LOADER)
 
 
 def campaign_digest(campaign):
@@ -177,7 +187,7 @@ def manifest(campaign_file, campaign, chunk_size, status, started, finished=None
         "refexmc": refexmc.__version__,
         "python": platform.python_version(),
         "numpy": np.__version__,
-        "numba": numba.__version__,
+        "numba": metadata.version("numba"),  # not imported: the writing process never flies
         "pyarrow": pa.__version__,
         "campaign_file": str(campaign_file) if campaign_file else None,
         "campaign_sha256": hashlib.sha256(data).hexdigest(),
@@ -204,7 +214,7 @@ def write_manifest(out, info):
 
 def write_resolved(out, campaign):
     text = "# Resolved campaign: vehicle and mission inlined; enough to redo any run.\n"
-    text += yaml.safe_dump(campaign, sort_keys=False)
+    text += resolved_yaml(campaign)
     write_text_atomic(text, Path(out) / "campaign.resolved.yaml")
 
 

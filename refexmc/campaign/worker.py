@@ -11,7 +11,9 @@ Each worker keeps a 16-byte state file ``<state_dir>/worker-<pid>.state``, memor
 an update costs nothing and outlives the process: the run id being flown and whether it is
 flying or over its time limit. After a worker died, the parent reads these files
 (:func:`collect_states`) to learn which run hung (over the limit) or which runs were in flight
-when a worker crashed.
+when a worker crashed. A backend whose workers share no file system with the parent (Dask)
+passes ``state_dir=None`` (the state lives in anonymous memory) and learns of a hung run from
+an over-limit hook (:func:`set_over_limit_hook`) that the watchdog calls before it ends the worker.
 
 Test hooks (for tests of this machinery only; never active unless set): the parent reads
 ``REFEXMC_TEST_HANG_RUN=<run_id>`` (that run is flown, then sleeps forever) and
@@ -31,8 +33,6 @@ from typing import NamedTuple
 import pyarrow as pa
 
 from refexmc.campaign import storage
-from refexmc.campaign.chunk import fly_chunk
-from refexmc.core.flight import run_flight
 
 TEST_HANG_ENV = "REFEXMC_TEST_HANG_RUN"
 TEST_CRASH_ENV = "REFEXMC_TEST_CRASH_RUN"
@@ -42,12 +42,13 @@ EXIT_OVER_LIMIT = 70  # exit status of a worker ended by its watchdog
 _STATE = struct.Struct("<qq")  # run id (-1 when idle), IDLE | FLYING | OVER_LIMIT
 _POLL_S = 0.1
 COMPILE_GRACE_S = 300.0  # the most time a worker's first run may spend compiling kernels, uncounted
+HOOK_TIMEOUT_S = 10.0  # the most time the over-limit hook may take before the watchdog ends the worker
 
 
 class Guard(NamedTuple):
     """What a worker needs besides the campaign: where its state file goes, the time limit, test hooks."""
 
-    state_dir: str  # absolute: workers do not follow the parent's working directory
+    state_dir: str | None  # absolute: workers do not follow the parent's working directory; None: no file
     time_limit_s: float
     test_hang_run: int | None = None
     test_crash_run: int | None = None
@@ -78,12 +79,32 @@ _lock = threading.Lock()
 _current = None  # _Flight or None; set and cleared by fly_guarded, read by the watchdog
 _watchdog = None
 _kernels_ready = False
+_over_limit_hook = None  # called with the run id of a hung run before the watchdog ends the worker
+
+
+def set_over_limit_hook(hook):
+    """Have the watchdog call ``hook(run_id)`` when a run exceeds its limit, before it ends the worker.
+
+    The hook runs in a thread of its own, for at most HOOK_TIMEOUT_S; ``None`` removes it.
+    """
+    global _over_limit_hook
+    _over_limit_hook = hook
+
+
+def _call_over_limit_hook(run_id):
+    hook = _over_limit_hook
+    if hook is not None:
+        reporter = threading.Thread(target=hook, args=(run_id,), name="refexmc-over-limit", daemon=True)
+        reporter.start()
+        reporter.join(HOOK_TIMEOUT_S)
 
 
 def _kernels_compiled():
     """True once the flight kernel is compiled or loaded from the cache (or JIT is disabled)."""
     global _kernels_ready
     if not _kernels_ready:
+        from refexmc.core.flight import run_flight
+
         _kernels_ready = bool(getattr(run_flight, "signatures", True))
     return _kernels_ready
 
@@ -101,6 +122,7 @@ def _watch():
                 continue
             if now - flight.start > flight.time_limit_s:
                 _STATE.pack_into(flight.state, 0, flight.run_id, OVER_LIMIT)
+                _call_over_limit_hook(flight.run_id)
                 os._exit(EXIT_OVER_LIMIT)
 
 
@@ -112,6 +134,10 @@ def _start_watchdog():
 
 
 def _open_state(state_dir):
+    if state_dir is None:  # nobody reads it after the worker is gone
+        state = mmap.mmap(-1, _STATE.size)
+        _STATE.pack_into(state, 0, -1, IDLE)
+        return state
     path = Path(state_dir) / f"worker-{os.getpid()}.state"
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     try:
@@ -144,6 +170,8 @@ def fly_guarded(campaign, run_ids, guard):
     The history comes back as the bytes of a Parquet file (runs in the order given): compressing
     it here keeps the process that writes the parts from being the bottleneck.
     """
+    from refexmc.campaign.chunk import fly_chunk  # here: the parent imports this module, never flies
+
     _start_watchdog()
     state = _open_state(guard.state_dir)
     rows, histories = [], []
