@@ -4,6 +4,8 @@ Runs ``refexmc run campaigns/refex-mc100.yaml --runs N -j J`` as a subprocess, a
 and measures its wall time and the peak resident memory of its process tree (the CLI process
 and its worker processes, sampled from /proc every 50 ms). Benchmarks:
 
+0. The machine's own ceiling: the campaign's per-run work flown in one process, then in two
+   processes at once (no pool, no IPC, no writing): what -j 2 could give at best here.
 1. 1,000 runs at -j 1 and at -j 2, alternating, ``--repeats`` times: runs/s and the speed-up
    (target >= 1.8x).
 2. Peak RSS at 1,000 and at 10,000 runs, -j 2 (target: within 15 % of each other).
@@ -85,6 +87,34 @@ def run_cli(runs, jobs, out):
     return wall, peak["tree"] / 1024.0, peak["process"] / 1024.0
 
 
+_PROBE = """
+import sys, time
+from refexmc.campaign.chunk import fly_chunk
+from refexmc.campaign.run import resolve_campaign
+_, campaign = resolve_campaign(sys.argv[1], runs=int(sys.argv[2]) + 1)
+fly_chunk(campaign, [0])  # kernels loaded, imports done: only flying is timed
+t0 = time.perf_counter()
+fly_chunk(campaign, range(1, int(sys.argv[2]) + 1))
+print(time.perf_counter() - t0)
+"""
+
+
+def machine_ceiling(runs, repeats):
+    """The speed-up this machine gives the campaign's own work: ``runs`` runs flown in-process by
+    one process alone, then by two processes at once (each ``runs``); no pool, no IPC, no writing.
+
+    Returns (one-process s, two-process s (the slower), ceiling = 2 * t1 / t2), medians.
+    """
+    command = [sys.executable, "-c", _PROBE, str(CAMPAIGN), str(runs)]
+    alone, together = [], []
+    for _ in range(repeats):
+        alone.append(float(subprocess.run(command, cwd=ROOT, capture_output=True, check=True, text=True).stdout))
+        procs = [subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, text=True) for _ in range(2)]
+        together.append(max(float(proc.communicate()[0]) for proc in procs))
+    t1, t2 = statistics.median(alone), statistics.median(together)
+    return t1, t2, 2 * t1 / t2
+
+
 def parquet_bytes(out):
     sizes = {kind: sum(p.stat().st_size for p in (out / kind).glob("part-*.parquet")) for kind in ("runs", "histories")}
     return sizes
@@ -108,6 +138,9 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         run_cli(20, 2, tmp / "warm")  # fills or refreshes the numba cache; untimed
+        t1, t2, ceiling = machine_ceiling(args.runs, args.repeats)
+        results["bench0"] = {"runs": args.runs, "one_process_s": t1, "two_processes_s": t2, "ceiling": ceiling}
+        print(f"machine ceiling: {args.runs} runs in one process {t1:.2f} s, two at once {t2:.2f} s: {ceiling:.2f}x")
         times = {1: [], 2: []}
         fixed = {1: [], 2: []}  # a 20-run campaign: start-up, worker spawn, final read
         rss_small = []

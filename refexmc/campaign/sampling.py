@@ -27,6 +27,7 @@ FAILURES_KEY = "failures"
 INERTIA_MAX_ATTEMPTS = 1000
 
 
+@functools.lru_cache(maxsize=1024)
 def path_key(name):
     """A stable 64-bit integer for a parameter path (independent of Python's hash seed)."""
     return int.from_bytes(hashlib.sha256(name.encode()).digest()[:8], "little")
