@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo smoke test test-fast bench bench-campaign lint format clean
+.PHONY: demo smoke baseline test test-fast bench bench-campaign lint format clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,10 +16,22 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/refexmc run campaigns/refex-mc100.yaml -o runs/refex-mc100 --overwrite
 
-## smoke: the CI smoke campaign (20 dispersed flights) and its report; exit 1 if a requirement fails
+## smoke: the CI smoke campaign (20 dispersed flights), its report and its comparison with baselines/smoke;
+## exit 1 if a requirement fails or a key statistic is significantly worse than the baseline (docs/compare.md)
 smoke: $(STAMP)
 	$(BIN)/refexmc run campaigns/smoke.yaml -o runs/smoke --overwrite --no-progress
 	$(BIN)/refexmc report runs/smoke
+	$(BIN)/refexmc compare baselines/smoke runs/smoke
+
+## baseline: regenerate baselines/smoke (runs table in one part, manifest, resolved campaign; no histories). Run it on
+## purpose when a change legitimately changes the flight results, and commit the new baseline with the change
+baseline: $(STAMP)
+	rm -rf runs/smoke-baseline
+	REFEXMC_CHUNK_SIZE=1000 $(BIN)/refexmc run campaigns/smoke.yaml -o runs/smoke-baseline --no-progress
+	rm -rf baselines/smoke
+	mkdir -p baselines/smoke
+	cp -R runs/smoke-baseline/runs runs/smoke-baseline/manifest.json runs/smoke-baseline/campaign.resolved.yaml \
+		baselines/smoke/
 
 ## test: the whole test suite (what CI runs)
 test: $(STAMP)

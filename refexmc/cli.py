@@ -115,6 +115,35 @@ def report(out, no_html, require):
 
 
 @main.command()
+@click.argument("baseline_out", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.option(
+    "--tolerance",
+    "tolerances",
+    multiple=True,
+    metavar="METRIC=VALUE",
+    help="Override a metric's tolerance (inf: report only); a runs column adds it to the comparison.",
+)
+def compare(baseline_out, out, tolerances):
+    """Compare campaign OUT against BASELINE_OUT: success rate, propellant, hand-over error, pulses.
+
+    Paired run by run when both flew the same dispersed inputs (Wilcoxon signed-rank), else
+    two-sample KS; rates with a Newcombe interval. Exit 1 when a metric is significantly worse
+    by more than its tolerance (the CI gate; defaults in docs/compare.md).
+    Example: refexmc compare baselines/smoke runs/smoke --tolerance fuel_remaining=0.02
+    """
+    from refexmc.report.compare import compare as compare_campaigns
+    from refexmc.report.compare import format_table
+
+    try:
+        result = compare_campaigns(baseline_out, out, tolerances)
+    except ConfigError as exc:
+        _bad_input(str(exc))
+    click.echo(format_table(result))
+    sys.exit(0 if result.passed else 1)
+
+
+@main.command()
 @click.argument("out", type=click.Path(file_okay=False, path_type=Path))
 @click.argument("run_id", type=int)
 @click.option("--history-rate", type=float, help="History sample rate [Hz] (default: every control step).")

@@ -1,0 +1,339 @@
+"""`refexmc compare`: statistics against independent computations, pairing, tolerances, the CI gate."""
+
+import copy
+import math
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy import stats as sps
+from stored import store_campaign
+from test_report import synthetic_runs, write_out
+
+from refexmc.cli import main
+from refexmc.config.errors import ConfigError
+from refexmc.config.load import apply_overrides, load_campaign
+from refexmc.report import compare as cmp
+from refexmc.report import data
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def ok_values(rows, column):
+    return np.array([r[column] for r in rows if r["status"] == "ok"], dtype=float)
+
+
+def by_metric(result):
+    return {m.metric: m for m in result.metrics}
+
+
+def shifted(rows, column, shift):
+    """A copy of ``rows`` with ``shift(run_id)`` added to ``column`` of every ok run."""
+    out = copy.deepcopy(rows)
+    for row in out:
+        if row["status"] == "ok":
+            row[column] += shift(row["run_id"])
+    return out
+
+
+def pair(tmp_path, baseline_rows, current_rows, tolerances=()):
+    base = write_out(tmp_path / "base", baseline_rows, histories=False, parts=2)
+    cur = write_out(tmp_path / "cur", current_rows, histories=False, parts=1)
+    return cmp.compare(base, cur, tolerances)
+
+
+# --- interval formulas ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("x1", "n1", "x2", "n2", "low", "high"),
+    [  # Newcombe, Statistics in Medicine 17 (1998) 873, Table II, method 10
+        (56, 70, 48, 80, 0.0524, 0.3339),
+        (9, 10, 3, 10, 0.1705, 0.8090),
+        (6, 7, 2, 7, 0.0582, 0.8062),
+        (5, 56, 0, 29, -0.0381, 0.1926),
+    ],
+)
+def test_newcombe_interval_matches_the_published_examples(x1, n1, x2, n2, low, high):
+    got = cmp.newcombe_interval(x1, n1, x2, n2)
+    assert got == pytest.approx((low, high), abs=5e-5)
+
+
+@pytest.mark.parametrize(("x", "n"), [(0, 20), (20, 20), (17, 20), (1, 3), (55, 58)])
+def test_wilson_interval_matches_scipy(x, n):
+    expected = sps.binomtest(x, n).proportion_ci(confidence_level=0.95, method="wilson")
+    assert cmp.wilson_interval(x, n) == pytest.approx((expected.low, expected.high), abs=1e-12)
+
+
+def test_median_interval_is_the_sign_test_interval():
+    values = np.random.default_rng(3).normal(size=20)
+    median, (low, high) = cmp.median_interval(values)
+    # independent: the widest symmetric ranks (k, n + 1 - k) with P(Binomial(20, 1/2) < k) <= 2.5 %
+    k = max(k for k in range(1, 11) if sps.binom.cdf(k - 1, 20, 0.5) <= 0.025)
+    ordered = np.sort(values)
+    assert (low, high) == (ordered[k - 1], ordered[20 - k])
+    assert k == 6 and median == np.median(values)
+    assert math.isnan(cmp.median_interval(values[:5])[1][0])  # 5 values cannot bound a median at 95 %
+
+
+@pytest.mark.parametrize(
+    ("better", "difference", "significant", "expected"),
+    [
+        ("higher", -0.02, True, cmp.REGRESSION),
+        ("higher", -0.005, True, cmp.OK),  # significant but within the tolerance
+        ("higher", -0.02, False, cmp.OK),  # large but not significant
+        ("higher", 0.02, True, cmp.BETTER),
+        ("lower", 0.02, True, cmp.REGRESSION),
+        ("lower", -0.02, True, cmp.BETTER),
+        ("either", -0.02, True, cmp.REGRESSION),
+        ("either", 0.02, True, cmp.REGRESSION),
+        ("higher", math.nan, True, cmp.NOT_COMPUTABLE),
+    ],
+)
+def test_verdict_needs_significance_and_more_than_the_tolerance(better, difference, significant, expected):
+    assert cmp.verdict(better, difference, significant, 0.01) == expected
+
+
+# --- unpaired and paired comparisons of constructed campaigns ---------------------------------------
+
+
+def test_unpaired_statistics_match_scipy_and_exclude_errored_runs(tmp_path):
+    base_rows = synthetic_runs(n=40, errored=(7,), failed=(3,), seed=1)
+    cur_rows = synthetic_runs(n=30, errored=(5, 9), failed=(2, 4, 6), seed=2)
+    result = pair(tmp_path, base_rows, cur_rows)
+    assert not result.pairing.paired  # other draws of the p. parameters
+    assert "p.rcs.isp_s" in result.pairing.note
+    metrics = by_metric(result)
+
+    fuel = metrics["fuel_remaining"]
+    b, c = ok_values(base_rows, "fuel_remaining"), ok_values(cur_rows, "fuel_remaining")
+    assert (fuel.n_baseline, fuel.n_current) == (39, 28)  # the errored runs' -5.0 is excluded
+    assert fuel.p_value == pytest.approx(sps.ks_2samp(b, c).pvalue, rel=1e-12)
+    assert fuel.test == "two-sample KS"
+    assert fuel.difference == pytest.approx(c.mean() - b.mean(), abs=1e-15)
+    welch = sps.ttest_ind(c, b, equal_var=False).confidence_interval(0.95)
+    assert fuel.ci == pytest.approx((welch.low, welch.high), abs=1e-12)
+    assert fuel.baseline == pytest.approx(b.mean())
+
+    success = metrics["success_rate"]
+    assert (success.details["x_baseline"], success.n_baseline) == (38, 39)
+    assert (success.details["x_current"], success.n_current) == (25, 28)
+    assert success.difference == pytest.approx(25 / 28 - 38 / 39)
+    wb = sps.binomtest(38, 39).proportion_ci(method="wilson")
+    wc = sps.binomtest(25, 28).proportion_ci(method="wilson")
+    d = 25 / 28 - 38 / 39
+    low = d - math.hypot(25 / 28 - wc.low, wb.high - 38 / 39)
+    high = d + math.hypot(wc.high - 25 / 28, 38 / 39 - wb.low)
+    assert success.ci == pytest.approx((low, high), abs=1e-12)
+    assert success.p_value == pytest.approx(sps.fisher_exact([[25, 3], [38, 1]]).pvalue)
+
+    errors = metrics["error_rate"]
+    assert (errors.details["x_baseline"], errors.n_baseline, errors.details["x_current"], errors.n_current) == (
+        1,
+        40,
+        2,
+        30,
+    )
+    assert any("2 of 30 runs errored" in note for note in result.notes)
+
+
+def test_paired_statistics_match_scipy_and_hand_values(tmp_path):
+    base_rows = synthetic_runs(n=30, errored=(7,), failed=(), seed=4)
+    # every ok run loses 0.02 to 0.0245 of propellant, no two alike: signed-rank p = 2 / 2^n exactly
+    cur_rows = shifted(base_rows, "fuel_remaining", lambda i: -0.02 - 0.00015 * i)
+    cur_rows[12].update(status="error", success=False, failure_reason="RuntimeError: boom", fuel_remaining=-5.0)
+    result = pair(tmp_path, base_rows, cur_rows)
+    pairs = result.pairing
+    assert pairs.paired and list(pairs.run_ids) == [i for i in range(30) if i not in (7, 12)]
+    fuel = by_metric(result)["fuel_remaining"]
+    diffs = np.array([cur_rows[i]["fuel_remaining"] - base_rows[i]["fuel_remaining"] for i in pairs.run_ids])
+    assert fuel.test == "Wilcoxon signed-rank"
+    assert fuel.p_value == pytest.approx(2.0 / 2**28, rel=1e-9)
+    assert fuel.p_value == pytest.approx(sps.wilcoxon(diffs).pvalue, rel=1e-12)
+    assert fuel.difference == pytest.approx(np.median(diffs), abs=1e-15)
+    assert fuel.ci[0] < fuel.difference < fuel.ci[1] < -0.02
+    assert fuel.details["ks_p"] == pytest.approx(
+        sps.ks_2samp(ok_values(base_rows, "fuel_remaining"), ok_values(cur_rows, "fuel_remaining")).pvalue
+    )
+    assert fuel.details["worse_runs"] == 28
+    assert fuel.verdict == cmp.REGRESSION and not result.passed
+    assert any("ok in the baseline that raise errors now: 12" in note for note in result.notes)
+    others = {m.metric: m.verdict for m in result.metrics if m.metric not in ("fuel_remaining", "error_rate")}
+    assert set(others.values()) == {cmp.OK}  # unchanged columns: all differences 0, p = 1
+
+
+def test_a_campaign_against_itself_passes(tmp_path):
+    rows = synthetic_runs(n=20, errored=(4,), failed=(2,), seed=5)
+    out = write_out(tmp_path / "out", rows, histories=False)
+    result = cmp.compare(out, out)
+    assert result.passed and result.pairing.paired
+    for m in result.metrics:
+        assert m.verdict == cmp.OK and m.difference == 0.0 and m.p_value == 1.0, m
+    assert "verdict: PASS" in cmp.format_table(result)
+
+
+def test_pairing_needs_the_same_seeds_failures_and_common_parameters(tmp_path):
+    rows = synthetic_runs(n=12, errored=(), failed=(), seed=6)
+    for row in rows:
+        row["seed"] = 2**62 + row["run_id"]  # run seeds are 64-bit: compared exactly, not as floats
+
+    def pairing_of(change, name):
+        changed = copy.deepcopy(rows)
+        change(changed)
+        base = write_out(tmp_path / f"{name}-b", rows, histories=False, parts=1)
+        cur = write_out(tmp_path / f"{name}-c", changed, histories=False, parts=1)
+        return cmp.pairing(data.load(base), data.load(cur))
+
+    assert pairing_of(lambda r: None, "same").paired
+    seeds = pairing_of(lambda r: r[3].update(seed=r[3]["seed"] + 1), "seed")
+    assert not seeds.paired and "seed" in seeds.note
+    failed = pairing_of(lambda r: r[5].update(failed_thrusters="1,8"), "failed")
+    assert not failed.paired and "failed_thrusters" in failed.note
+    parameter = pairing_of(lambda r: r[0].update({"p.rcs.isp_s": 60.0}), "param")
+    assert not parameter.paired and "p.rcs.isp_s" in parameter.note
+    rounding = pairing_of(lambda r: r[0].update({"p.rcs.isp_s": r[0]["p.rcs.isp_s"] * (1 + 1e-12)}), "round")
+    assert rounding.paired  # the same input, up to the round-off of another scipy
+    extra = pairing_of(lambda r: [row.update({"p.rcs.thrust_scale.1": 0.9}) for row in r], "extra")
+    assert extra.paired and extra.only_current == ["p.rcs.thrust_scale.1"]
+    assert "dispersed in the current only: p.rcs.thrust_scale.1" in extra.note
+
+
+def test_tolerances_decide_what_a_significant_change_means(tmp_path):
+    base_rows = synthetic_runs(n=20, errored=(), failed=(), seed=7)
+    cur_rows = shifted(base_rows, "fuel_remaining", lambda i: -0.005)
+    cur_rows = shifted(cur_rows, "t_end_s", lambda i: 2.0)
+    cur_rows = shifted(cur_rows, "theta_t_handover_deg", lambda i: -0.2)
+    result = pair(tmp_path, base_rows, cur_rows)
+    metrics = by_metric(result)
+    assert metrics["fuel_remaining"].p_value < 1e-5  # every run lost 0.005: significant ...
+    assert metrics["fuel_remaining"].verdict == cmp.OK  # ... but within the 0.01 tolerance
+    assert metrics["theta_t_handover_deg"].verdict == cmp.BETTER
+    assert metrics["t_end_s"].verdict == cmp.REGRESSION  # either direction counts
+    assert [m.metric for m in result.regressions] == ["t_end_s"]
+
+    strict = cmp.compare(tmp_path / "base", tmp_path / "cur", ["fuel_remaining=0.001", "t_end_s=inf"])
+    assert [m.metric for m in strict.regressions] == ["fuel_remaining"]
+    assert by_metric(strict)["t_end_s"].verdict == cmp.OK
+
+    added = cmp.compare(tmp_path / "base", tmp_path / "cur", ["fuel_used_kg = 0.001", "t_sam_s=5"])
+    metrics = by_metric(added)
+    assert metrics["fuel_used_kg"].better == "lower" and metrics["fuel_used_kg"].tolerance == 0.001
+    assert metrics["t_sam_s"].better == "either" and metrics["t_sam_s"].verdict == cmp.OK
+
+
+def test_a_significant_drop_of_the_success_rate_is_a_regression(tmp_path):
+    base_rows = synthetic_runs(n=20, errored=(), failed=(), seed=8)
+    few = copy.deepcopy(base_rows)
+    for i in (3, 9):
+        few[i].update(success=False, failure_reason="sam_timeout")
+    many = copy.deepcopy(base_rows)
+    for i in (1, 3, 5, 9, 11, 15):
+        many[i].update(success=False, failure_reason="sam_timeout")
+
+    two = pair(tmp_path / "two", base_rows, few)
+    rate = by_metric(two)["success_rate"]
+    assert rate.ci[0] < 0 < rate.ci[1] and rate.verdict == cmp.OK  # 18/20 vs 20/20: not significant
+    lost = [n for n in two.notes if "succeeded in the baseline and fail now" in n]
+    assert lost and lost[0].startswith("runs that succeeded in the baseline and fail now: 3, 9")
+    assert f"refexmc rerun {tmp_path / 'two' / 'cur'} 3" in lost[0]
+
+    six = pair(tmp_path / "six", base_rows, many)
+    rate = by_metric(six)["success_rate"]
+    assert rate.ci[1] < 0 and rate.verdict == cmp.REGRESSION  # 14/20 vs 20/20
+    assert "REGRESSION" in cmp.format_table(six) and "verdict: FAIL (1 regression: success_rate)" in cmp.format_table(
+        six
+    )
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("fuel_remainig=0.02", "did you mean 'fuel_remaining'?"),
+        ("t_sam=5", "did you mean 't_sam_s'?"),
+        ("fuel_remaining", "expected METRIC=VALUE"),
+        ("fuel_remaining=lots", "expected a number after '='"),
+        ("fuel_remaining=-0.1", "expected a tolerance >= 0"),
+        ("fuel_remaining=nan", "expected a tolerance >= 0"),
+        ("p.rcs.isp_s=1", "unknown metric 'p.rcs.isp_s'"),
+    ],
+)
+def test_bad_tolerances_are_bad_input(tmp_path, text, message):
+    out = write_out(tmp_path / "out", synthetic_runs(n=6, errored=(), failed=()), histories=False, parts=1)
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        cmp.compare(out, out, [text])
+    result = CliRunner().invoke(main, ["compare", str(out), str(out), "--tolerance", text])
+    assert result.exit_code == 2 and message in result.output and "Traceback" not in result.output
+
+
+def test_cli_bad_output_directory_is_bad_input(tmp_path):
+    out = write_out(tmp_path / "out", synthetic_runs(n=6, errored=(), failed=()), histories=False, parts=1)
+    missing = CliRunner().invoke(main, ["compare", str(out), str(tmp_path / "nope")])
+    assert missing.exit_code == 2 and "output directory not found" in missing.output
+    (tmp_path / "empty").mkdir()
+    empty = CliRunner().invoke(main, ["compare", str(tmp_path / "empty"), str(out)])
+    assert empty.exit_code == 2 and "not a refexmc output directory" in empty.output
+    assert "Traceback" not in missing.output + empty.output
+
+
+# --- real flights: the CI gate -------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory):
+    """10 smoke runs, and the same runs with an Isp 10 % lower: 10 % more propellant for every impulse.
+
+    (Lower thrust is not a degradation of propellant here: smaller minimum impulse bits make the
+    limit cycles cheaper, so the vehicle uses less.) The baseline keeps no histories, as baselines/.
+    """
+    root = tmp_path_factory.mktemp("flown")
+    campaign = apply_overrides(load_campaign(ROOT / "campaigns/smoke.yaml"), runs=10)
+    degraded = copy.deepcopy(campaign)
+    degraded["vehicle"]["rcs"]["isp_s"] /= 1.1
+    rows = store_campaign(campaign, root / "baseline")
+    shutil.rmtree(root / "baseline" / "histories")
+    degraded_rows = store_campaign(degraded, root / "degraded")
+    store_campaign(campaign, root / "again")
+    return root, rows, degraded_rows
+
+
+def test_flown_campaign_against_itself_exits_0(flown):
+    root, _, _ = flown
+    result = CliRunner().invoke(main, ["compare", str(root / "baseline"), str(root / "again")])
+    assert result.exit_code == 0, result.output
+    assert "verdict: PASS" in result.output and "paired run by run on 10 runs" in result.output
+    assert "REGRESSION" not in result.output.split("difference: current")[0]
+
+
+def test_flown_campaign_using_more_propellant_exits_1(flown):
+    root, rows, degraded_rows = flown
+    used = np.array([r["fuel_used_kg"] for r in rows])
+    used_degraded = np.array([r["fuel_used_kg"] for r in degraded_rows])
+    assert all(r["status"] == "ok" for r in rows + degraded_rows)
+    assert np.all(used_degraded > used * 1.05)  # really more propellant, in every run
+    result = CliRunner().invoke(main, ["compare", str(root / "baseline"), str(root / "degraded")])
+    assert result.exit_code == 1, result.output
+    assert "verdict: FAIL (1 regression: fuel_remaining)" in result.output
+    fuel = by_metric(cmp.compare(root / "baseline", root / "degraded"))["fuel_remaining"]
+    assert fuel.test == "Wilcoxon signed-rank" and fuel.p_value == pytest.approx(2.0 / 2**10)
+    assert fuel.difference < -0.03
+    loose = CliRunner().invoke(
+        main, ["compare", str(root / "baseline"), str(root / "degraded"), "--tolerance", "fuel_remaining=0.1"]
+    )
+    assert loose.exit_code == 0, loose.output
+
+
+def test_the_stored_baseline_is_the_smoke_campaign():
+    """baselines/smoke (what `make smoke` compares against) loads without histories and is of smoke.yaml."""
+    baseline = data.load(ROOT / "baselines" / "smoke")
+    smoke = load_campaign(ROOT / "campaigns" / "smoke.yaml")
+    assert not baseline.history_parts
+    assert (baseline.name, len(baseline.runs), baseline.resolved["seed"]) == (
+        smoke["name"],
+        smoke["runs"],
+        smoke["seed"],
+    )
+    assert sorted(baseline.resolved["dispersions"]) == sorted(smoke["dispersions"])
+    assert len(baseline.ok) == smoke["runs"]
