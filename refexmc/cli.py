@@ -30,15 +30,33 @@ def main():
 @click.option("--seed", type=int, help="Override the campaign seed.")
 @click.option("--resume", is_flag=True, help="Finish what is missing in an existing OUT of the same campaign.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing OUT.")
-@click.option("--backend", type=click.Choice(["loky"]), default="loky", show_default=True, help="Execution backend.")
+@click.option(
+    "--backend",
+    type=click.Choice(["loky", "dask"]),
+    default="loky",
+    show_default=True,
+    help="Execution backend: loky (-j processes on this machine) or dask (a Dask cluster, see --scheduler).",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS|local:N",
+    help="Dask cluster for --backend dask: a scheduler address (tcp://host:8786), a scheduler file, "
+    "or local:N to start N worker processes here (docs/cluster.md).",
+)
 @click.option("--no-progress", is_flag=True, help="No progress bar or lines on stderr.")
-def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, no_progress):
+def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress):
     """Run CAMPAIGN (default: campaigns/refex-mc100.yaml) and write OUT (default runs/<name>).
 
     Chunks of runs are flown in parallel worker processes; a run that raises, crashes its
     worker or exceeds the campaign's run_time_limit_s (default 60 s) is recorded as an error.
 
     Example: refexmc run campaigns/nominal.yaml -o runs/nominal -j 2 --overwrite
+
+    On a Dask cluster (pip install 'refexmc[dask]'; docs/cluster.md):
+
+    \b
+      refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler tcp://head:8786
+      refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler local:4
     """
     from refexmc.campaign.progress import progress_mode
     from refexmc.campaign.run import run_campaign
@@ -53,6 +71,7 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, no_progress
             seed=seed,
             jobs=jobs,
             backend=backend,
+            scheduler=scheduler,
             overwrite=overwrite,
             resume=resume,
             progress=None if no_progress else progress_mode(),

@@ -1,10 +1,16 @@
 """Execution backends: fly chunks of runs in worker processes, yield each chunk when it is complete.
 
-A backend is a generator function ``backend(campaign, chunks, jobs, guard)``: ``chunks`` is a
-list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`; it
+A backend is a generator function ``backend(campaign, chunks, jobs, guard, **options)``:
+``chunks`` is a list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`,
+``options`` what :func:`check_backend` returned for it (e.g. ``scheduler`` for dask); it
 yields ``(chunk index, rows, history Parquet bytes)`` in completion order, rows sorted by run
 id, and keeps only a bounded number of chunks in flight so that memory does not grow with the
-campaign. Workers return their history already encoded (:func:`refexmc.campaign.worker.fly_guarded`);
+campaign. ``check_backend(name, **options)`` runs before anything is written: ConfigError for an
+unknown backend, an option it does not take, or one it cannot start with (dask: the extra missing,
+a malformed or unreachable scheduler). ``loky`` (below) runs on this machine; ``dask``
+(:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster.
+
+Workers return their history already encoded (:func:`refexmc.campaign.worker.fly_guarded`);
 only a chunk that came back in pieces (after a crash) is decoded and encoded again here.
 
 A run that exceeds the wall-time limit, or that kills its worker process (a segfault), becomes
@@ -23,6 +29,7 @@ from joblib.externals.loky.process_executor import TerminatedWorkerError
 
 from refexmc.campaign import storage
 from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded
+from refexmc.config.errors import ConfigError
 
 TASKS_PER_WORKER = 2  # chunks in flight per worker: one flying, one queued
 MAX_BLIND_RETRIES = 3  # a chunk whose worker died with no run in flight is retried this often
@@ -184,4 +191,34 @@ def _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_re
             queue.appendleft(_Task(task.chunk, again))
 
 
-BACKENDS = {"loky": loky_backend}
+def dask_backend(campaign, chunks, jobs, guard, scheduler=None):
+    """Fly ``chunks`` on a Dask cluster (:mod:`refexmc.campaign.dask_backend`; needs the dask extra)."""
+    from refexmc.campaign import dask_backend as dask  # importing refexmc never imports dask
+
+    return dask.dask_backend(campaign, chunks, jobs, guard, scheduler=scheduler)
+
+
+def _loky_options(scheduler=None):
+    if scheduler is not None:
+        raise ConfigError(
+            "--scheduler is for --backend dask (loky flies on this machine, in -j processes)", path=("--scheduler",)
+        )
+    return {}
+
+
+def _dask_options(scheduler=None):
+    from refexmc.campaign import dask_backend as dask
+
+    dask.check(scheduler)
+    return {"scheduler": scheduler}
+
+
+BACKENDS = {"loky": loky_backend, "dask": dask_backend}
+_OPTIONS = {"loky": _loky_options, "dask": _dask_options}
+
+
+def check_backend(name, **options):
+    """The keyword options to pass to backend ``name``; ConfigError if it cannot run with ``options``."""
+    if name not in BACKENDS:
+        raise ConfigError(f"expected one of {', '.join(BACKENDS)}, got {name!r}", path=("--backend",))
+    return _OPTIONS[name](**options)

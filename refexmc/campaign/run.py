@@ -16,7 +16,7 @@ import yaml
 
 import refexmc
 from refexmc.campaign import storage
-from refexmc.campaign.backends import BACKENDS
+from refexmc.campaign.backends import BACKENDS, check_backend
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import Guard
 from refexmc.config.errors import ConfigError
@@ -120,12 +120,14 @@ def run_campaign(
     resume=False,
     progress=None,
     chunk_size=None,
+    scheduler=None,
 ):
     """Validate and run a campaign file (default: DEFAULT_CAMPAIGN); return output path, counts, runs table.
 
     ``jobs``: worker processes (default all usable cores). ``progress``: 'bar', 'lines' or None.
     ``chunk_size``: runs per chunk of a new OUT (default ``$REFEXMC_CHUNK_SIZE`` or :func:`default_chunk_size`);
-    a resumed OUT keeps the chunk size in its manifest. Raises ConfigError for bad input and
+    a resumed OUT keeps the chunk size in its manifest. ``scheduler``: the Dask cluster of
+    ``backend='dask'`` (an address, a scheduler file, or ``local:N``). Raises ConfigError for bad input and
     FileExistsError for an existing OUT without ``overwrite``/``resume``; in both cases nothing
     is written.
     """
@@ -133,8 +135,7 @@ def run_campaign(
     jobs = default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
-    if backend not in BACKENDS:
-        raise ConfigError(f"expected one of {', '.join(BACKENDS)}, got {backend!r}", path=("--backend",))
+    options = check_backend(backend, scheduler=scheduler)
     chunk_size = _chunk_size(chunk_size, campaign["runs"])
     out = Path(out) if out is not None else default_output(campaign)
     time_limit_s = float(campaign.get("run_time_limit_s", DEFAULT_RUN_TIME_LIMIT_S))
@@ -148,7 +149,13 @@ def run_campaign(
     else:
         started, resumed = storage.now(), []
         storage.write_resolved(out, campaign)
-    execution = {"jobs": jobs, "backend": backend, "run_time_limit_s": time_limit_s, "resumed": resumed}
+    execution = {
+        "jobs": jobs,
+        "backend": backend,
+        "scheduler": scheduler,
+        "run_time_limit_s": time_limit_s,
+        "resumed": resumed,
+    }
     storage.write_manifest(out, storage.manifest(campaign_file, campaign, chunk_size, "running", started, **execution))
 
     work = out / WORK_DIR
@@ -158,7 +165,8 @@ def run_campaign(
     todo = [(chunk, run_ids) for chunk, run_ids in chunks if not chunk_done(out, chunk)]
     meter = Progress(campaign["runs"], campaign["runs"] - sum(len(r) for _, r in todo), progress)
     try:
-        for chunk, rows, history in BACKENDS[backend](campaign, todo, jobs, Guard.create(work, time_limit_s)):
+        guard = Guard.create(work, time_limit_s)
+        for chunk, rows, history in BACKENDS[backend](campaign, todo, jobs, guard, **options):
             name = storage.part_name(chunk)
             storage.write_bytes_atomic(history, out / "histories" / name)
             storage.write_table_atomic(storage.runs_table(rows), out / "runs" / name)
