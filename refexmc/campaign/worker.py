@@ -170,8 +170,9 @@ def fly_guarded(campaign, run_ids, guard):
     The history comes back as the bytes of a Parquet file (runs in the order given): compressing
     it here keeps the process that writes the parts from being the bottleneck.
     """
-    from refexmc.campaign.chunk import fly_chunk  # here: the parent imports this module, never flies
+    from refexmc.campaign.chunk import fly_chunk, plan_for  # here: the parent imports this module, never flies
 
+    plan_for(campaign)  # imports and sampling designs: not a run's time
     _start_watchdog()
     state = _open_state(guard.state_dir)
     rows, histories = [], []
