@@ -26,7 +26,7 @@ import dask  # noqa: E402 - after the skip: the extra is optional
 from refexmc.campaign import dask_backend  # noqa: E402
 from refexmc.campaign import run as run_module  # noqa: E402
 from refexmc.campaign.run import resolve_campaign, run_campaign  # noqa: E402
-from refexmc.campaign.worker import TEST_CRASH_ENV, TEST_HANG_ENV, Guard  # noqa: E402
+from refexmc.campaign.worker import TEST_CRASH_ENV, TEST_HANG_ENV, Flown, Guard  # noqa: E402
 from refexmc.cli import main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,10 +100,10 @@ def test_local_cluster_gives_the_loky_tables_and_is_closed(tmp_path, monkeypatch
 
 
 def test_an_interrupted_campaign_closes_its_local_cluster(tmp_path, monkeypatch):
-    def interrupt(table, path):
+    def interrupt(data, path):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(run_module.storage, "write_table_atomic", interrupt)
+    monkeypatch.setattr(run_module.storage, "write_bytes_atomic", interrupt)
     campaign, before = smoke_file(tmp_path), child_pids()
     with pytest.raises(KeyboardInterrupt):
         run_campaign(campaign, out=tmp_path / "out", runs=6, backend="dask", scheduler="local:1", chunk_size=2)
@@ -256,7 +256,7 @@ class _Future:
 
 
 class _Client:
-    """Runs each task at once: ``behaviour(run_ids)`` gives ('finished', (rows, None)) or ('error', exc)."""
+    """Runs each task at once: ``behaviour(run_ids)`` gives ('finished', Flown) or ('error', exc)."""
 
     def __init__(self, behaviour, hung=None):
         self.behaviour = behaviour
@@ -292,7 +292,7 @@ def _fake_distributed(client):
 
 
 def _ok(run_ids):
-    return "finished", ([{"run_id": r, "status": "ok", "failure_reason": None} for r in run_ids], None)
+    return "finished", Flown([{"run_id": r, "status": "ok", "failure_reason": None} for r in run_ids], None, None)
 
 
 def _fly(client, chunks):
@@ -310,7 +310,7 @@ def test_a_chunk_dask_gave_up_is_flown_run_by_run_and_costs_no_run():
 
     client = _Client(behaviour)
     finished = _fly(client, [(0, range(4)), (1, range(4, 6))])
-    rows = {c: r for c, r, _ in finished}
+    rows = {c: r for c, r, _, _ in finished}
     assert sorted(rows) == [0, 1]
     assert [row["run_id"] for row in rows[0]] == [0, 1, 2, 3]
     assert all(row["status"] == "ok" for row in rows[0])
@@ -320,7 +320,7 @@ def test_a_chunk_dask_gave_up_is_flown_run_by_run_and_costs_no_run():
 
 def test_a_run_that_kills_its_workers_alone_is_an_error_row():
     client = _Client(lambda run_ids: ("error", _Killed()) if 2 in run_ids else _ok(run_ids))
-    ((chunk, rows, history),) = _fly(client, [(0, range(4))])
+    ((chunk, rows, runs, history),) = _fly(client, [(0, range(4))])
     assert [row["status"] for row in rows] == ["ok", "ok", "error", "ok"]
     assert rows[2]["failure_reason"] == dask_backend.DIED
     assert client.submitted == [[0, 1, 2, 3], [0], [1], [2], [3]]
@@ -344,7 +344,7 @@ def test_a_run_on_record_as_hung_is_a_limit_error_and_its_chunk_is_flown_again_w
         return future
 
     client.submit = submit
-    ((chunk, rows, history),) = _fly(client, [(0, range(4))])
+    ((chunk, rows, runs, history),) = _fly(client, [(0, range(4))])
     assert rows[1]["failure_reason"] == "wall-time limit exceeded (5 s)"
     assert [row["status"] for row in rows] == ["ok", "error", "ok", "ok"]
     assert client.submitted == [[0, 1, 2, 3], [0, 2, 3]]

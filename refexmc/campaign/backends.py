@@ -3,15 +3,15 @@
 A backend is a generator function ``backend(campaign, chunks, jobs, guard, **options)``:
 ``chunks`` is a list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`,
 ``options`` what :func:`check_backend` returned for it (e.g. ``scheduler`` for dask); it
-yields ``(chunk index, rows, history Parquet bytes)`` in completion order, rows sorted by run
-id, and keeps only a bounded number of chunks in flight so that memory does not grow with the
-campaign. ``check_backend(name, **options)`` runs before anything is written: ConfigError for an
+yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` in completion order,
+rows sorted by run id, and keeps only a bounded number of chunks in flight so that memory does
+not grow with the campaign. ``check_backend(name, **options)`` runs before anything is written: ConfigError for an
 unknown backend, an option it does not take, or one it cannot start with (dask: the extra missing,
 a malformed or unreachable scheduler). ``loky`` (below) runs on this machine; ``dask``
 (:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster.
 
-Workers return their history already encoded (:func:`refexmc.campaign.worker.fly_guarded`);
-only a chunk that came back in pieces (after a crash) is decoded and encoded again here.
+Workers return both parts already encoded (:class:`refexmc.campaign.worker.Flown`); only a
+chunk that came back in pieces (after a crash) is assembled and encoded again here.
 
 A run that exceeds the wall-time limit, or that kills its worker process (a segfault), becomes
 an error row; the other runs of its chunk are flown again. After a crash it is not known which
@@ -55,21 +55,34 @@ class ChunkAssembler:
     def __init__(self, chunks):
         self._expected = {chunk: len(run_ids) for chunk, run_ids in chunks}
         self._rows = {}
+        self._runs = {}
         self._histories = {}
         self._errors = set()
 
-    def add(self, chunk, rows, history=None, parent_made=False):
-        """Add rows (and their history as Parquet bytes); return the finished chunk or None."""
+    def add(self, chunk, flown):
+        """Add a worker's :class:`~refexmc.campaign.worker.Flown`; return the finished chunk or None."""
+        if flown.history is not None:
+            self._histories.setdefault(chunk, []).append(flown.history)
+        return self._add_rows(chunk, flown.rows, flown.runs)
+
+    def add_errors(self, chunk, rows):
+        """Add error rows the parent made (runs that hung or crashed); return the finished chunk or None."""
+        self._errors.update((chunk, row["run_id"]) for row in rows)
+        return self._add_rows(chunk, rows, None)
+
+    def _add_rows(self, chunk, rows, runs):
         self._rows.setdefault(chunk, []).extend(rows)
-        if parent_made:
-            self._errors.update((chunk, row["run_id"]) for row in rows)
-        if history is not None:
-            self._histories.setdefault(chunk, []).append(history)
+        self._runs.setdefault(chunk, []).append(runs)  # one entry per piece, None where not encoded
         if len(self._rows[chunk]) < self._expected[chunk]:
             return None
         rows = sorted(self._rows.pop(chunk), key=lambda row: row["run_id"])
         rows = self._align(chunk, rows)
-        return chunk, rows, self._history(self._histories.pop(chunk, []))
+        pieces = self._runs.pop(chunk)
+        if len(pieces) == 1 and pieces[0] is not None:
+            runs = pieces[0]  # one task flew the whole chunk, in run order
+        else:
+            runs = storage.encode_table(storage.runs_table(rows))
+        return chunk, rows, runs, self._history(self._histories.pop(chunk, []))
 
     @staticmethod
     def _history(pieces):
@@ -140,12 +153,12 @@ def loky_backend(campaign, chunks, jobs, guard):
                 for future in done:
                     task = inflight.pop(future)
                     try:
-                        rows, history = future.result()
+                        flown = future.result()
                     except TerminatedWorkerError as exc:
                         broken.append(task)
                         crash = exc
                         continue
-                    finished_chunk = assembler.add(task.chunk, rows, history)
+                    finished_chunk = assembler.add(task.chunk, flown)
                     if finished_chunk:
                         yield finished_chunk
                 # a broken pool fails every task still in flight (or has just finished it): collect them all
@@ -183,7 +196,7 @@ def _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_re
             if blind_retries[task.chunk] > MAX_BLIND_RETRIES:
                 raise RuntimeError(f"worker processes keep dying while flying chunk {task.chunk}: {crash}") from crash
         if errors:
-            finished_chunk = assembler.add(task.chunk, errors, parent_made=True)
+            finished_chunk = assembler.add_errors(task.chunk, errors)
             if finished_chunk:
                 yield finished_chunk
         isolate.extend(_Task(task.chunk, [run_id], isolated=True) for run_id in alone)

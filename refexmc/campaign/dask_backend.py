@@ -157,13 +157,14 @@ def _fly_chunks(distributed, client, campaign, chunks, guard):
         key = f"{prefix}-{task.chunk:05d}-{next(serial)}"
         inflight[client.submit(_fly_task, campaign, task.run_ids, guard, key=key)] = task
 
-    def collect(task, rows, history=None, parent_made=False):
+    def collect(task, rows, flown=None):
+        """Rows of ``task``: a worker's :class:`Flown` (``flown``), or error rows the client made."""
         ids = [row["run_id"] for row in rows]
         seen = received.setdefault(task.chunk, set())
         if sorted(ids) != sorted(set(ids)) or seen.intersection(ids) or not set(ids) <= set(task.run_ids):
             raise RuntimeError(f"chunk {task.chunk}: a result repeats runs or holds runs of another task: {ids}")
         seen.update(ids)
-        finished = assembler.add(task.chunk, rows, history, parent_made=parent_made)
+        finished = assembler.add(task.chunk, flown) if flown else assembler.add_errors(task.chunk, rows)
         if finished:
             del received[task.chunk]
         return finished
@@ -187,14 +188,14 @@ def _fly_chunks(distributed, client, campaign, chunks, guard):
                         "lost); finish the campaign with --resume"
                     )
                 try:
-                    rows, history = future.result()  # any other exception of the task ends the campaign
+                    flown = future.result()  # any other exception of the task ends the campaign
                 except distributed.KilledWorker:
                     hung = client.get_metadata([future.key, HUNG], default={})
-                    finished = collect(task, _given_up(campaign, task, hung, guard, queue, isolate), parent_made=True)
+                    finished = collect(task, _given_up(campaign, task, hung, guard, queue, isolate))
                 else:
-                    if sorted(row["run_id"] for row in rows) != task.run_ids:
+                    if sorted(row["run_id"] for row in flown.rows) != task.run_ids:
                         raise RuntimeError(f"chunk {task.chunk}: a task returned other runs than it was given")
-                    finished = collect(task, rows, history)
+                    finished = collect(task, flown.rows, flown)
                 if finished:
                     yield finished
     finally:
@@ -261,8 +262,11 @@ def _fly_task(campaign, run_ids, guard):
         flown = [run_id for run_id in run_ids if str(run_id) not in hung]
         guarded.set_over_limit_hook(partial(_report_hung, client, key))
         try:
-            rows, history = guarded.fly_guarded(campaign, flown, guard)
+            result = guarded.fly_guarded(campaign, flown, guard)
         finally:
             guarded.set_over_limit_hook(None)
-    rows += [error_row(campaign, run_id, _limit_reason(guard)) for run_id in run_ids if str(run_id) in hung]
-    return sorted(rows, key=lambda row: row["run_id"]), history
+    if len(flown) == len(run_ids):
+        return result
+    reason = _limit_reason(guard)
+    rows = result.rows + [error_row(campaign, run_id, reason) for run_id in run_ids if str(run_id) in hung]
+    return guarded.Flown(sorted(rows, key=lambda row: row["run_id"]), None, result.history)

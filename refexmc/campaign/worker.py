@@ -164,12 +164,27 @@ def _test_hooks(guard, run_id):
         os.kill(os.getpid(), signal.SIGSEGV)  # a crashing run, for the tests of crash recovery
 
 
-def fly_guarded(campaign, run_ids, guard):
-    """Fly ``run_ids`` one by one under the watchdog; return (runs rows, history Parquet bytes or None).
+class Flown(NamedTuple):
+    """What a worker returns for the runs it was given.
 
-    The history comes back as the bytes of a Parquet file (runs in the order given): compressing
-    it here keeps the process that writes the parts from being the bottleneck.
+    ``rows`` (dicts) serve the bookkeeping of the process that writes the parts; ``runs`` and
+    ``history`` are those parts as Parquet file bytes (runs in the order given; ``history`` None
+    when no run has one). Encoding here keeps the writing process from being the bottleneck:
+    a 20-run runs part costs ~25 ms to build and compress, about the time of flying 4 runs.
     """
+
+    rows: list
+    runs: bytes | None
+    history: bytes | None
+
+    @classmethod
+    def encode(cls, rows, histories=()):
+        runs = storage.encode_table(storage.runs_table(rows)) if rows else None
+        return cls(rows, runs, storage.encode_table(pa.concat_tables(histories)) if histories else None)
+
+
+def fly_guarded(campaign, run_ids, guard):
+    """Fly ``run_ids`` one by one under the watchdog; return a :class:`Flown`."""
     from refexmc.campaign.chunk import fly_chunk, plan_for  # here: the parent imports this module, never flies
 
     plan_for(campaign)  # imports and sampling designs: not a run's time
@@ -189,7 +204,7 @@ def fly_guarded(campaign, run_ids, guard):
     finally:
         _set_current(None)
         state.close()
-    return rows, (storage.encode_table(pa.concat_tables(histories)) if histories else None)
+    return Flown.encode(rows, histories)
 
 
 def collect_states(state_dir):
