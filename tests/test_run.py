@@ -238,3 +238,15 @@ def test_progress_bar_shows_runs_rate_and_eta():
     meter.close()
     text = stream.getvalue()
     assert "50/100" in text and "run/s" in text and "<" in text  # tqdm: n/total [elapsed<ETA, rate]
+
+
+@pytest.mark.parametrize("runs", [1, 9, 20, 100, 319, 320, 321, 1000, 3200, 3201, 10_000, 100_000])
+def test_default_chunk_size_gives_about_target_chunks_within_bounds(runs):
+    size = run_module.default_chunk_size(runs)
+    assert run_module.MIN_CHUNK_SIZE <= size <= run_module.MAX_CHUNK_SIZE
+    chunks = len(run_module.plan_chunks(runs, size))
+    if size < run_module.MAX_CHUNK_SIZE:  # at most the target count of chunks ...
+        assert chunks <= run_module.TARGET_CHUNKS
+    if run_module.MIN_CHUNK_SIZE < size < run_module.MAX_CHUNK_SIZE:  # ... and the smallest size that does it
+        assert (size - 1) * run_module.TARGET_CHUNKS < runs
+    assert run_module.default_chunk_size(runs + 1) >= size  # more runs never give smaller chunks
