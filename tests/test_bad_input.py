@@ -81,6 +81,23 @@ CASES = [
         ["dispersions.atmosphere.density_scale.dist", "unknown distribution 'log_normal'", "did you mean 'lognormal'"],
     ),
     (
+        "unknown-requirement-metric",
+        _edit("  - fuel_remaining.min >= 0.20", "  - fuel_remainig.min >= 0.20"),
+        [],
+        [
+            f":{_line('  - fuel_remaining.min')}:",
+            "requirements.0",
+            "unknown metric 'fuel_remainig.min'",
+            "did you mean 'fuel_remaining.min'",
+        ],
+    ),
+    (
+        "unknown-requirement-statistic",
+        _edit("  - success_rate >= 1.0", "  - p.atmosphere.density_scale.mediane <= 1.1"),
+        [],
+        ["requirements.1", "unknown statistic 'mediane'", "did you mean 'p.atmosphere.density_scale.median'"],
+    ),
+    (
         "unbounded-normal-on-positive-quantity",
         _edit("{dist: truncnorm, sigma: 6.95, low: 0.0}", "{dist: normal, sigma: 60.0}"),
         [],

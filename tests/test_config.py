@@ -154,3 +154,18 @@ def test_pack_uses_every_field_of_the_layout():
     # time constants in seconds (000 Table 2, low thrust on-delay 19.1 ms)
     assert inputs.thrusters[0, L.T_ON_DELAY_LOW] == pytest.approx(0.0191)
     assert inputs.fsw[L.F_CONTROL_PERIOD] == pytest.approx(0.025)
+
+
+def test_requirement_columns_are_the_numeric_columns_of_a_runs_row():
+    """The columns a campaign file's requirements may name are those a runs row really has."""
+    from refexmc.campaign.chunk import RunPlan
+    from refexmc.config import dispersions
+    from refexmc.config.requirements import NOT_METRIC_COLUMNS, runs_metric_columns
+
+    campaign = load_campaign(ROOT / "campaigns" / "smoke.yaml")
+    plan = RunPlan(campaign)
+    row, _, _ = plan.fly(3, campaign["output"]["history_rate_hz"])
+    numeric = [k for k, v in row.items() if k not in NOT_METRIC_COLUMNS and isinstance(v, int | float)]
+    numeric = [k for k in numeric if not isinstance(row[k], bool)]  # success is a flag, not a metric column
+    parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, campaign["vehicle"])]
+    assert sorted(runs_metric_columns(len(campaign["vehicle"]["rcs"]["thrusters"]), parameters)) == sorted(numeric)

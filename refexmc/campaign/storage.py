@@ -15,9 +15,10 @@ import pyarrow.parquet as pq
 import yaml
 
 import refexmc
+from refexmc.config.requirements import MODE_TIME_COLUMNS, RUN_VALUE_COLUMNS
 from refexmc.core import layout as L
 
-MODE_COLUMNS = [f"t_{name.lower()}_s" for name in L.MODE_NAMES]
+MODE_COLUMNS = list(MODE_TIME_COLUMNS)
 AXES = "xyz"
 
 
@@ -81,7 +82,7 @@ def runs_row(run_id, seed, failed, result, n_thrusters, error=None):
         "failed_thrusters": ",".join(str(t) for t in sorted(failed)),
     }
     if result is None:
-        for name in ["fuel_remaining", "fuel_used_kg", "t_end_s", *MODE_COLUMNS, "theta_t_handover_deg"]:
+        for name in RUN_VALUE_COLUMNS:
             row[name] = float("nan")
         row["modes_completed"] = 0
         for i in range(n_thrusters):

@@ -9,7 +9,7 @@ import jsonschema
 import numpy as np
 import yaml
 
-from refexmc.config import schema
+from refexmc.config import requirements, schema
 from refexmc.config.derived import inertia_problem
 from refexmc.config.errors import ConfigError
 
@@ -242,6 +242,9 @@ def load_campaign(path):
     n_thrusters = len(vehicle["rcs"]["thrusters"])
     _check_failures(campaign["failures"], n_thrusters, path, lines)
     dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
+    parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
+    columns = requirements.runs_metric_columns(n_thrusters, parameter_columns)
+    requirements.check_requirements(campaign["requirements"], columns, path, lines)
     if campaign["failures"]["mode"] == "enumerate":
         derived = len(failure_sets(campaign["failures"]["sizes"], n_thrusters)) + int(campaign["nominal_first"])
         if campaign["runs"] is not None and campaign["runs"] != derived:

@@ -14,11 +14,12 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from refexmc.config import requirements
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import read_yaml
 from refexmc.core.layout import MODE_NAMES
 
-MODE_TIME_COLUMNS = [f"t_{name.lower()}_s" for name in MODE_NAMES]
+MODE_TIME_COLUMNS = list(requirements.MODE_TIME_COLUMNS)
 HISTORY_BATCH_ROWS = 1 << 18
 
 

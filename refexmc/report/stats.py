@@ -8,6 +8,8 @@ import math
 import numpy as np
 from scipy import stats as sps
 
+from refexmc.config.requirements import BASIC_STATS, BOUND_STATS, PERCENTILE_STATS, parse_percentile_stat  # noqa: F401
+
 CONFIDENCE = 0.95
 THREE_SIGMA_LOW_FRACTION = 0.00135  # P(Z < -3) of a normal distribution: the "3-sigma" tail, 0.135 %
 THREE_SIGMA_COVERAGE = 1.0 - THREE_SIGMA_LOW_FRACTION
@@ -96,11 +98,6 @@ def percentile_bound(sorted_values, percent, side, confidence=CONFIDENCE):
     return float(sorted_values[s - 1]) if s <= n else math.nan
 
 
-BASIC_STATS = ("count", "min", "max", "mean", "median", "std", "mean_minus_3sd", "mean_plus_3sd")
-BOUND_STATS = ("tol_lower", "tol_upper")
-PERCENTILE_STATS = ("p0.135", "p1", "p5", "p50", "p95", "p99", "p99.865")
-
-
 def percentile(values, percent):
     """numpy's default (linear, Hyndman-Fan type 7) percentile; NaN for no values."""
     return float(np.percentile(values, percent)) if len(values) else math.nan
@@ -109,7 +106,7 @@ def percentile(values, percent):
 def column_stat(values, stat, confidence=CONFIDENCE):
     """One statistic of a column (finite values only): the ``<stat>`` of ``<column>.<stat>``.
 
-    See ``refexmc.report.requirements`` for the grammar. ``values`` is a 1-D float array.
+    See ``refexmc.config.requirements`` for the grammar. ``values`` is a 1-D float array.
     """
     values = np.asarray(values, dtype=float)
     values = values[np.isfinite(values)]
@@ -142,23 +139,6 @@ def column_stat(values, stat, confidence=CONFIDENCE):
     if bound is None:
         return percentile(values, percent)
     return percentile_bound(np.sort(values), percent, bound, confidence)
-
-
-def parse_percentile_stat(stat):
-    """``p<q>`` -> (q, None); ``p<q>_lower95`` / ``p<q>_upper95`` -> (q, "lower" / "upper"). ValueError else."""
-    if not stat.startswith("p"):
-        raise ValueError(stat)
-    body, bound = stat[1:], None
-    for side in ("lower", "upper"):
-        suffix = f"_{side}95"
-        if body.endswith(suffix):
-            body, bound = body[: -len(suffix)], side
-    if not body or not all(c.isdigit() or c == "." for c in body):
-        raise ValueError(stat)
-    percent = float(body)
-    if not 0.0 <= percent <= 100.0:
-        raise ValueError(stat)
-    return percent, bound
 
 
 def describe(values, confidence=CONFIDENCE):

@@ -1,0 +1,173 @@
+"""The requirement grammar of campaign files and ``--require``: ``'METRIC OP VALUE'``.
+
+Example: ``fuel_remaining.min >= 0.20``.
+
+METRIC is either a campaign-level metric (``CAMPAIGN_METRICS``) or ``<column>.<stat>``:
+
+- ``<column>``: a numeric column of the ``runs`` table (``fuel_remaining``, ``fuel_used_kg``,
+  ``t_end_s``, ``t_<mode>_s``, ``theta_t_handover_deg``, ``modes_completed``, ``pulses_<k>``,
+  ``p.<path>``), or the derived ``pulses_total`` (sum of the thrusters' pulse counts);
+- ``<stat>``, over the runs with status ``ok`` (errored runs excluded), NaN values dropped:
+  ``count min max mean median std`` (std with ddof 1); ``mean_minus_3sd mean_plus_3sd``;
+  ``p<q>`` the q-th percentile, 0 <= q <= 100 (``p0.135 p1 p50 p99 p99.865``; numpy's linear
+  interpolation); ``tol_lower tol_upper`` the one-sided normal tolerance bounds, 99.865 % coverage
+  at 95 % confidence (the confidence bound of the 3-sigma value, assuming normality);
+  ``p<q>_lower95 p<q>_upper95`` distribution-free 95 % confidence bounds on the q-th percentile
+  (order statistics; NaN when the campaign has too few runs for one).
+
+OP is one of ``>= <= > < ==``; VALUE a number. A metric that is not computable (NaN: no runs,
+too few runs for a bound) fails its requirement. Unknown metrics are bad input (ConfigError):
+``load_campaign`` checks a campaign file's ``requirements`` against the columns its runs table
+will have (:func:`runs_metric_columns`), so that a misspelt metric is refused before any run is
+flown; ``refexmc report`` checks them again against the stored table, with ``--require``.
+Evaluating them is the report's job (``refexmc.report.requirements.evaluate``).
+"""
+
+import difflib
+import math
+import operator
+import re
+from dataclasses import dataclass
+
+from refexmc.config.errors import ConfigError
+from refexmc.core.layout import MODE_NAMES
+
+CAMPAIGN_METRICS = {
+    "runs": "runs in the runs table (ok and errored)",
+    "ok_count": "runs with status ok",
+    "error_count": "runs with status error (excluded from every other statistic)",
+    "error_rate": "error_count / runs",
+    "success_count": "ok runs that succeeded",
+    "failure_count": "ok runs that did not succeed",
+    "success_rate": "success_count / ok_count",
+    "success_rate_lower95": "one-sided 95 % Clopper-Pearson lower bound of the success probability",
+    "success_rate_upper95": "one-sided 95 % Clopper-Pearson upper bound of the success probability",
+    "failure_rate_upper95": "1 - success_rate_lower95: the failure probability bound",
+}
+
+BASIC_STATS = ("count", "min", "max", "mean", "median", "std", "mean_minus_3sd", "mean_plus_3sd")
+BOUND_STATS = ("tol_lower", "tol_upper")
+PERCENTILE_STATS = ("p0.135", "p1", "p5", "p50", "p95", "p99", "p99.865")
+NAMED_STATS = BASIC_STATS + BOUND_STATS
+SUGGESTED_STATS = NAMED_STATS + PERCENTILE_STATS + ("p0.135_lower95", "p99.865_upper95")
+DERIVED_COLUMNS = ("pulses_total",)
+NOT_METRIC_COLUMNS = ("run_id", "seed")
+
+OPERATORS = {">=": operator.ge, "<=": operator.le, ">": operator.gt, "<": operator.lt, "==": operator.eq}
+
+_REQUIREMENT = re.compile(r"^\s*(?P<metric>[^\s<>=!]+)\s*(?P<op>[<>=!]+)\s*(?P<value>\S+)\s*$")
+_PERCENTILE_TAIL = re.compile(r"\.(p\d+(?:\.\d+)?(?:_lower95|_upper95)?)$")
+_NAMED_TAIL = re.compile(r"\.([a-z_0-9]+)$")
+
+
+@dataclass(frozen=True)
+class Requirement:
+    text: str
+    metric: str
+    op: str
+    value: float
+    source: str  # "campaign" (OUT/campaign.resolved.yaml) or "--require"
+
+
+def split_metric(metric):
+    """``'fuel_remaining.p0.135'`` -> ``('fuel_remaining', 'p0.135')``; a campaign metric -> (metric, None)."""
+    if metric in CAMPAIGN_METRICS:
+        return metric, None
+    match = _PERCENTILE_TAIL.search(metric) or _NAMED_TAIL.search(metric)
+    if not match:
+        return None, None
+    return metric[: match.start()], match.group(1)
+
+
+def valid_stat(stat):
+    if stat in NAMED_STATS:
+        return True
+    try:
+        parse_percentile_stat(stat)
+    except ValueError:
+        return False
+    return True
+
+
+def check_metric(metric, columns, file=None, line=None, path=()):
+    """ConfigError (with did-you-mean) unless ``metric`` names a metric of a campaign with ``columns``."""
+    columns = [c for c in columns if c not in NOT_METRIC_COLUMNS] + list(DERIVED_COLUMNS)
+    column, stat = split_metric(metric)
+    if column is not None and (stat is None or (column in columns and valid_stat(stat))):
+        return
+    if column in columns:
+        guess = difflib.get_close_matches(stat, SUGGESTED_STATS, n=1, cutoff=0.5)
+        hint = f"did you mean '{column}.{guess[0]}'?" if guess else f"statistics: {', '.join(SUGGESTED_STATS)}, p<q>"
+        raise ConfigError(f"unknown statistic '{stat}' in metric '{metric}'; {hint}", file=file, line=line, path=path)
+    candidates = list(CAMPAIGN_METRICS)
+    if stat is not None and valid_stat(stat):
+        candidates += [f"{c}.{stat}" for c in columns]
+    else:
+        candidates += [f"{c}.{s}" for c in columns for s in ("min", "max", "mean", "median")]
+    guess = difflib.get_close_matches(metric, candidates, n=1, cutoff=0.6)
+    hint = f"did you mean '{guess[0]}'?" if guess else "expected a campaign metric or '<runs column>.<statistic>'"
+    raise ConfigError(
+        f"unknown metric '{metric}'; {hint} (campaign metrics: {', '.join(CAMPAIGN_METRICS)})",
+        file=file,
+        line=line,
+        path=path,
+    )
+
+
+def parse_requirement(text, columns, source="--require", file=None, line=None, path=()):
+    """Parse ``'METRIC OP VALUE'`` against the runs ``columns``; ConfigError for bad input."""
+    where = {"file": file, "line": line, "path": path}
+    if not isinstance(text, str):
+        raise ConfigError(f"expected a string 'METRIC OP VALUE', got {text!r}", **where)
+    match = _REQUIREMENT.match(text)
+    if not match:
+        raise ConfigError(f"expected 'METRIC OP VALUE' (e.g. 'fuel_remaining.min >= 0.2'), got '{text}'", **where)
+    metric, op, value_text = match.group("metric", "op", "value")
+    if op not in OPERATORS:
+        raise ConfigError(f"unknown operator '{op}' in '{text}'; expected one of {', '.join(OPERATORS)}", **where)
+    try:
+        value = float(value_text)
+    except ValueError:
+        raise ConfigError(f"expected a number after '{op}', got '{value_text}' in '{text}'", **where) from None
+    if not math.isfinite(value):
+        raise ConfigError(f"expected a finite number after '{op}', got '{value_text}' in '{text}'", **where)
+    check_metric(metric, columns, **where)
+    return Requirement(text=text.strip(), metric=metric, op=op, value=value, source=source)
+
+
+def parse_percentile_stat(stat):
+    """``p<q>`` -> (q, None); ``p<q>_lower95`` / ``p<q>_upper95`` -> (q, "lower" / "upper"). ValueError else."""
+    if not stat.startswith("p"):
+        raise ValueError(stat)
+    body, bound = stat[1:], None
+    for side in ("lower", "upper"):
+        suffix = f"_{side}95"
+        if body.endswith(suffix):
+            body, bound = body[: -len(suffix)], side
+    if not body or not all(c.isdigit() or c == "." for c in body):
+        raise ValueError(stat)
+    percent = float(body)
+    if not 0.0 <= percent <= 100.0:
+        raise ValueError(stat)
+    return percent, bound
+
+
+MODE_TIME_COLUMNS = tuple(f"t_{name.lower()}_s" for name in MODE_NAMES)
+RUN_VALUE_COLUMNS = ("fuel_remaining", "fuel_used_kg", "t_end_s", *MODE_TIME_COLUMNS, "theta_t_handover_deg")
+
+
+def runs_metric_columns(n_thrusters, parameter_columns=()):
+    """The numeric columns of a campaign's runs table (``refexmc.campaign.storage.runs_row``)."""
+    return [*RUN_VALUE_COLUMNS, "modes_completed", *(f"pulses_{k + 1}" for k in range(n_thrusters))] + list(
+        parameter_columns
+    )
+
+
+def check_requirements(requirements, columns, file=None, lines=None):
+    """Parse a campaign file's ``requirements`` (ConfigError with file, line and key path)."""
+    lines = lines or {}
+    parsed = []
+    for i, text in enumerate(requirements):
+        line = lines.get(("requirements", i))
+        parsed.append(parse_requirement(text, columns, "campaign", file=file, line=line, path=("requirements", i)))
+    return parsed
