@@ -18,35 +18,22 @@ from types import SimpleNamespace
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
-from click.testing import CliRunner
 
 distributed = pytest.importorskip("distributed")
 import dask  # noqa: E402 - after the skip: the extra is optional
+from stored import campaign_copy, invoke_run, read_runs  # noqa: E402
 
 from refexmc.campaign import dask_backend  # noqa: E402
 from refexmc.campaign import run as run_module  # noqa: E402
 from refexmc.campaign.run import resolve_campaign, run_campaign  # noqa: E402
 from refexmc.campaign.worker import TEST_CRASH_ENV, TEST_HANG_ENV, Flown, Guard  # noqa: E402
-from refexmc.cli import main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "campaigns/smoke.yaml"  # dispersed (LHS): every row differs
 
 
 def smoke_file(tmp_path, **extra):
-    text = SMOKE.read_text().replace("../configs", str(ROOT / "configs"))
-    text += "".join(f"{key}: {value}\n" for key, value in extra.items())
-    path = tmp_path / "smoke.yaml"
-    path.write_text(text)
-    return path
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, ["run", *map(str, args)])
-
-
-def runs_table(out):
-    return pq.read_table(Path(out) / "runs").to_pandas().sort_values("run_id", ignore_index=True)
+    return campaign_copy("smoke.yaml", tmp_path, **extra)
 
 
 def histories(out):
@@ -83,16 +70,16 @@ def test_local_cluster_gives_the_loky_tables_and_is_closed(tmp_path, monkeypatch
     monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "3")
     campaign = smoke_file(tmp_path)
     loky, dask_out = tmp_path / "loky", tmp_path / "dask"
-    assert invoke(campaign, "-o", loky, "-j", 2, "--no-progress").exit_code == 0
+    assert invoke_run(campaign, "-o", loky, "-j", 2, "--no-progress").exit_code == 0
     before = child_pids()
-    result = invoke(campaign, "-o", dask_out, "--backend", "dask", "--scheduler", "local:2", "--no-progress")
+    result = invoke_run(campaign, "-o", dask_out, "--backend", "dask", "--scheduler", "local:2", "--no-progress")
     assert result.exit_code == 0, result.output
     assert "20 runs, 20 succeeded" in result.output
     assert child_pids() <= before  # the LocalCluster's workers and nannies are gone
     assert len(parts(dask_out)) == 7  # 20 runs in chunks of 3
-    table = runs_table(dask_out)
+    table = read_runs(dask_out)
     assert table["fuel_remaining"].nunique() == 20  # dispersed: equal tables are not equal by accident
-    pd.testing.assert_frame_equal(table, runs_table(loky))
+    pd.testing.assert_frame_equal(table, read_runs(loky))
     pd.testing.assert_frame_equal(histories(dask_out), histories(loky))
     manifest = run_module.storage.read_manifest(dask_out)
     assert (manifest["backend"], manifest["scheduler"], manifest["status"]) == ("dask", "local:2", "complete")
@@ -143,7 +130,7 @@ def test_worker_killed_mid_campaign_costs_no_run(tmp_path, cluster):
     assert any(key.startswith("refexmc-") for key in busy[victim])  # it was flying (or holding) a chunk of ours
     assert done_at_kill < runs // chunk_size  # mid-campaign
     assert pids[victim] not in restarted.values()  # the kill happened (the nanny started a new worker)
-    table = runs_table(out)
+    table = read_runs(out)
     assert table["run_id"].tolist() == list(range(runs))  # none lost, none twice
     pd.testing.assert_frame_equal(table, reference)
     assert outcome["result"]["counts"]["ok"] == runs
@@ -153,16 +140,17 @@ def test_hung_run_is_one_error_and_costs_one_worker(tmp_path, cluster, monkeypat
     monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "3")
     campaign = smoke_file(tmp_path, run_time_limit_s=3)  # a cold worker's first run may take a second
     clean = tmp_path / "clean"
-    assert invoke(campaign, "-o", clean, "--runs", 8, "-j", 2, "--no-progress").exit_code == 0
+    assert invoke_run(campaign, "-o", clean, "--runs", 8, "-j", 2, "--no-progress").exit_code == 0
     monkeypatch.setenv(TEST_HANG_ENV, "5")
     out = tmp_path / "out"
     with distributed.Client(cluster) as client:
         before = set(client.run(os.getpid).values())
-        result = invoke(campaign, "-o", out, "--runs", 8, "--backend", "dask", "--scheduler", cluster.scheduler_address)
+        on_dask = ("--backend", "dask", "--scheduler", cluster.scheduler_address)
+        result = invoke_run(campaign, "-o", out, "--runs", 8, *on_dask)
         after = set(client.run(os.getpid).values())
     assert result.exit_code == 1, result.output
     assert "runs with errors: 5" in result.stderr
-    table, reference = runs_table(out), runs_table(clean)
+    table, reference = read_runs(out), read_runs(clean)
     assert list(table.columns) == list(reference.columns)
     # the attempt after the watchdog ended the worker found the hung run on record: the loky reason, one restart
     assert table.loc[5, "failure_reason"] == "wall-time limit exceeded (3 s)"
@@ -178,13 +166,14 @@ def test_crashing_run_is_one_error_and_costs_no_other_run(tmp_path, cluster, mon
     monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "4")
     campaign = smoke_file(tmp_path)
     clean = tmp_path / "clean"
-    assert invoke(campaign, "-o", clean, "--runs", 10, "-j", 2, "--no-progress").exit_code == 0
+    assert invoke_run(campaign, "-o", clean, "--runs", 10, "-j", 2, "--no-progress").exit_code == 0
     monkeypatch.setenv(TEST_CRASH_ENV, "6")
     out = tmp_path / "out"
-    result = invoke(campaign, "-o", out, "--runs", 10, "--backend", "dask", "--scheduler", cluster.scheduler_address)
+    on_dask = ("--backend", "dask", "--scheduler", cluster.scheduler_address)
+    result = invoke_run(campaign, "-o", out, "--runs", 10, *on_dask)
     assert result.exit_code == 1, result.output
     assert "runs with errors: 6" in result.stderr
-    table, reference = runs_table(out), runs_table(clean)
+    table, reference = read_runs(out), read_runs(clean)
     assert table.loc[6, "status"] == "error" and table.loc[6, "failure_reason"] == dask_backend.DIED
     others = table["run_id"] != 6
     pd.testing.assert_frame_equal(table[others], reference[others])
@@ -193,7 +182,7 @@ def test_crashing_run_is_one_error_and_costs_no_other_run(tmp_path, cluster, mon
 def test_missing_extra_is_bad_input_and_writes_nothing(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed raises ImportError
     out = tmp_path / "out"
-    result = invoke(smoke_file(tmp_path), "-o", out, "--backend", "dask", "--scheduler", "local:2")
+    result = invoke_run(smoke_file(tmp_path), "-o", out, "--backend", "dask", "--scheduler", "local:2")
     assert result.exit_code == 2, result.output
     assert "the dask backend needs the optional extra: pip install 'refexmc[dask]'" in result.output
     assert "Traceback" not in result.output and not out.exists()
@@ -213,7 +202,7 @@ def test_missing_extra_is_bad_input_and_writes_nothing(tmp_path, monkeypatch):
 def test_bad_backend_options_are_refused_before_anything_is_written(tmp_path, args, message):
     out = tmp_path / "out"
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
-        result = invoke(smoke_file(tmp_path), "-o", out, *args)
+        result = invoke_run(smoke_file(tmp_path), "-o", out, *args)
     assert result.exit_code == 2, result.output
     assert message in result.output and "Traceback" not in result.output
     assert not out.exists()

@@ -15,12 +15,11 @@ from pathlib import Path
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
-from click.testing import CliRunner
+from stored import campaign_copy, invoke_run, read_runs
 
 from refexmc.campaign import run as run_module
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import TEST_CRASH_ENV, TEST_HANG_ENV
-from refexmc.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 NOMINAL = ROOT / "campaigns/nominal.yaml"
@@ -29,19 +28,7 @@ SMOKE = ROOT / "campaigns/smoke.yaml"  # 20 dispersed runs (LHS): every row diff
 
 def campaign_file(tmp_path, runs, name="nominal.yaml", **extra):
     """campaigns/nominal.yaml with ``runs`` and extra top-level keys, config paths made absolute."""
-    text = NOMINAL.read_text().replace("../configs", str(ROOT / "configs")).replace("runs: 1\n", f"runs: {runs}\n")
-    text += "".join(f"{key}: {value}\n" for key, value in extra.items())
-    path = tmp_path / name
-    path.write_text(text)
-    return path
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, ["run", *map(str, args)])
-
-
-def runs_table(out):
-    return pq.read_table(Path(out) / "runs").to_pandas().sort_values("run_id", ignore_index=True)
+    return campaign_copy("nominal.yaml", tmp_path, name, [("runs: 1\n", f"runs: {runs}\n")], **extra)
 
 
 def snapshot(out):
@@ -57,10 +44,10 @@ def parts(out):
 def test_jobs_1_and_2_give_identical_tables(tmp_path, monkeypatch):
     monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "3")
     one, two = tmp_path / "j1", tmp_path / "j2"
-    assert invoke(SMOKE, "-o", one, "-j", 1, "--no-progress").exit_code == 0
-    assert invoke(SMOKE, "-o", two, "-j", 2, "--no-progress").exit_code == 0
+    assert invoke_run(SMOKE, "-o", one, "-j", 1, "--no-progress").exit_code == 0
+    assert invoke_run(SMOKE, "-o", two, "-j", 2, "--no-progress").exit_code == 0
     assert len(parts(one)) == 7  # 20 runs in chunks of 3
-    first, second = runs_table(one), runs_table(two)
+    first, second = read_runs(one), read_runs(two)
     assert len(first) == 20 and first["status"].eq("ok").all()
     assert first["fuel_remaining"].nunique() == 20  # dispersed: equal tables are not equal by accident
     pd.testing.assert_frame_equal(first, second)
@@ -90,7 +77,7 @@ def test_killed_campaign_resumes_to_the_uninterrupted_table(tmp_path):
         (out / folder / ".part-00079.parquet.tmp-99999").write_bytes(b"partial")
     mtimes = {name: (out / "runs" / name).stat().st_mtime_ns for name in done_before}
 
-    resumed = invoke(campaign, "-o", out, "--resume", "-j", 2, "--no-progress")
+    resumed = invoke_run(campaign, "-o", out, "--resume", "-j", 2, "--no-progress")
     assert resumed.exit_code == 0, resumed.output
     assert parts(out) == [f"part-{k:05d}.parquet" for k in range(80)]
     assert sorted(p.name for p in (out / "histories").iterdir()) == parts(out)
@@ -100,20 +87,20 @@ def test_killed_campaign_resumes_to_the_uninterrupted_table(tmp_path):
     assert manifest["status"] == "complete" and manifest["chunk_size"] == 5 and len(manifest["resumed"]) == 1
 
     reference = tmp_path / "reference"  # uninterrupted, default chunk size
-    assert invoke(campaign, "-o", reference, "--no-progress").exit_code == 0
-    table = runs_table(out)
+    assert invoke_run(campaign, "-o", reference, "--no-progress").exit_code == 0
+    table = read_runs(out)
     assert table["run_id"].tolist() == list(range(400))  # no run twice, none missing
-    pd.testing.assert_frame_equal(table, runs_table(reference))
+    pd.testing.assert_frame_equal(table, read_runs(reference))
 
 
 def test_resume_of_a_complete_output_recomputes_nothing(tmp_path, monkeypatch):
     monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "2")
     campaign = campaign_file(tmp_path, runs=5)
     out = tmp_path / "out"
-    assert invoke(campaign, "-o", out, "-j", 2, "--no-progress").exit_code == 0
+    assert invoke_run(campaign, "-o", out, "-j", 2, "--no-progress").exit_code == 0
     before = snapshot(out)
     assert len(parts(out)) == 3
-    resumed = invoke(campaign, "-o", out, "--resume", "--no-progress")
+    resumed = invoke_run(campaign, "-o", out, "--resume", "--no-progress")
     assert resumed.exit_code == 0, resumed.output
     after = snapshot(out)
     assert {k: v for k, v in after.items() if k.parts[0] in ("runs", "histories")} == {
@@ -130,13 +117,13 @@ def test_resume_of_a_complete_output_recomputes_nothing(tmp_path, monkeypatch):
 def test_resume_of_a_different_campaign_is_refused(tmp_path, change):
     campaign = campaign_file(tmp_path, runs=3)
     out = tmp_path / "out"
-    assert invoke(campaign, "-o", out, "--no-progress").exit_code == 0
+    assert invoke_run(campaign, "-o", out, "--no-progress").exit_code == 0
     before = snapshot(out)
     if change == ["other campaign file"]:
         other = campaign_file(tmp_path, runs=3, name="other.yaml", run_time_limit_s=30)
-        result = invoke(other, "-o", out, "--resume")
+        result = invoke_run(other, "-o", out, "--resume")
     else:
-        result = invoke(campaign, "-o", out, "--resume", *change)
+        result = invoke_run(campaign, "-o", out, "--resume", *change)
     assert result.exit_code == 2, result.output
     assert "different campaign" in result.output and "Traceback" not in result.output
     assert result.output.startswith("error: ") and len(result.output.strip().splitlines()) == 1
@@ -147,7 +134,7 @@ def test_resume_refuses_a_directory_that_is_not_an_output(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
-    result = invoke(campaign_file(tmp_path, runs=1), "-o", out, "--resume")
+    result = invoke_run(campaign_file(tmp_path, runs=1), "-o", out, "--resume")
     assert result.exit_code == 2 and "not a refexmc output directory" in result.output
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
 
@@ -155,9 +142,9 @@ def test_resume_refuses_a_directory_that_is_not_an_output(tmp_path):
 def test_existing_output_without_a_flag_is_refused_untouched(tmp_path):
     campaign = campaign_file(tmp_path, runs=2)
     out = tmp_path / "out"
-    assert invoke(campaign, "-o", out, "--no-progress").exit_code == 0
+    assert invoke_run(campaign, "-o", out, "--no-progress").exit_code == 0
     before = snapshot(out)
-    result = invoke(campaign, "-o", out)
+    result = invoke_run(campaign, "-o", out)
     assert result.exit_code == 2 and "exists" in result.output and "Traceback" not in result.output
     assert snapshot(out) == before
 
@@ -167,13 +154,13 @@ def test_hung_run_is_an_error_and_the_others_complete(tmp_path, monkeypatch):
     campaign = tmp_path / "smoke.yaml"
     campaign.write_text(SMOKE.read_text().replace("../configs", str(ROOT / "configs")) + "run_time_limit_s: 1\n")
     clean = tmp_path / "clean"
-    assert invoke(campaign, "-o", clean, "--runs", 8, "--no-progress").exit_code == 0
+    assert invoke_run(campaign, "-o", clean, "--runs", 8, "--no-progress").exit_code == 0
     monkeypatch.setenv(TEST_HANG_ENV, "5")
     out = tmp_path / "out"
-    result = invoke(campaign, "-o", out, "--runs", 8, "-j", 2, "--no-progress")
+    result = invoke_run(campaign, "-o", out, "--runs", 8, "-j", 2, "--no-progress")
     assert result.exit_code == 1, result.output
     assert "runs with errors: 5" in result.stderr
-    table, reference = runs_table(out), runs_table(clean)
+    table, reference = read_runs(out), read_runs(clean)
     assert list(table.columns) == list(reference.columns)  # p.<path> columns included
     hung, expected = table.loc[5], reference.loc[5]
     assert hung["status"] == "error" and hung["failure_reason"] == "wall-time limit exceeded (1 s)"
@@ -192,10 +179,10 @@ def test_crashing_run_costs_no_other_run(tmp_path, monkeypatch):
     monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "4")
     monkeypatch.setenv(TEST_CRASH_ENV, "6")
     out = tmp_path / "out"
-    result = invoke(campaign_file(tmp_path, runs=10), "-o", out, "-j", 2, "--no-progress")
+    result = invoke_run(campaign_file(tmp_path, runs=10), "-o", out, "-j", 2, "--no-progress")
     assert result.exit_code == 1, result.output
     assert "runs with errors: 6" in result.stderr
-    table = runs_table(out).set_index("run_id")
+    table = read_runs(out).set_index("run_id")
     assert table.loc[6, "status"] == "error"
     assert table.loc[6, "failure_reason"].startswith("worker process died during this run")
     assert (table.drop(index=6)["status"] == "ok").all() and len(table) == 10
@@ -203,11 +190,11 @@ def test_crashing_run_costs_no_other_run(tmp_path, monkeypatch):
 
 def test_default_campaign_and_output(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    result = invoke("--runs", 2, "--no-progress")
+    result = invoke_run("--runs", 2, "--no-progress")
     assert result.exit_code == 0, result.output
-    assert len(runs_table(tmp_path / "runs" / "refex-mc100")) == 2
+    assert len(read_runs(tmp_path / "runs" / "refex-mc100")) == 2
     monkeypatch.setattr(run_module, "DEFAULT_CAMPAIGN", tmp_path / "campaigns" / "refex-mc100.yaml")
-    missing = invoke("--runs", 2)
+    missing = invoke_run("--runs", 2)
     assert missing.exit_code == 2
     assert "default campaign is missing" in missing.output and "Traceback" not in missing.output
 
@@ -218,16 +205,16 @@ def test_default_campaign_and_output(tmp_path, monkeypatch):
 )
 def test_bad_run_options(tmp_path, args, message):
     out = tmp_path / "out"
-    result = invoke(campaign_file(tmp_path, runs=1), "-o", out, *args)
+    result = invoke_run(campaign_file(tmp_path, runs=1), "-o", out, *args)
     assert result.exit_code == 2 and message in result.output and "Traceback" not in result.output
     assert not out.exists()
 
 
 def test_progress_lines_and_silence(tmp_path):
     campaign = campaign_file(tmp_path, runs=2)
-    loud = invoke(campaign, "-o", tmp_path / "loud")
+    loud = invoke_run(campaign, "-o", tmp_path / "loud")
     assert loud.exit_code == 0 and "2/2 runs" in loud.stderr  # stderr is no terminal here: plain lines
-    quiet = invoke(campaign, "-o", tmp_path / "quiet", "--no-progress")
+    quiet = invoke_run(campaign, "-o", tmp_path / "quiet", "--no-progress")
     assert quiet.exit_code == 0 and quiet.stderr == ""
 
 
