@@ -41,7 +41,9 @@ def pwpf_pulse(f_abs, tau_max, t_on, t_off):
 
 
 # Time comparisons as in exact arithmetic: times are step * dt in float64, so a difference of
-# two of them is off the ideal value by ~1e-15 s; 1 ns is far below any control period.
+# two of them is off the ideal value by ~1e-15 s; 1 ns is far below any control period. A pulse
+# (rest) lasts while less than its duration has passed: on the sample grid it is at least as long
+# as eq. 47 (48) asks, and exactly that long when the duration is a whole number of samples.
 TIME_EPS = 1e-9
 
 
@@ -49,8 +51,9 @@ class NaivePWPF:
     """One axis of the Kienitz-Bals modulator with the delay correction (000 eq. 47-48).
 
     ``t_s_on`` / ``t_s_off`` are the times of the last pulse start / end (None: never). At
-    saturation eq. 45 gives an endless pulse, started after the limiting rest t_off + delta gamma. The "<=" of
-    eq. 47-48 is evaluated as in exact arithmetic (``TIME_EPS``).
+    saturation eq. 45 gives an endless pulse, started after the limiting rest t_off + delta gamma. Eq. 47-48
+    keep w while less than gamma - delta gamma (T - gamma + delta gamma) has passed, compared as in
+    exact arithmetic (``TIME_EPS``).
     """
 
     def __init__(self, tau_max, tau_min_fraction, t_on, t_off, correction):
@@ -74,13 +77,13 @@ class NaivePWPF:
                 if self.firing or self.t_s_off is None:
                     w = sign
                 else:
-                    w = 0 if t - self.t_s_off <= self.t_off + self.correction + TIME_EPS else sign
+                    w = 0 if t - self.t_s_off < self.t_off + self.correction - TIME_EPS else sign
             elif self.firing:  # eq. 47
-                w = sign if t - self.t_s_on <= gamma - self.correction + TIME_EPS else 0
+                w = sign if t - self.t_s_on < gamma - self.correction - TIME_EPS else 0
             elif self.t_s_off is None:  # never fired: nothing to rest from
                 w = sign
             else:  # eq. 48
-                w = 0 if t - self.t_s_off <= period - (gamma - self.correction) + TIME_EPS else sign
+                w = 0 if t - self.t_s_off < period - (gamma - self.correction) - TIME_EPS else sign
         if self.firing and w == 0:
             self.firing = False
             self.t_s_off = t

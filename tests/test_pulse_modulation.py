@@ -153,8 +153,8 @@ FRACTIONS = [0.06, 0.13, 0.2, 0.375, 0.6, 0.8, 0.95]
 def test_average_torque_tracks_command_at_fine_rate(fraction):
     """Ideal valves, delta gamma = 0: the mean of tau_max |w| approaches |f| (000 eq. 41).
 
-    With samples dt apart, eq. 47 keeps w on while t - t_s_on <= gamma: the pulse lasts
-    gamma + e1, e1 in (0, dt]; eq. 48 keeps it off for T - gamma + e2, e2 in (0, dt]. Hence
+    With samples dt apart, eq. 47 keeps w on while t - t_s_on < gamma: the pulse lasts
+    gamma + e1, e1 in [0, dt); eq. 48 keeps it off for T - gamma + e2, e2 in [0, dt). Hence
     |duty - gamma/T| = |e1 (T - gamma) - gamma e2| / (T (T + e1 + e2)) <= dt max(T - gamma, gamma) / T^2.
     Relative to f = gamma/T that is dt max(T - gamma, gamma) / (T gamma), largest at
     gamma = t_on, T = t_on + t_off: 3.5 % at 1 kHz, 1.75 % at 2 kHz. So the 2 % tracking
@@ -184,21 +184,21 @@ def test_pulse_timing_at_40_hz_with_correction(fraction):
     """At 40 Hz with t_on = 75 ms, t_off = 125 ms, delta gamma = 50 ms (000 sec. 5):
 
     by the same argument as above, every commanded pulse lasts (gamma - delta gamma) + e1 and
-    every rest (T - gamma + delta gamma) + e2 with e1, e2 in (0, 25 ms]. So a command valve
+    every rest (T - gamma + delta gamma) + e2 with e1, e2 in [0, 25 ms). So a command valve
     pulse is never shorter than 25 ms nor a rest shorter than 175 ms: the modulator alone keeps
     the hardware limits for a constant command. The command duration is quantised up to whole
-    control periods (on average ~dt/2 longer than gamma - delta gamma); 000 sec. 5 tuned the
-    50 ms correction at 40 Hz, i.e. with this quantisation.
+    control periods; at f_min (gamma = t_on) it is exactly the 25 ms hardware pulse and the rest
+    exactly 175 ms, both restrictions met with equality (000 sec. 5's design point).
     """
     gamma, period = pwpf_pulse(fraction, 1.0, T_ON, T_OFF)
     w = run_axis(np.full(int((10 * period + 1.0) / DT), fraction), DT, 1.0, TAU_MIN_FRACTION, T_ON, T_OFF, CORRECTION)
     found = pulses(w, DT)
     assert len(found) >= 8
     for _, on, rest in found:
-        assert gamma - CORRECTION - SLACK <= on <= gamma - CORRECTION + DT + SLACK
+        assert gamma - CORRECTION - SLACK <= on < gamma - CORRECTION + DT - SLACK
         assert on >= HW_ON - SLACK
         if rest is not None:
-            assert period - gamma + CORRECTION - SLACK <= rest <= period - gamma + CORRECTION + DT + SLACK
+            assert period - gamma + CORRECTION - SLACK <= rest < period - gamma + CORRECTION + DT - SLACK
             assert rest >= HW_OFF - SLACK
 
 
@@ -206,15 +206,15 @@ def test_pulse_timing_at_40_hz_with_correction(fraction):
 @pytest.mark.parametrize("first_step", [0, 1, 7, 1000, 4567])
 def test_pulse_quantisation_does_not_depend_on_roundoff(fraction, first_step):
     """At 40 Hz gamma - delta gamma (0.36: 25 ms) and T - gamma + delta gamma (0.5: 175 ms) are
-    whole control periods, so eq. 47-48's "<=" compares equal times. Evaluated as written
-    (exact arithmetic), w stays on for the samples with t - t_s_on <= gamma - delta gamma, i.e.
-    dt (floor((gamma - delta gamma) / dt) + 1), and likewise off; the same for every pulse,
-    wherever the train starts on the time grid. A comparison decided by the ~1e-15 s roundoff of
-    k dt - j dt mixes durations one period apart from pulse to pulse.
+    whole control periods, so eq. 47-48 compare equal times. As in exact arithmetic, w stays on
+    for the samples with t - t_s_on < gamma - delta gamma, i.e. dt ceil((gamma - delta gamma) / dt):
+    exactly 25 ms, and likewise off (175 ms); the same for every pulse, wherever the train starts
+    on the time grid. A comparison decided by the ~1e-15 s roundoff of k dt - j dt mixes durations
+    one period apart from pulse to pulse.
     """
 
     def sampled(target):
-        return DT * (math.floor(target / DT + 1e-6) + 1)
+        return DT * math.ceil(target / DT - 1e-6)
 
     gamma, period = pwpf_pulse(fraction, 1.0, T_ON, T_OFF)
     state = new_state()

@@ -10,8 +10,12 @@ P_T_OFF = 1  # time the axis last ended a pulse
 P_OUTPUT = 2  # last output w in {-1, 0, 1}
 PWPF_STATE_SIZE = 3
 _NEVER = -1.0e9
-# Times are step * dt, so t - t_s carries ~1e-15 s of roundoff; at 40 Hz the bounds of eq. 47-48
-# are often whole control periods, and the "<=" must not be decided by that roundoff.
+# Eq. 47-48 on the control grid: a pulse lasts the fewest whole periods that make it at least
+# gamma - delta gamma, a rest at least T - gamma + delta gamma. At f_min that is exactly the 25 ms
+# hardware pulse and 175 ms rest, where 000 sec. 5 wants both restrictions met with equality
+# (reading "<=" literally at 40 Hz adds a period to each: 50 ms pulses, 200 ms rests; docs/model.md).
+# Times are step * dt, so t - t_s carries ~1e-15 s of roundoff; at 40 Hz the bounds are often whole
+# control periods, and the comparison must not be decided by that roundoff.
 _EPS_T = 1e-9
 
 
@@ -61,13 +65,13 @@ def modulate(state, axis, torque_cmd, torque_max, tau_min_fraction, t_on, t_off,
             if firing:
                 w = sign
             else:
-                w = 0.0 if t - state[axis, P_T_OFF] <= t_off + correction + _EPS_T else sign
+                w = 0.0 if t - state[axis, P_T_OFF] < t_off + correction - _EPS_T else sign
         else:
             gamma, period = pulse_timing(f_abs, torque_max, t_on, t_off)
             if firing:
-                w = sign if t - state[axis, P_T_ON] <= gamma - correction + _EPS_T else 0.0  # eq. 47
+                w = sign if t - state[axis, P_T_ON] < gamma - correction - _EPS_T else 0.0  # eq. 47
             else:
-                w = 0.0 if t - state[axis, P_T_OFF] <= period - (gamma - correction) + _EPS_T else sign  # eq. 48
+                w = 0.0 if t - state[axis, P_T_OFF] < period - (gamma - correction) - _EPS_T else sign  # eq. 48
     if firing and w == 0.0:
         state[axis, P_T_OFF] = t
     elif not firing and w != 0.0:
