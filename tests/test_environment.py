@@ -244,3 +244,66 @@ def test_aerodynamic_torque_is_q_s_l_cm(inputs):
     np.testing.assert_allclose(out, 1000.0 * s * length * np.array([1e-4, -1e-3, 2e-3]), rtol=1e-15)
     # reference-model sec. 5: c_m = 1e-3 at q = 1 kPa gives 2.7 N m
     assert out[1] == pytest.approx(-2.7, rel=1e-15)
+
+
+# --- the flight software's prediction of the velocity at the EAM exit ----------------------------
+
+
+def _vacuum_exit_pitch(mission, state, exit_altitude):
+    """Velocity pitch at the descending crossing of ``exit_altitude``: DOP853 on two-body gravity
+    alone (the prediction's model) with an event on the altitude."""
+    radius, mu = mission[L.M_EARTH_RADIUS], mission[L.M_EARTH_MU]
+    centre = radius + mission[L.M_SEP_ALTITUDE]
+
+    def rhs(_, y):
+        rx, rz = y[0], y[1] - centre
+        g = -mu / np.hypot(rx, rz) ** 3
+        return [y[2], y[3], g * rx, g * rz]
+
+    def crossing(_, y):
+        return np.hypot(y[0], y[1] - centre) - radius - exit_altitude
+
+    crossing.terminal, crossing.direction = True, -1
+    sol = solve_ivp(rhs, (0.0, 3000.0), state, method="DOP853", rtol=1e-13, atol=1e-9, events=crossing)
+    y = sol.y_events[0][0]
+    return math.atan2(-y[3], y[2])
+
+
+@pytest.mark.parametrize("t_now", [0.0, 60.0, 100.0, 150.0, 175.0, 200.0])
+def test_predicted_exit_velocity_is_the_two_body_conic(inputs, rk4_trajectory, t_now):
+    """From any state of the nominal trajectory (ascending, at apogee, descending), the closed-form
+    prediction equals DOP853 on the same drag-free equations to 1e-9 rad (the integrator's
+    tolerance; the closed form itself is exact to rounding)."""
+    state = rk4_trajectory[1][int(round(t_now / DT))]
+    exit_altitude = inputs.mission[L.M_EAM_EXIT_ALTITUDE]
+    predicted = environment.predicted_velocity_pitch(inputs.mission, state, exit_altitude)
+    assert predicted == pytest.approx(_vacuum_exit_pitch(inputs.mission, state, exit_altitude), abs=1e-9)
+
+
+def test_predicted_exit_velocity_against_the_flown_trajectory(inputs, rk4_trajectory):
+    """From 100 km descending (about EAM start) the prediction misses the velocity the vehicle really
+    has at 70 km (drag included) by 0.007 deg: drag barely turns the velocity up there. 0.05 deg
+    bounds that plus the one control step (~0.01 deg of turn) that the first sample below 70 km may
+    lie past the crossing; GEEM's first reference step may be 2 deg (reference-model sec. 4)."""
+    exit_altitude = inputs.mission[L.M_EAM_EXIT_ALTITUDE]
+    states = rk4_trajectory[1]
+    altitudes = np.array([environment.altitude(inputs.mission, s) for s in states])
+    climbs = np.array([environment.climb_rate(inputs.mission, s) for s in states])
+    start = np.flatnonzero((altitudes < 100e3) & (climbs < 0.0))[0]
+    exit_index = np.flatnonzero((altitudes < exit_altitude) & (climbs < 0.0))[0]
+    predicted = environment.predicted_velocity_pitch(inputs.mission, states[start], exit_altitude)
+    flown = environment.velocity_pitch(states[exit_index])
+    assert abs(math.degrees(predicted - flown)) < 0.05
+    # the velocity turns by about 10 deg between EAM start and exit: the prediction matters
+    assert abs(math.degrees(environment.velocity_pitch(states[start]) - flown)) > 5.0
+
+
+def test_prediction_falls_back_to_the_current_velocity(inputs, rk4_trajectory):
+    """Below the exit altitude already, or on a conic that never comes down to it: no prediction."""
+    low = rk4_trajectory[1][-1]
+    assert environment.altitude(inputs.mission, low) < 70e3
+    assert environment.predicted_velocity_pitch(inputs.mission, low, 70e3) == environment.velocity_pitch(low)
+    orbit = inputs.mission.copy()
+    state = np.array([0.0, 0.0, 9000.0, 0.0])  # faster than circular at 85 km: perigee stays there
+    orbit[L.M_SEP_ALTITUDE] = 85e3
+    assert environment.predicted_velocity_pitch(orbit, state, 70e3) == environment.velocity_pitch(state)

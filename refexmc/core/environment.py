@@ -137,6 +137,40 @@ def velocity_pitch(state):
 
 
 @jit_noalloc
+def predicted_velocity_pitch(mission, state, exit_altitude):
+    """:func:`velocity_pitch` the vehicle will have descending through ``exit_altitude``.
+
+    The flight software's trajectory model: the navigated state on a two-body (drag-free) conic,
+    in closed form. Angular momentum h = r v_t and energy give speed and radial speed at the
+    exit radius; the true anomaly follows from e cos(nu) = h^2/(mu r) - 1, e sin(nu) = v_r h/mu;
+    the velocity turns by the change of flight-path angle minus the central angle travelled.
+    Returns the current direction when the vehicle is already below ``exit_altitude`` or its
+    conic never descends to it.
+    """
+    rx, rz, r = radial(mission, state)
+    vx, vz = state[2], state[3]
+    mu = mission[M_EARTH_MU]
+    pitch_now = math.atan2(-vz, vx)
+    r_exit = mission[M_EARTH_RADIUS] + exit_altitude
+    h = abs(rx * vz - rz * vx)  # specific angular momentum, motion in the x-z plane
+    v_radial = (rx * vx + rz * vz) / r
+    speed2_exit = vx * vx + vz * vz + 2.0 * mu * (1.0 / r_exit - 1.0 / r)
+    v_transverse_exit = h / r_exit
+    radial2_exit = speed2_exit - v_transverse_exit * v_transverse_exit
+    if r <= r_exit or radial2_exit <= 0.0:
+        return pitch_now
+    v_radial_exit = -math.sqrt(radial2_exit)  # descending branch
+    anomaly_now = math.atan2(v_radial * h / mu, h * h / (mu * r) - 1.0)
+    anomaly_exit = math.atan2(v_radial_exit * h / mu, h * h / (mu * r_exit) - 1.0)
+    travelled = anomaly_exit - anomaly_now
+    if travelled < 0.0:
+        travelled += 2.0 * math.pi
+    gamma_now = math.atan2(v_radial, h / r)
+    gamma_exit = math.atan2(v_radial_exit, v_transverse_exit)
+    return pitch_now + (gamma_exit - gamma_now) - travelled
+
+
+@jit_noalloc
 def velocity_pitch_rate(mission, vehicle, atmosphere, state):
     """Time derivative of :func:`velocity_pitch` (rad/s)."""
     ax, az = acceleration(mission, vehicle, atmosphere, state)

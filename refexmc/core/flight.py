@@ -59,6 +59,7 @@ from refexmc.core.layout import (
     M_EAM_ALPHA,
     M_EAM_BANK,
     M_EAM_BETA,
+    M_EAM_EXIT_ALTITUDE,
     M_EAM_T1_DESIGN,
     M_HANDOVER_ANGLE,
     M_MAX_STEP,
@@ -356,7 +357,10 @@ def _fly(
         elif mode == MODE_RDM2:
             if modes.rdm2_done(mission, time_in_mode):
                 mode = MODE_EAM
-                guidance.entry_attitude_from(environment.velocity_pitch(traj), aero_rotations, q_final, work24)
+                # the entry attitude to the velocity predicted at the EAM exit, held inertially
+                # (reference-model sec. 4); GEEM then tracks the current velocity
+                exit_pitch = environment.predicted_velocity_pitch(mission, traj, mission[M_EAM_EXIT_ALTITUDE])
+                guidance.entry_attitude_from(exit_pitch, aero_rotations, q_final, work24)
                 guidance.start_slerp(guid, t, q_meas, q_final, accel_high, mission[M_EAM_T1_DESIGN], tmp4)
         elif mode == MODE_EAM:
             if modes.eam_done(mission, altitude):
