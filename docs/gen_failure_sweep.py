@@ -44,59 +44,73 @@ def _number(value, fmt):
     return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, fmt)
 
 
+def completes(row):
+    return row["status"] == "ok" and bool(row["success"])
+
+
 def table(campaign, rows):
-    """Markdown table: one line per run, with 000 Table 4's verdict and whether the two agree."""
-    propellant_kg = campaign["vehicle"]["rcs"]["propellant_kg"]
+    """Markdown table: one line per run, with 000 Table 4's verdict and whether the two agree.
+
+    The campaign's tank is large so that no run ends for want of propellant; the last columns say
+    whether the propellant a run used fits the vehicle file's tank.
+    """
+    tank_kg = campaign["vehicle"]["rcs"]["propellant_kg"]
     lines = [
         "| run | failed thrusters | 000 Table 4 | completes | failure reason | modes completed "
-        "| propellant remaining [%] | propellant remaining [kg] | t_end [s] | hand-over angle error [deg] | agrees |",
-        "|---:|---|---|---|---|---:|---:|---:|---:|---:|---|",
+        f"| t_end [s] | hand-over angle error [deg] | agrees | propellant used [kg] | fits the {tank_kg:g} kg tank |",
+        "|---:|---|---|---|---|---:|---:|---:|---|---:|---|",
     ]
     for row in rows:
         failed = failed_set(row)
-        completes = row["status"] == "ok" and bool(row["success"])
+        done = completes(row)
         if failed:
             expected = failed in TABLE_4
             verdict = "compensable" if expected else "not compensable"
-            agrees = "yes" if completes == expected else "**no**"
+            agrees = "yes" if done == expected else "**no**"
         else:
             verdict, agrees = "— (nominal)", "—"
-        remaining = row["fuel_remaining"]
+        used = row["fuel_used_kg"]
         cells = (
             str(row["run_id"]),
             f"[{', '.join(map(str, failed))}]" if failed else "none",
             verdict,
-            "yes" if completes else "no",
+            "yes" if done else "no",
             row["failure_reason"] or "—",
             str(row["modes_completed"]),
-            _number(100.0 * remaining, ".1f"),
-            _number(remaining * propellant_kg, ".3f"),
             _number(row["t_end_s"], ".1f"),
             _number(row["theta_t_handover_deg"], ".3f"),
             agrees,
+            _number(used, ".3f"),
+            ("yes" if used <= tank_kg else "**no**") if done else "—",
         )
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
-def summary(rows):
-    """Agreement with 000 Table 4, and the sets that complete, as markdown lines."""
-    sets = [(failed_set(r), r["status"] == "ok" and bool(r["success"])) for r in rows if r["failed_thrusters"]]
-    agree = sum(completes == (failed in TABLE_4) for failed, completes in sets)
-    complete = [failed for failed, completes in sets if completes]
+def _names(group):
+    return ", ".join(f"[{', '.join(map(str, s))}]" for s in group) or "none"
+
+
+def summary(campaign, rows):
+    """Agreement with 000 Table 4, the sets that complete, and those the tank does not cover."""
+    tank_kg = campaign["vehicle"]["rcs"]["propellant_kg"]
+    sets = [(failed_set(r), completes(r), r["fuel_used_kg"]) for r in rows if r["failed_thrusters"]]
+    agree = sum(done == (failed in TABLE_4) for failed, done, _ in sets)
+    complete = [failed for failed, done, _ in sets if done]
+    short = [(failed, used) for failed, done, used in sets if done and used > tank_kg]
     nominal = [r for r in rows if not r["failed_thrusters"]]
-
-    def names(group):
-        return ", ".join(f"[{', '.join(map(str, s))}]" for s in group) or "none"
-
     lines = [
         f"- Agreement with 000 Table 4: **{agree} of {len(sets)}** failure sets.",
-        f"- Sets that complete ({len(complete)}): {names(complete)}.",
-        f"- Sets that fail ({len(sets) - len(complete)}): {names([s for s, c in sets if not c])}.",
+        f"- Sets that complete ({len(complete)}): {_names(complete)}.",
+        f"- Sets that fail ({len(sets) - len(complete)}): {_names([s for s, done, _ in sets if not done])}.",
+        f"- Completing sets that need more than the vehicle's {tank_kg:g} kg tank ({len(short)}): "
+        + (", ".join(f"[{', '.join(map(str, s))}] {used:.3f} kg" for s, used in short) or "none")
+        + ".",
     ]
     if nominal:
-        ok = nominal[0]["status"] == "ok" and bool(nominal[0]["success"])
-        lines.insert(0, f"- Nominal run (no failure): {'completes' if ok else 'does NOT complete'}.")
+        used = nominal[0]["fuel_used_kg"]
+        state = "completes" if completes(nominal[0]) else "does NOT complete"
+        lines.insert(0, f"- Nominal run (no failure): {state}, {used:.3f} kg used.")
     return "\n".join(lines) + "\n"
 
 
@@ -122,7 +136,7 @@ def provenance():
 
 def generate(campaign_file=CAMPAIGN):
     campaign, rows = fly_sweep(campaign_file)
-    return f"{provenance()}\n\n{table(campaign, rows)}\n{summary(rows)}"
+    return f"{provenance()}\n\n{table(campaign, rows)}\n{summary(campaign, rows)}"
 
 
 def main(argv):

@@ -245,17 +245,23 @@ def inspect(file, as_json):
 
 
 def format_design(name, info):
+    from refexmc.config.derived import CORRECTION_WARNING_MS, LEVELS
+
     def vec(values, fmt):
         return "  ".join(format(v, fmt) for v in values)
 
     lines = [f"vehicle {name}", f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}"]
     lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
-    for level in ("low", "high"):
+    for level in LEVELS:
         lines.append(f"  {level} thrust")
         lines.append(f"    omega_dot_max [rad/s^2]     {vec(info['omega_dot_max_rad_s2'][level], '8.4f')}")
         lines.append(f"    tau_max [N m]               {vec(info['torque_max_n_m'][level], '8.3f')}")
         lines.append(f"    Kp                          {vec(info['gains'][level]['kp'], '8.3f')}")
         lines.append(f"    Kd                          {vec(info['gains'][level]['kd'], '8.3f')}")
+        lines.append(
+            f"    valves: a {info['hardware_min_on_ms']:g} ms pulse gives {info['pulse_equivalent_ms'][level]:.2f} ms "
+            f"of full thrust; impulse-matching correction {info['pulse_correction_matching_ms'][level]:.2f} ms"
+        )
     lines.append(
         f"  PWPF: t_on {info['pwpf_t_on_ms']:g} ms, t_off {info['pwpf_t_off_ms']:g} ms, "
         f"correction {info['pwpf_correction_ms']:g} ms, tau_min {100 * info['tau_min_fraction']:.1f} %, "
@@ -265,6 +271,14 @@ def format_design(name, info):
         f"  hardware switching limits: min pulse {info['hardware_min_on_ms']:g} ms, "
         f"min rest {info['hardware_min_off_ms']:g} ms"
     )
+    for level in LEVELS:
+        matching = info["pulse_correction_matching_ms"][level]
+        if abs(info["pwpf_correction_ms"] - matching) > CORRECTION_WARNING_MS:
+            lines.append(
+                f"  WARNING: the PWPF correction {info['pwpf_correction_ms']:g} ms differs from the {level}-thrust "
+                f"impulse-matching correction {matching:.2f} ms by more than {CORRECTION_WARNING_MS:g} ms "
+                "(000 sec. 5: the pulses then deliver a different impulse than the modulator assumes)"
+            )
     lines.append("  allocation (axis command -> thrusters):")
     for key, ids in info["allocation"].items():
         lines.append(f"    {key:8s} {', '.join(map(str, ids))}")

@@ -41,6 +41,29 @@ def test_inspect_json_reproduces_the_paper():
     assert info["allocation"]["+y-z"] == [1, 2, 5, 7]
 
 
+def test_inspect_gives_the_valve_pulse_quantities_and_warns_on_a_mismatched_correction():
+    """Per thrust level the full-thrust width of the 25 ms hardware pulse (~75 ms) and the
+    impulse-matching correction (~50 ms) with the 45 ms fall; with 000 Table 2's fall the matching
+    correction is ~100 ms and the text warns that the configured 50 ms does not match it."""
+    info = json.loads(CliRunner().invoke(main, ["inspect", str(VEHICLE), "--json"]).output)
+    for level in ("low", "high"):
+        assert abs(info["pulse_equivalent_ms"][level] - 75.0) <= 5.0
+        assert abs(info["pulse_correction_matching_ms"][level] - 50.0) <= 5.0
+    text = CliRunner().invoke(main, ["inspect", str(VEHICLE)]).output
+    assert "WARNING" not in text
+    for level in ("low", "high"):
+        assert f"impulse-matching correction {info['pulse_correction_matching_ms'][level]:.2f} ms" in text
+    table2 = VEHICLE.with_name("refex-table2-fall.yaml")
+    variant = CliRunner().invoke(main, ["inspect", str(table2)])
+    assert variant.exit_code == 0
+    matching = json.loads(CliRunner().invoke(main, ["inspect", str(table2), "--json"]).output)
+    warnings = [line for line in variant.output.splitlines() if "WARNING" in line]
+    assert len(warnings) == 2
+    for line, level in zip(warnings, ("low", "high"), strict=True):
+        value = matching["pulse_correction_matching_ms"][level]
+        assert f"{level}-thrust impulse-matching correction {value:.2f} ms" in line
+
+
 def test_inspect_text_and_campaign_input():
     result = CliRunner().invoke(main, ["inspect", str(NOMINAL)])
     assert result.exit_code == 0, result.output

@@ -8,11 +8,14 @@ tightly (1e-12 relative: the same few float64 operations in another order).
 
 import copy
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+from naive import ValveTimes, thrust_impulse, valve_knots
 
 from refexmc.config import derived
+from refexmc.config.load import load_vehicle
 from refexmc.config.pack import pack_fsw
 from refexmc.core import layout as L
 
@@ -24,6 +27,7 @@ TABLE_1 = {  # 000 Table 1, per body axis x, y, z
 }
 LEVER_ARMS = (0.171, 1.05, 1.05)  # m, reference-model sec. 2
 TIGHT = 1e-12
+CONFIGS = Path(__file__).resolve().parents[1] / "configs" / "vehicles"
 
 
 def half_unit(printed):
@@ -162,3 +166,64 @@ def test_f_min_follows_algorithm_constants(vehicle_config):
     changed["flight_software"]["pwpf"]["t_on_ms"] = 25.0
     changed["flight_software"]["pwpf"]["t_off_ms"] = 175.0
     assert derived.f_min_fraction(changed) == pytest.approx(0.125, rel=1e-15)
+
+
+# --- what the valve transients make of a pulse (000 sec. 5, Fig. 6) ------------------------------
+
+
+def _naive_equivalent_ms(vehicle, level, width_ms):
+    """Full-thrust width of a command ``width_ms`` long: the exact integral of the naive valve
+    profile (tests/naive.py, written from 000 Fig. 6), in ms."""
+    c = vehicle["rcs"]["valve_time_constants_ms"][level]
+    times = ValveTimes(c["on_delay"] / 1e3, c["rise"] / 1e3, c["off_delay"] / 1e3, c["fall"] / 1e3)
+    knots = valve_knots([(0.0, True), (width_ms / 1e3, False)], times)
+    impulse, _ = thrust_impulse([knots], 1.0, (1.0,), 0.0, 2.0)
+    return 1e3 * impulse
+
+
+@pytest.mark.parametrize("level", derived.LEVELS)
+def test_pulse_equivalent_and_matching_correction_are_the_integral_of_the_ramps(vehicle_config, level):
+    """The 25 ms hardware pulse gives ~75 ms of full thrust and the impulse-matching correction is
+    ~50 ms at both levels with the 45 ms fall (000 sec. 2.1, 5; reference-model sec. 2).
+
+    Both are compared with the exact trapezoid integral of the naive profile (rounding only: 1e-9
+    ms); the correction is what a long pulse delivers beyond its command, for any width."""
+    equivalent = derived.pulse_equivalent_ms(vehicle_config, level)
+    matching = derived.pulse_correction_matching_ms(vehicle_config, level)
+    min_on = vehicle_config["rcs"]["switching_limits_ms"]["min_on"]
+    assert equivalent == pytest.approx(_naive_equivalent_ms(vehicle_config, level, min_on), abs=1e-9)
+    for width_ms in (50.0, 175.0, 400.0):
+        beyond = _naive_equivalent_ms(vehicle_config, level, width_ms) - width_ms
+        assert matching == pytest.approx(beyond, abs=1e-9)
+    assert abs(matching - 50.0) <= 5.0  # 000 sec. 5: delta gamma = 50 ms matches "for both"
+    assert abs(equivalent - 75.0) <= 5.0  # the algorithm's shifted t_on = 75 ms
+    assert abs(matching - vehicle_config["flight_software"]["pwpf"]["correction_ms"]) <= derived.CORRECTION_WARNING_MS
+
+
+def test_pulse_impulse_covers_interrupted_and_cancelled_pulses():
+    """A close that reacts mid-rise falls from the level reached; one that reacts before the open
+    reaction cancels the pulse (reference-model sec. 2; the naive profile, to rounding)."""
+    slow = {"on_delay": 19.1, "rise": 60.0, "off_delay": 10.0, "fall": 45.0}
+    vehicle = {"rcs": {"valve_time_constants_ms": {"low": slow}}}
+    for width_ms in (0.0, 5.0, 9.1, 25.0, 40.0, 69.1, 100.0):
+        got = derived.pulse_impulse_ms(width_ms, *derived.valve_constants(vehicle, "low"))
+        assert got == pytest.approx(_naive_equivalent_ms(vehicle, "low", width_ms), abs=1e-9), width_ms
+    assert derived.pulse_impulse_ms(5.0, *derived.valve_constants(vehicle, "low")) == 0.0
+
+
+def test_table2_fall_variant_differs_only_in_the_fall(vehicle_config):
+    """configs/vehicles/refex-table2-fall.yaml is refex.yaml with 000 Table 2's fall times, so a
+    sensitivity study flies the same vehicle otherwise."""
+    variant = load_vehicle(CONFIGS / "refex-table2-fall.yaml")
+    assert {lv: variant["rcs"]["valve_time_constants_ms"][lv]["fall"] for lv in derived.LEVELS} == {
+        "low": 145.7,
+        "high": 139.0,
+    }  # 000 Table 2
+    same = copy.deepcopy(variant)
+    for lv in derived.LEVELS:
+        reference = vehicle_config["rcs"]["valve_time_constants_ms"][lv]["fall"]
+        same["rcs"]["valve_time_constants_ms"][lv]["fall"] = reference
+    same["name"] = vehicle_config["name"]
+    assert same == vehicle_config
+    for lv in derived.LEVELS:  # its matching correction is ~100 ms: far from the PWPF's 50 ms
+        assert derived.pulse_correction_matching_ms(variant, lv) > 90.0

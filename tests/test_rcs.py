@@ -19,7 +19,10 @@ from refexmc.core import layout, rcs
 REL = 1e-12  # both sides are exact piecewise-linear integrals; only rounding separates them
 DT = 0.025  # control period, 000 sec. 5 (40 Hz)
 DERATING = (1.00, 0.91, 0.73, 0.65)  # 000 sec. 2.1
-TABLE_2 = {  # 000 Table 2, mean time constants in s
+# 000 Table 2, mean time constants in s, its fall included (the vehicle file's fall is 45 ms,
+# 000 sec. 2.1): tests set them on the thrusters explicitly (set_times), the longer falls make
+# more interrupted transients
+TABLE_2 = {
     rcs.LEVEL_LOW: ValveTimes(0.0191, 0.0045, 0.0516, 0.1457),
     rcs.LEVEL_HIGH: ValveTimes(0.0256, 0.0053, 0.0530, 0.1390),
 }
@@ -103,6 +106,7 @@ def test_single_pulse_impulse_is_analytic(vehicle, thrusters, thrust_level, clos
     c = TABLE_2[thrust_level]
     t1 = close_step * DT
     commands = {0: [(6, True)], close_step: [(6, False)]}
+    thrusters = set_times(thrusters, thrust_level, c)
     impulse, angular, _, _ = fly_valves(thrusters, vehicle, commands, 0.5, thrust_level)
     force = nominal_thrust(vehicle, thrust_level)
     expected = force * (t1 + c.off_delay + 0.5 * c.fall - c.on_delay - 0.5 * c.rise)
@@ -187,7 +191,8 @@ streams = st.lists(
 @settings(deadline=None, max_examples=40)
 @given(streams, st.sampled_from([rcs.LEVEL_LOW, rcs.LEVEL_HIGH]))
 def test_random_command_streams_match_naive(inputs, toggles, thrust_level):
-    vehicle, thrusters = inputs.vehicle, inputs.thrusters
+    vehicle = inputs.vehicle
+    thrusters = set_times(inputs.thrusters, thrust_level, TABLE_2[thrust_level])
     commands = {}
     for i, row in enumerate(toggles):
         is_open = False

@@ -1,6 +1,7 @@
 """Design quantities derived from the nominal vehicle config, never typed in.
 
-omega_dot_max (000 eq. 1), tau_max, gains (eq. 38, 34), f_min (eq. 44), the allocation table.
+omega_dot_max (000 eq. 1), tau_max, gains (eq. 38, 34), f_min (eq. 44), the allocation table,
+and what the valve transients make of a pulse (000 sec. 5, Fig. 6, Table 2).
 """
 
 import itertools
@@ -55,6 +56,44 @@ def f_min_fraction(vehicle):
     return pwpf["t_on_ms"] / (pwpf["t_on_ms"] + pwpf["t_off_ms"])
 
 
+# inspect warns when the configured PWPF correction is this far from the impulse-matching one
+CORRECTION_WARNING_MS = 10.0
+
+
+def pulse_impulse_ms(width_ms, on_delay, rise, off_delay, fall):
+    """Equivalent full-thrust width (ms) of a ``width_ms`` command: the integral of the normalised
+    thrust of the valve model (000 Fig. 6; refexmc.core.rcs), zero for on_delay, a linear rise over
+    ``rise``; after the close command full for off_delay, then a linear fall over ``fall``. A close
+    that takes effect mid-rise falls from the level reached; one before the open reaction cancels it.
+    """
+    t_open = on_delay
+    t_close = width_ms + off_delay
+    if t_close <= t_open:
+        return 0.0
+    peak = 1.0 if rise <= 0.0 else min(1.0, (t_close - t_open) / rise)
+    t_peak = t_open + peak * rise
+    return 0.5 * peak * peak * (rise + fall) + peak * (t_close - t_peak)
+
+
+def valve_constants(vehicle, level):
+    """(on_delay, rise, off_delay, fall) in ms at a thrust level (000 Table 2)."""
+    c = vehicle["rcs"]["valve_time_constants_ms"][level]
+    return c["on_delay"], c["rise"], c["off_delay"], c["fall"]
+
+
+def pulse_equivalent_ms(vehicle, level):
+    """Equivalent full-thrust width of the shortest hardware pulse (000 sec. 5: 25 ms)."""
+    return pulse_impulse_ms(vehicle["rcs"]["switching_limits_ms"]["min_on"], *valve_constants(vehicle, level))
+
+
+def pulse_correction_matching_ms(vehicle, level):
+    """The correction delta gamma that gives a command the impulse of an ideal pulse of its
+    width plus delta gamma (000 sec. 5, eq. 47-48): (off_delay + fall/2) - (on_delay + rise/2),
+    the same for any pulse long enough to reach full thrust."""
+    on_delay, rise, off_delay, fall = valve_constants(vehicle, level)
+    return (off_delay + 0.5 * fall) - (on_delay + 0.5 * rise)
+
+
 def axis_command_key(w):
     """'+x-y' style key for modulator outputs w in {-1, 0, 1}^3 ('' when all zero)."""
     return "".join(("+" if v > 0 else "-") + axis for v, axis in zip(w, "xyz", strict=True) if v != 0)
@@ -94,12 +133,16 @@ def design(vehicle):
         "omega_dot_max_rad_s2": {},
         "torque_max_n_m": {},
         "gains": {},
+        "pulse_equivalent_ms": {},
+        "pulse_correction_matching_ms": {},
     }
     for level in LEVELS:
         out["omega_dot_max_rad_s2"][level] = omega_dot_max(vehicle, level).tolist()
         out["torque_max_n_m"][level] = torque_max(vehicle, level).tolist()
         kp, kd = gains(vehicle, level)
         out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
+        out["pulse_equivalent_ms"][level] = pulse_equivalent_ms(vehicle, level)
+        out["pulse_correction_matching_ms"][level] = pulse_correction_matching_ms(vehicle, level)
     pwpf = vehicle["flight_software"]["pwpf"]
     limits = vehicle["rcs"]["switching_limits_ms"]
     out["f_min_fraction"] = f_min_fraction(vehicle)
