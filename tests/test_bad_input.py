@@ -99,7 +99,7 @@ CASES = [
     ),
     (
         "unbounded-normal-on-positive-quantity",
-        _edit("{dist: truncnorm, sigma: 6.95, low: 0.0}", "{dist: normal, sigma: 60.0}"),
+        _edit("{dist: truncnorm, sigma: 2.25, low: 0.0}", "{dist: normal, sigma: 60.0}"),
         [],
         ["rcs.valve_time_constants_ms.high.fall", "outside the physical range >= 0"],
     ),
