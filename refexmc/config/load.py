@@ -134,6 +134,13 @@ def _describe(error):
     if error.validator == "required":
         return (), error.message.replace("is a required property", "is required")
     if error.validator == "type":
+        if (
+            error.validator_value == "number"
+            and isinstance(error.instance, int | float)
+            and not isinstance(error.instance, bool)
+        ):
+            text = repr(error.instance)
+            return (), f"expected a finite number, got {text if len(text) <= 24 else text[:20] + '...'}"
         return (), f"expected {error.validator_value}, got {error.instance!r}"
     if error.validator in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
         words = {
@@ -153,11 +160,25 @@ def _describe(error):
     return (), error.message
 
 
+def _is_finite_number(checker, instance):
+    """JSON Schema 'number', finite: every config number is a physical quantity (read_yaml refuses
+    .inf and .nan with their line already; this keeps data that did not come from YAML honest)."""
+    if not jsonschema.Draft202012Validator.TYPE_CHECKER.is_type(instance, "number"):
+        return False
+    return abs(instance) <= _FLOAT_MAX if isinstance(instance, int) else math.isfinite(instance)
+
+
+_Validator = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator,
+    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine("number", _is_finite_number),
+)
+
+
 def validate(data, schema_def, file, lines, prefix=()):
     """Raise ConfigError for the first (shallowest) schema violation."""
     if data is None:
         raise ConfigError("empty file", file=file)
-    validator = jsonschema.Draft202012Validator(schema_def)
+    validator = _Validator(schema_def)
     # shallowest first; at equal depth an unknown key (with its did-you-mean) before a missing one
     errors = sorted(
         validator.iter_errors(data),
