@@ -268,8 +268,9 @@ def in_range(param, value):
 def range_text(param):
     """The physical range of ``param`` in words, e.g. 'finite and > 0'."""
     low = "" if param.lower == -math.inf else f"{'>=' if param.lower_inclusive else '>'} {param.lower:g}"
-    high = "finite" if param.upper == math.inf else f"<= {param.upper:g}"
-    return " and ".join(t for t in (low, high) if t) if low or param.upper != math.inf else "any finite value"
+    if param.upper != math.inf:
+        return f"{low} and <= {param.upper:g}" if low else f"<= {param.upper:g}"
+    return f"{low} and finite" if low else "any finite value"
 
 
 def _normal_cdf(z):
