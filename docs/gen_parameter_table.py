@@ -57,7 +57,7 @@ def range_text(param):
     if param.shape in _RANGE:
         return _RANGE[param.shape]
     if param.lower == -math.inf and param.upper == math.inf:
-        return "any"
+        return "any finite"
     if param.upper == math.inf:
         return f"{'>=' if param.lower_inclusive else '>'} {param.lower:g}"
     if param.lower == -math.inf:

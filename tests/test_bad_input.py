@@ -4,6 +4,8 @@ Every case runs `refexmc run ... -o OUT --overwrite` against an OUT that already
 finished campaign's files: bad input must neither create an output directory nor touch one.
 """
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -98,6 +100,38 @@ CASES = [
         ["requirements.1", "unknown statistic 'mediane'", "did you mean 'p.atmosphere.density_scale.median'"],
     ),
     (
+        "isp-uniform-to-inf",
+        _edit("dispersions:\n", "dispersions:\n  rcs.isp_s: {dist: uniform, low: 60, high: .inf}\n"),
+        [],
+        [f":{_line('dispersions:') + 1}:", "dispersions.rcs.isp_s.high", "expected a finite number, got .inf"],
+    ),
+    (
+        "nan-in-a-vector",
+        _edit("sigma: [1.0, 1.0, 1.0]", "sigma: [1.0, .NaN, 1.0]"),
+        [],
+        ["dispersions.separation.rates_deg_s.sigma.1", "expected a finite number, got .NaN"],
+    ),
+    (
+        "overflowing-number",
+        _edit("history_rate_hz: 2", "history_rate_hz: 1e999"),
+        [],
+        ["output.history_rate_hz", "expected a finite number, got 1e999, which overflows a float"],
+    ),
+    (
+        "duplicate-top-level-key",
+        _edit("seed: 20231121", "seed: 20231121\nseed: 7"),
+        [],
+        [f":{_line('seed:') + 1}:", "seed: duplicate key 'seed'", f"first at line {_line('seed:')}"],
+    ),
+    (
+        "duplicate-dispersion-path",
+        _edit("dispersions:\n", "dispersions:\n  com_offset_m: {dist: normal, sigma: 0.1}\n"),
+        [],
+        ["dispersions.com_offset_m: duplicate key 'com_offset_m'", f"first at line {_line('dispersions:') + 1}"],
+    ),
+    ("runs-option-inf", SMOKE, ["--runs", "inf"], ["--runs", "'inf' is not a valid integer"]),
+    ("seed-option-nan", SMOKE, ["--seed", "nan"], ["--seed", "'nan' is not a valid integer"]),
+    (
         "unbounded-normal-on-positive-quantity",
         _edit("{dist: truncnorm, sigma: 2.25, low: 0.0}", "{dist: normal, sigma: 60.0}"),
         [],
@@ -157,3 +191,86 @@ def test_validate_reports_the_same_problems(tmp_path, text, words):
     result = CliRunner().invoke(main, ["validate", str(campaign)])
     assert result.exit_code == 2
     assert all(word in result.output for word in words), result.output
+
+
+# --- the same through a real process: what a user at a shell sees ---------------------------------
+
+REFEXMC = Path(sys.executable).with_name("refexmc")
+COMMAND = [str(REFEXMC)] if REFEXMC.exists() else [sys.executable, "-m", "refexmc.cli"]
+VEHICLE_TEXT = (ROOT / "configs/vehicles/refex.yaml").read_text()
+MISSION_TEXT = (ROOT / "configs/missions/refex-exo.yaml").read_text()
+
+# (case id, file name, text, words the one line on stderr must contain)
+PROCESS_CASES = [
+    (
+        "campaign-isp-to-inf",
+        "campaign.yaml",
+        dict((c[0], c[1]) for c in CASES)["isp-uniform-to-inf"],
+        ["dispersions.rcs.isp_s.high", "expected a finite number, got .inf"],
+    ),
+    (
+        "campaign-duplicate-key",
+        "campaign.yaml",
+        dict((c[0], c[1]) for c in CASES)["duplicate-top-level-key"],
+        ["seed: duplicate key 'seed'"],
+    ),
+    (
+        "vehicle-duplicate-nested-key",
+        "vehicle.yaml",
+        VEHICLE_TEXT.replace("  isp_s: 70.0", "  isp_s: 70.0\n  isp_s: -.Inf"),
+        ["rcs.isp_s: duplicate key 'isp_s'"],
+    ),
+    (
+        "mission-nan",
+        "mission.yaml",
+        MISSION_TEXT.replace("altitude_m: 85000.0", "altitude_m: .nan", 1),
+        ["separation.altitude_m: expected a finite number, got .nan"],
+    ),
+]
+
+
+def _one_error_line(proc, words, path):
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr + proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr  # one message, no warnings
+    assert lines[0].startswith(f"error: {path}:")  # file and line first
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+
+
+@pytest.mark.parametrize(("name", "text", "words"), [c[1:] for c in PROCESS_CASES], ids=[c[0] for c in PROCESS_CASES])
+def test_refexmc_validate_process_refuses_bad_files(tmp_path, name, text, words):
+    path = tmp_path / name
+    path.write_text(text)
+    proc = subprocess.run([*COMMAND, "validate", str(path)], capture_output=True, text=True, timeout=120)
+    _one_error_line(proc, words, path)
+    assert proc.stdout == ""
+
+
+@pytest.mark.parametrize(
+    ("text", "words"), [c[2:] for c in PROCESS_CASES if c[1] == "campaign.yaml"], ids=["isp-to-inf", "duplicate-key"]
+)
+def test_refexmc_run_process_writes_nothing_and_loses_nothing(tmp_path, existing_out, text, words):
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(text)
+    before = _snapshot(existing_out)
+    fresh = tmp_path / "fresh"
+    for out, flags in ((fresh, []), (existing_out, ["--overwrite"])):
+        cmd = [*COMMAND, "run", str(campaign), "-o", str(out), "--no-progress", *flags]
+        _one_error_line(subprocess.run(cmd, capture_output=True, text=True, timeout=120), words, campaign)
+    assert not fresh.exists()
+    assert _snapshot(existing_out) == before
+
+
+def test_refexmc_run_process_refuses_non_finite_options(tmp_path):
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(SMOKE)
+    for option, value in (("--runs", "inf"), ("--seed", "nan")):
+        out = tmp_path / "out"
+        proc = subprocess.run(
+            [*COMMAND, "run", str(campaign), "-o", str(out), option, value], capture_output=True, text=True, timeout=120
+        )
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr
+        assert f"Invalid value for '{option}': '{value}' is not a valid integer" in proc.stderr
+        assert not out.exists()

@@ -8,7 +8,7 @@ import yaml
 
 from refexmc.config import schema
 from refexmc.config.errors import ConfigError
-from refexmc.config.load import inertia_problem, load_any, load_campaign, load_mission, load_vehicle
+from refexmc.config.load import inertia_problem, load_any, load_campaign, load_mission, load_vehicle, read_yaml
 from refexmc.config.pack import pack
 from refexmc.core import layout as L
 
@@ -169,3 +169,141 @@ def test_requirement_columns_are_the_numeric_columns_of_a_runs_row():
     numeric = [k for k in numeric if not isinstance(row[k], bool)]  # success is a flag, not a metric column
     parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, campaign["vehicle"])]
     assert sorted(runs_metric_columns(len(campaign["vehicle"]["rcs"]["thrusters"]), parameters)) == sorted(numeric)
+
+
+# --- numbers YAML accepts but no physical quantity has, and keys YAML would silently drop --------
+
+# Every spelling PyYAML reads as a non-finite float (YAML 1.1 '.inf'/'.nan' in any case, with a
+# sign; YAML 1.2 exponents that overflow; an explicit !!float tag), and an integer too large for a
+# float (it would overflow when packed).
+NON_FINITE = [".inf", "-.Inf", "+.INF", ".Inf", ".nan", ".NaN", ".NAN", "1e999", "-1e999", "1.0e+999"]
+NON_FINITE += ["!!float inf", "!!float -inf", "!!float nan", "1" + "0" * 400]
+
+
+def _line_of(path, needle):
+    return next(i for i, s in enumerate(Path(path).read_text().splitlines(), 1) if needle in s)
+
+
+@pytest.mark.parametrize("spelling", NON_FINITE)
+def test_non_finite_number_in_a_vehicle_file_is_bad_input(tmp_path, spelling):
+    path = _write(tmp_path, _vehicle_text("  isp_s: 70.0", f"  isp_s: {spelling}"))
+    with pytest.raises(ConfigError) as err:
+        load_vehicle(path)
+    assert err.value.file == path
+    assert err.value.line == _line_of(path, "isp_s:")
+    assert err.value.path == ("rcs", "isp_s")
+    assert "expected a finite number, got" in err.value.message
+    assert spelling.split()[-1][:20] in err.value.message  # as written
+
+
+NOMINAL_CAMPAIGN = ROOT / "campaigns/nominal.yaml"
+
+
+def _config_text(kind):
+    source = {"vehicle": VEHICLE, "mission": MISSION, "campaign": NOMINAL_CAMPAIGN}[kind]
+    return source.read_text().replace("../configs", str(ROOT / "configs"))
+
+
+# (file kind, text replaced, replacement, key path of the error, text on the error's line)
+NON_FINITE_PLACES = [
+    ("mission", "9.661e-8", ".nan", ("atmosphere", 7, "density_kg_m3"), "base_altitude_km: 110,"),
+    ("mission", "rates_deg_s: [", "rates_deg_s: [-.inf, ", ("separation", "rates_deg_s", 0), "-.inf"),
+    ("campaign", "runs: 1\n", "runs: 1e999\n", ("runs",), "1e999"),
+    ("campaign", "history_rate_hz: 2", "history_rate_hz: .NaN", ("output", "history_rate_hz"), ".NaN"),
+    ("campaign", "dispersions: {}", "dispersions: {rcs.isp_s: {dist: normal, sigma: .inf}}", None, ".inf"),
+    ("campaign", "dispersions: {}", "dispersions: {.inf: 1}", ("dispersions",), ".inf"),
+]
+
+
+@pytest.mark.parametrize(("kind", "old", "new", "key_path", "on_line"), NON_FINITE_PLACES)
+def test_non_finite_numbers_anywhere_are_bad_input(tmp_path, kind, old, new, key_path, on_line):
+    text = _config_text(kind)
+    assert old in text
+    path = _write(tmp_path, text.replace(old, new, 1))
+    with pytest.raises(ConfigError, match="expected a finite number") as err:
+        load_any(path)
+    assert err.value.line == _line_of(path, on_line)
+    assert err.value.path == (key_path or ("dispersions", "rcs.isp_s", "sigma"))
+
+
+def test_tiny_numbers_that_underflow_to_zero_are_still_numbers(tmp_path):
+    text = MISSION.read_text().replace("rate_noise_deg_s: ", "rate_noise_deg_s: 1e-999 #", 1)
+    assert load_mission(_write(tmp_path, text))["navigation"]["rate_noise_deg_s"] == 0.0
+
+
+# (file kind, text replaced, replacement, key path, text on the first occurrence's line, on the second's)
+DUPLICATES = [
+    ("vehicle", "mass_kg: 400.0", "mass_kg: 400.0\nmass_kg: 4.0", ("mass_kg",), "mass_kg: 400.0", "mass_kg: 4.0"),
+    ("vehicle", "    high: 8.92", "    high: 8.92\n    low: 1.0", ("rcs", "thrust_n", "low"), "low: 2.157", "low: 1.0"),
+    (
+        "vehicle",
+        "low: {on_delay: 19.1,",
+        "low: {on_delay: 19.1, on_delay: 0.0,",
+        ("rcs", "valve_time_constants_ms", "low", "on_delay"),
+        "on_delay: 0.0",
+        "on_delay: 0.0",
+    ),
+    (
+        "mission",
+        "  altitude_m: 85000.0",
+        "  altitude_m: 85000.0\n  altitude_m: 1.0",
+        ("separation", "altitude_m"),
+        "altitude_m: 85000.0",
+        "altitude_m: 1.0",
+    ),
+    ("campaign", "seed: 20231121", "seed: 20231121\nseed: 1", ("seed",), "seed: 20231121", "seed: 1\n"),
+    (
+        "campaign",
+        "  history_rate_hz: 2",
+        "  history_rate_hz: 2\n  history_rate_hz: 40",
+        ("output", "history_rate_hz"),
+        "history_rate_hz: 2\n",
+        "history_rate_hz: 40",
+    ),
+    (
+        "campaign",
+        "dispersions: {}",
+        "dispersions:\n  rcs.isp_s: {dist: normal, sigma: 1.0}\n  rcs.isp_s: {dist: normal, sigma: 9.0}",
+        ("dispersions", "rcs.isp_s"),
+        "sigma: 1.0",
+        "sigma: 9.0",
+    ),
+]
+
+
+@pytest.mark.parametrize(("kind", "old", "new", "key_path", "first", "second"), DUPLICATES)
+def test_duplicate_keys_are_bad_input(tmp_path, kind, old, new, key_path, first, second):
+    text = _config_text(kind)
+    assert old in text
+    path = _write(tmp_path, text.replace(old, new, 1))
+    with pytest.raises(ConfigError, match="duplicate key") as err:
+        load_any(path)
+    lines = path.read_text().splitlines(keepends=True)
+    first_line = next(i for i, s in enumerate(lines, 1) if first in s)
+    second_line = max(i for i, s in enumerate(lines, 1) if second in s)
+    assert (err.value.file, err.value.line, err.value.path) == (path, second_line, key_path)
+    assert f"duplicate key '{key_path[-1]}' (first at line {first_line})" in err.value.message
+
+
+def test_duplicate_key_in_an_inline_vehicle_names_the_campaign_file(tmp_path):
+    body = VEHICLE.read_text().replace("  isp_s: 70.0", "  isp_s: 70.0\n  isp_s: 7000.0")
+    inline = "\n".join("  " + line for line in body.splitlines())
+    campaign = f"name: inline\nvehicle:\n{inline}\nmission: {MISSION}\nruns: 1\nseed: 1\n"
+    path = _write(tmp_path, campaign, "c.yaml")
+    with pytest.raises(ConfigError, match="duplicate key 'isp_s'") as err:
+        load_campaign(path)
+    assert err.value.file == path
+    assert err.value.path == ("vehicle", "rcs", "isp_s")
+    assert err.value.line == _line_of(path, "isp_s: 7000.0")
+
+
+def test_yaml_merge_keys_override_without_being_duplicates(tmp_path):
+    text = "name: m\nbase: &b {x: 1, y: 2}\nc:\n  <<: *b\n  x: 5\n"
+    data, lines = read_yaml(_write(tmp_path, text))
+    assert data["c"] == {"x": 5, "y": 2}
+    assert lines[("c", "x")] == 5
+
+
+def test_recursive_alias_is_bad_input_not_a_crash(tmp_path):
+    with pytest.raises(ConfigError, match="recursive YAML alias"):
+        read_yaml(_write(tmp_path, "a: &x [1, *x]\n"))

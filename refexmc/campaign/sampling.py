@@ -101,7 +101,8 @@ def truncated_normal_ppf(u, a, b):
     a, b, u = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float), np.asarray(u, dtype=float))
     lower = special.ndtri(special.ndtr(a) + u * (special.ndtr(b) - special.ndtr(a)))
     upper = -special.ndtri(special.ndtr(-a) - u * (special.ndtr(-a) - special.ndtr(-b)))
-    return np.clip(np.where(a > 0.0, upper, lower), a, b)
+    # near u = 1 the lower form rounds to ndtri(1) = inf when b = inf: the upper form is exact there
+    return np.clip(np.where((a > 0.0) | np.isposinf(lower), upper, lower), a, b)
 
 
 def transform(spec, u, nominal_value):

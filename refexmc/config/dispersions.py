@@ -125,11 +125,11 @@ DIST_DOC = {
     "constant": "value: the value",
     "normal": "mean (default: nominal), sigma >= 0",
     "truncnorm": "mean (default: nominal), sigma > 0, low and/or high bounds",
-    "uniform": "low <= high",
+    "uniform": "low <= high, high - low finite",
     "lognormal": "median (default: nominal) > 0, sigma >= 0 of ln x",
     "choice": "values: numbers (each component independently) or vectors; probabilities (default equal)",
     "uniform_so3": "uniformly random rotation (Haar measure); separation.attitude_error_deg only",
-    "inertia": "relative 1-sigma of the principal moments, principal-axis misalignment 1-sigma [deg]; "
+    "inertia": "relative 1-sigma of the principal moments (< 0.5), principal-axis misalignment 1-sigma (<= 180 deg); "
     "draws that are not physical are redrawn",
 }
 # Uniforms are drawn inside [UNIFORM_EPS, 1 - UNIFORM_EPS], so a standard normal draw never
@@ -137,6 +137,7 @@ DIST_DOC = {
 # against each path's physical range.
 UNIFORM_EPS = 2.0**-53
 Z_MAX = -statistics.NormalDist().inv_cdf(UNIFORM_EPS) * (1.0 + 1e-12)  # 8.2095, rounded outward
+MAX_AXES_SIGMA_DEG = 180.0  # inertia: a larger 1-sigma principal-axis misalignment means nothing
 _SPECIAL = {"uniform_so3": "attitude", "inertia": "inertia"}
 
 
@@ -257,18 +258,51 @@ def apply(inputs, path, values, nominal_atmosphere):
 # --- validation of a campaign's ``dispersions`` mapping ----------------------------------------
 
 
-def _in_range(param, value):
-    if value > param.upper:
+def in_range(param, value):
+    """Whether ``value`` lies in the physical range of ``param``: finite, and within its bounds."""
+    if not math.isfinite(value) or value > param.upper:
         return False
     return value >= param.lower if param.lower_inclusive else value > param.lower
 
 
-def _range_text(param):
+def range_text(param):
+    """The physical range of ``param`` in words, e.g. 'finite and > 0'."""
     low = "" if param.lower == -math.inf else f"{'>=' if param.lower_inclusive else '>'} {param.lower:g}"
-    high = "" if param.upper == math.inf else f"<= {param.upper:g}"
-    return " and ".join(t for t in (low, high) if t) or "any value"
+    if param.upper != math.inf:
+        return f"{low} and <= {param.upper:g}" if low else f"<= {param.upper:g}"
+    return f"{low} and finite" if low else "any finite value"
 
 
+def _normal_cdf(z):
+    return 0.5 * math.erfc(-z / math.sqrt(2.0))
+
+
+def _lowest_draw_below(bound_z):
+    """Lowest standard draw of a normal truncated to (-inf, bound_z] that uniforms >= UNIFORM_EPS
+    reach: the inverse CDF at UNIFORM_EPS * Phi(bound_z), rounded outward; -inf where the
+    sampler's arithmetic underflows (a bound some 38 sigma on the far side of the mean)."""
+    p = UNIFORM_EPS * _normal_cdf(bound_z)
+    if p < 1e-300:
+        return -math.inf
+    return statistics.NormalDist().inv_cdf(p) * (1.0 + 1e-12)
+
+
+def truncnorm_support(mean, sigma, low, high):
+    """(lowest, highest) truncnorm draw per component: a given bound, or for a missing one
+    (+-inf) the exact extreme of the draws (Z_MAX-like, beyond 8.2 sigma when the other bound
+    cuts the distribution short)."""
+    lowest = [
+        lo if math.isfinite(lo) else m + s * _lowest_draw_below((hi - m) / s)
+        for m, s, lo, hi in zip(mean, sigma, low, high, strict=True)
+    ]
+    highest = [
+        hi if math.isfinite(hi) else m - s * _lowest_draw_below((m - lo) / s)
+        for m, s, lo, hi in zip(mean, sigma, low, high, strict=True)
+    ]
+    return np.array(lowest), np.array(highest)
+
+
+@np.errstate(over="ignore")  # an overflowing support is inf, which the range check refuses
 def check(dispersions, vehicle, mission, file, lines):
     """Validate every dispersion; return {path: spec with parameters broadcast to arrays}."""
     out = {}
@@ -319,8 +353,12 @@ def check(dispersions, vehicle, mission, file, lines):
             if isinstance(value, list):
                 if len(value) != _n or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
                     _fail(f"expected a number or a list of {_n} numbers (one per component), got {value!r}", key)
-                return np.asarray(value, dtype=float)
-            return np.full(_n, float(value))
+                array = np.asarray(value, dtype=float)
+            else:
+                array = np.full(_n, float(value))
+            if not np.isfinite(array).all():
+                _fail(f"expected finite numbers, got {value!r}", key)
+            return array
 
         resolved = {"dist": dist}
         nominal_value = nominal(path, vehicle, mission)
@@ -337,16 +375,20 @@ def check(dispersions, vehicle, mission, file, lines):
             else:
                 if "low" not in spec and "high" not in spec:
                     fail("truncnorm needs 'low' and/or 'high' (else use normal)")
-                resolved["low"] = vector("low") if "low" in spec else np.full(n, -np.inf)
-                resolved["high"] = vector("high") if "high" in spec else np.full(n, np.inf)
-                if (resolved["low"] >= resolved["high"]).any():
+                resolved["low"] = low = vector("low") if "low" in spec else np.full(n, -np.inf)
+                resolved["high"] = high = vector("high") if "high" in spec else np.full(n, np.inf)
+                if (low >= high).any():
                     fail("expected low < high", "low")
-                support = (resolved["low"], resolved["high"])
+                support = truncnorm_support(resolved["mean"], sigma, low, high)
         elif dist == "uniform":
             resolved["low"], resolved["high"] = vector("low"), vector("high")
             if (resolved["low"] > resolved["high"]).any():
                 fail("expected low <= high", "low")
-            support = (resolved["low"], resolved["high"])
+            if not np.isfinite(resolved["high"] - resolved["low"]).all():
+                fail("expected high - low to be a finite number (draws are low + (high - low) u)", "high")
+            # the sampler's own arithmetic at the extreme uniforms (it is monotone in u)
+            width = resolved["high"] - resolved["low"]
+            support = (resolved["low"] + width * UNIFORM_EPS, resolved["low"] + width * (1.0 - UNIFORM_EPS))
         elif dist == "lognormal":
             resolved["median"] = vector("median") if "median" in spec else nominal_value.copy()
             resolved["sigma"] = vector("sigma")
@@ -370,6 +412,8 @@ def check(dispersions, vehicle, mission, file, lines):
                     items.append(np.full(n, float(item)))
                 else:
                     fail(f"expected a number or a list of {n} numbers, got {item!r}", "values", k)
+                if not np.isfinite(items[-1]).all():
+                    fail(f"expected finite numbers, got {item!r}", "values", k)
             resolved["values"] = np.array(items)
             resolved["per_component"] = not any(isinstance(item, list) for item in values)
             probabilities = spec.get("probabilities")
@@ -379,9 +423,11 @@ def check(dispersions, vehicle, mission, file, lines):
                 if (
                     not isinstance(probabilities, list)
                     or len(probabilities) != len(items)
-                    or any(isinstance(p, bool) or not isinstance(p, (int, float)) or p < 0 for p in probabilities)
+                    or any(
+                        isinstance(p, bool) or not isinstance(p, (int, float)) or not 0 <= p <= 1 for p in probabilities
+                    )
                 ):
-                    fail(f"expected {len(items)} probabilities >= 0, one per value", "probabilities")
+                    fail(f"expected {len(items)} probabilities in [0, 1], one per value", "probabilities")
                 if abs(sum(probabilities) - 1.0) > 1e-9:
                     fail(f"expected probabilities summing to 1, got {sum(probabilities):g}", "probabilities")
                 resolved["probabilities"] = np.asarray(probabilities, dtype=float)
@@ -393,22 +439,25 @@ def check(dispersions, vehicle, mission, file, lines):
             resolved["axes_sigma_deg"] = vector("axes_sigma_deg") if "axes_sigma_deg" in spec else np.zeros(3)
             if (resolved["moments_sigma_fraction"] < 0).any() or (resolved["moments_sigma_fraction"] >= 0.5).any():
                 fail("expected 0 <= moments_sigma_fraction < 0.5", "moments_sigma_fraction")
-            if (resolved["axes_sigma_deg"] < 0).any():
-                fail("expected axes_sigma_deg >= 0", "axes_sigma_deg")
+            if (resolved["axes_sigma_deg"] < 0).any() or (resolved["axes_sigma_deg"] > MAX_AXES_SIGMA_DEG).any():
+                fail(f"expected 0 <= axes_sigma_deg <= {MAX_AXES_SIGMA_DEG:g} [deg]", "axes_sigma_deg")
             support = None
         if support is not None:
             low, high = support
             for k in range(n):
                 for bound in (low[k], high[k]):
-                    if not _in_range(param, bound):
+                    if not in_range(param, bound):
                         comp = components(path, vehicle)
                         which = f" (component {comp[k]})" if comp else ""
                         hint = ""
                         if dist in ("normal", "lognormal"):
                             hint = f" (the {Z_MAX:.1f}-sigma extreme); use truncnorm with bounds or a smaller sigma"
+                        elif dist == "truncnorm" and not math.isfinite(bound):
+                            hint = "; give both bounds, or a bound nearer the mean"
+                        unit_text = "" if param.unit == "-" else f" {param.unit}"
                         fail(
-                            f"{dist} draws{which} reach {bound:g} {param.unit}, outside the physical range "
-                            f"{_range_text(param)}{hint}",
+                            f"{dist} draws{which} reach {bound:g}{unit_text}, outside the physical range "
+                            f"{range_text(param)}{hint}",
                             "dist",
                         )
         out[path] = resolved

@@ -2,7 +2,9 @@
 
 import difflib
 import itertools
+import math
 import re
+import sys
 from pathlib import Path
 
 import jsonschema
@@ -23,27 +25,82 @@ _Loader.add_implicit_resolver(
     re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$"),
     list("-+0123456789."),
 )
+_FLOAT_MAX = sys.float_info.max
 
 
-def _line_map(node, path=(), out=None):
-    """Map every key path in a composed YAML node tree to its 1-based line."""
-    if out is None:
-        out = {}
-    out[path] = node.start_mark.line + 1
-    if isinstance(node, yaml.MappingNode):
-        for key_node, value_node in node.value:
-            key = key_node.value
-            out[path + (key,)] = key_node.start_mark.line + 1
-            _line_map(value_node, path + (key,), out)
-            out[path + (key,)] = key_node.start_mark.line + 1
-    elif isinstance(node, yaml.SequenceNode):
-        for i, item in enumerate(node.value):
-            _line_map(item, path + (i,), out)
-    return out
+_FLOAT_TAG = "tag:yaml.org,2002:float"
+_INT_TAG = "tag:yaml.org,2002:int"
+_MERGE_TAG = "tag:yaml.org,2002:merge"
+_NON_FINITE_SPELLINGS = (".inf", "inf", ".nan", "nan")
+
+
+def _scan(root, file):
+    """Map every key path of a composed YAML document to its 1-based line, and refuse what the
+    schema cannot see: a duplicate key (YAML keeps the last silently), a non-finite number
+    (``.inf``, ``.nan`` in any spelling, ``1e999``), a recursive alias."""
+    constructor = _Loader("")  # turns key and number nodes into values exactly as the load did
+    lines = {}
+    on_path = set()  # ids of the nodes being visited: an alias back to one of them is recursive
+
+    def fail(message, node, path):
+        raise ConfigError(message, file=file, line=node.start_mark.line + 1, path=path)
+
+    def check_number(node, path):
+        if node.tag not in (_FLOAT_TAG, _INT_TAG):
+            return
+        value = constructor.construct_object(node)
+        if isinstance(value, int) and abs(value) <= _FLOAT_MAX:
+            return
+        if isinstance(value, float) and math.isfinite(value):
+            return
+        text = node.value if len(node.value) <= 24 else node.value[:20] + "..."
+        if text.lstrip("+-").lower() not in _NON_FINITE_SPELLINGS:
+            text += ", which overflows a float"
+        fail(f"expected a finite number, got {text}", node, path)
+
+    def visit(node, path):
+        if id(node) in on_path:
+            fail("a recursive YAML alias (a value that contains itself)", node, path)
+        lines.setdefault(path, node.start_mark.line + 1)
+        if isinstance(node, yaml.ScalarNode):
+            check_number(node, path)
+            return
+        on_path.add(id(node))
+        if isinstance(node, yaml.SequenceNode):
+            for i, item in enumerate(node.value):
+                visit(item, path + (i,))
+        elif isinstance(node, yaml.MappingNode):
+            merged = [value for key, value in node.value if key.tag == _MERGE_TAG]
+            for value_node in merged:  # '<<: *anchor': the anchor's keys, which the keys here override
+                for source in value_node.value if isinstance(value_node, yaml.SequenceNode) else [value_node]:
+                    visit(source, path)
+            first_line = {}
+            for key_node, value_node in node.value:
+                if key_node.tag == _MERGE_TAG:
+                    continue
+                if not isinstance(key_node, yaml.ScalarNode):
+                    continue  # a list or mapping as a key: the construction refuses it (unhashable)
+                check_number(key_node, path)
+                key = constructor.construct_object(key_node, deep=True)
+                line = key_node.start_mark.line + 1
+                if key in first_line:
+                    fail(
+                        f"duplicate key '{key}' (first at line {first_line[key]}); a key may appear once",
+                        key_node,
+                        path + (key,),
+                    )
+                first_line[key] = line
+                visit(value_node, path + (key,))
+                lines[path + (key,)] = line
+        on_path.discard(id(node))
+
+    visit(root, ())
+    return lines
 
 
 def read_yaml(path):
-    """Parse a YAML file into (data, line map); ConfigError on a missing file or bad syntax."""
+    """Parse a YAML file into (data, line map); ConfigError on a missing file, bad syntax, a
+    duplicate key or a non-finite number."""
     path = Path(path)
     try:
         text = path.read_text()
@@ -51,14 +108,17 @@ def read_yaml(path):
         raise ConfigError("file not found", file=path) from None
     except OSError as exc:
         raise ConfigError(f"cannot read file: {exc.strerror}", file=path) from None
+    loader = _Loader(text)
     try:
-        data = yaml.load(text, Loader=_Loader)
-        node = yaml.compose(text, Loader=_Loader)
+        node = loader.get_single_node()
+        lines = _scan(node, path) if node is not None else {}  # before construction, which flattens '<<'
+        data = loader.construct_document(node) if node is not None else None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         problem = getattr(exc, "problem", None) or str(exc)
         raise ConfigError(f"YAML syntax error: {problem}", file=path, line=mark.line + 1 if mark else None) from None
-    lines = _line_map(node) if node is not None else {}
+    finally:
+        loader.dispose()
     return data, lines
 
 
@@ -74,6 +134,13 @@ def _describe(error):
     if error.validator == "required":
         return (), error.message.replace("is a required property", "is required")
     if error.validator == "type":
+        if (
+            error.validator_value == "number"
+            and isinstance(error.instance, int | float)
+            and not isinstance(error.instance, bool)
+        ):
+            text = repr(error.instance)
+            return (), f"expected a finite number, got {text if len(text) <= 24 else text[:20] + '...'}"
         return (), f"expected {error.validator_value}, got {error.instance!r}"
     if error.validator in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
         words = {
@@ -93,11 +160,25 @@ def _describe(error):
     return (), error.message
 
 
+def _is_finite_number(checker, instance):
+    """JSON Schema 'number', finite: every config number is a physical quantity (read_yaml refuses
+    .inf and .nan with their line already; this keeps data that did not come from YAML honest)."""
+    if not jsonschema.Draft202012Validator.TYPE_CHECKER.is_type(instance, "number"):
+        return False
+    return abs(instance) <= _FLOAT_MAX if isinstance(instance, int) else math.isfinite(instance)
+
+
+_Validator = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator,
+    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine("number", _is_finite_number),
+)
+
+
 def validate(data, schema_def, file, lines, prefix=()):
     """Raise ConfigError for the first (shallowest) schema violation."""
     if data is None:
         raise ConfigError("empty file", file=file)
-    validator = jsonschema.Draft202012Validator(schema_def)
+    validator = _Validator(schema_def)
     # shallowest first; at equal depth an unknown key (with its did-you-mean) before a missing one
     errors = sorted(
         validator.iter_errors(data),

@@ -206,7 +206,7 @@ MISSION = obj(
             ),
         },
         "modes": obj(
-            "mode exit conditions (reference-model sec. 4)",
+            "mode exit conditions (the project's reference model, sec. 4)",
             {
                 "ncm": _mode("no control mode", {"duration_s": number("duration [s]", minimum=0.0)}),
                 "rdm1": _mode(
@@ -254,7 +254,7 @@ MISSION = obj(
         "handover_max_angle_deg": number("success: total angle error at hand-over below [deg]", **POSITIVE),
         "max_flight_time_s": number("a run still flying then fails [s]", **POSITIVE),
         "navigation": obj(
-            "navigation errors (reference-model sec. 5)",
+            "navigation errors (the project's reference model, sec. 5)",
             {
                 "attitude_bias_deg": vector("attitude bias rotation vector [deg]"),
                 "attitude_noise_deg": number("attitude white noise, 1 sigma per axis [deg]", minimum=0.0),
