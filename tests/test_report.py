@@ -413,3 +413,89 @@ def test_report_on_flown_campaign(tmp_path):
     fuel = np.array([r["fuel_remaining"] for r in rows if r["status"] == "ok" and r["success"]])
     assert report["summary"]["columns"]["fuel_remaining"]["min"] == fuel.min()
     assert "Angle and rate errors per mode" in report["summary"]["figures"][0]
+
+
+def test_failure_reason_table_counts_and_examples(tmp_path):
+    failed = (2, 4, 5, 9, 12, 15, 17, 21, 30)
+    rows = synthetic_runs(n=40, errored=(6, 33), failed=failed)
+    for i in (2, 4, 5, 9, 12, 15, 17):
+        rows[i]["failure_reason"] = "sam_timeout"
+    rows[21]["failure_reason"] = "rdm1_timeout"
+    rows[30]["failure_reason"] = None
+    rows[33]["failure_reason"] = (
+        "TimeoutError: run 33 exceeded the run time limit\nTraceback (most recent call last): ..."
+    )
+    out = write_out(tmp_path / "out", rows, histories=False, parts=1)
+    report = make_report(out, html=True)
+    reasons = report["summary"]["failure_reasons"]
+    assert [(r["kind"], r["reason"], r["count"], r["example_run_ids"]) for r in reasons] == [
+        ("failed flight", "sam_timeout", 7, [2, 4, 5, 9, 12]),  # the first 5 of 7
+        ("failed flight", "(no reason recorded)", 1, [30]),
+        ("failed flight", "rdm1_timeout", 1, [21]),
+        ("errored run", "RuntimeError: boom", 1, [6]),
+        ("errored run", "TimeoutError: run 33 exceeded the run time limit", 1, [33]),
+    ]
+    assert sum(r["count"] for r in reasons) == len(failed) + 2
+    lines = report["text"].splitlines()
+    table = lines[lines.index("failure reasons:") + 1 :]
+    assert table[0].split() == ["failed", "flight", "sam_timeout", "7", "runs", "2,", "4,", "5,", "9,", "12,", "..."]
+    assert table[4].split()[:3] == ["errored", "run", "TimeoutError:"]
+    page = (out / "report" / "index.html").read_text()
+    section = page.split("<h2>Failure reasons</h2>", 1)[1].split("<h2>", 1)[0]
+    assert "sam_timeout" in section and "2, 4, 5, 9, 12, ..." in section and "Traceback" not in section
+    assert report["verdict"] == "ERRORED"
+
+
+def test_errored_runs_fail_min_but_a_percentile_holds_them_in_its_tail(tmp_path):
+    """One errored run of 200: p1 (h = 199 * 0.01 = 1.99) stays between successful flights; of 100 it does not."""
+    rows = synthetic_runs(n=200, errored=(17,), failed=())
+    out = write_out(tmp_path / "out", rows, histories=False, parts=1)
+    require = ["fuel_remaining.p1 >= 0.2", "fuel_remaining.min >= 0.2", "t_end_s.p99 <= 1000"]
+    report = make_report(out, require=require, html=True)
+    fuel = successful_values(rows, "fuel_remaining")
+    assert [v["passed"] for v in report["requirements"]] == [True, False, True]
+    # reference: the errored run at a far finite value, numpy's percentile
+    assert report["requirements"][0]["actual"] == pytest.approx(np.percentile(np.append(fuel, -1e12), 1), rel=1e-12)
+    assert "1 failing run ranked at the low end" in report["requirements"][0]["note"]
+    assert report["requirements"][1]["note"] == "fails because of the errored run 17"
+    assert report["verdict"] == "ERRORED" and report["passed"] is False
+    assert "met   fuel_remaining.p1 >= 0.2" in report["text"]
+    page = (out / "report" / "index.html").read_text()
+    assert "PASS" not in re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]*", "", page)
+    assert 'class="banner">ERRORED runs: 1 of 200 runs raised errors (run ids 17)' in page
+    rows = synthetic_runs(n=100, errored=(17,), failed=())
+    out = write_out(tmp_path / "hundred", rows, histories=False, parts=1)
+    verdict = make_report(out, require=require[:1], html=False)["requirements"][0]
+    assert verdict["passed"] is False and verdict["actual"] is None  # h = 0.99: interpolates to the errored run
+
+
+def test_all_runs_fine_but_manifest_running_or_a_chunk_missing_is_incomplete(tmp_path):
+    rows = synthetic_runs(n=30, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, requirements=["success_rate >= 1"], parts=3)
+    assert make_report(out, html=False)["verdict"] == "PASS"  # the control: complete, every requirement met
+    storage.write_manifest(out, {"name": "synthetic", "status": "running", "chunk_size": 10})
+    report = make_report(out, html=False)
+    assert report["verdict"] == "INCOMPLETE" and report["passed"] is False
+    assert report["summary"]["completeness"]["problems"] == ["manifest status is 'running', not 'complete'"]
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "chunk_size": 10})
+    (out / "histories" / storage.part_name(1)).unlink()
+    completeness = make_report(out, html=False)["summary"]["completeness"]
+    assert completeness["missing_chunks"] == [storage.part_name(1)] and not completeness["complete"]
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "chunk_size": 5})  # 6 chunks planned
+    completeness = make_report(out, html=False)["summary"]["completeness"]
+    assert completeness["missing_chunks"] == [storage.part_name(k) for k in (1, 3, 4, 5)]
+
+
+def test_docs_list_every_tail_rule():
+    from refexmc.report.tails import TAIL_RULES, worse_tail
+
+    doc = (ROOT / "docs" / "report.md").read_text()
+    for pattern, tail, meaning in TAIL_RULES:
+        assert f"| `{pattern}` | {tail} | {meaning} |" in doc, f"docs/report.md lacks the tail rule of {pattern}"
+    assert [worse_tail(c) for c in ("t_end_s", "t_geem_s", "pulses_total", "fuel_remaining", "p.rcs.isp_s")] == [
+        "upper",
+        "upper",
+        "upper",
+        "lower",
+        None,
+    ]
