@@ -11,10 +11,10 @@ from refexmc.report.requirements import campaign_metric_covers
 
 KEY_COLUMNS = ("fuel_remaining", "fuel_used_kg", "theta_t_handover_deg", "t_end_s", "pulses_total")
 SENSITIVITY_OUTPUTS = ("fuel_used_kg", "theta_t_handover_deg")
-WORST_CASES = (  # (column, "low"/"high": which end is worst, what it means)
-    ("fuel_remaining", "low", "least propellant remaining"),
-    ("theta_t_handover_deg", "high", "largest total angle error at hand-over"),
-    ("t_end_s", "high", "longest flight"),
+WORST_CASES = (  # (column, what its worst end means); the end is the column's worse tail (tails.py)
+    ("fuel_remaining", "least propellant remaining"),
+    ("theta_t_handover_deg", "largest total angle error at hand-over"),
+    ("t_end_s", "longest flight"),
 )
 WORST_COUNT = 5
 
@@ -279,13 +279,14 @@ def _run_entry(campaign, row, column=None):
 def worst_cases(campaign, count=WORST_COUNT):
     ok = campaign.ok
     result = {}
-    for column, worst, meaning in WORST_CASES:
+    for column, meaning in WORST_CASES:
         if column not in ok:
             continue
         finite = ok[np.isfinite(ok[column].to_numpy(dtype=float))]
-        picked = finite.nsmallest(count, column) if worst == "low" else finite.nlargest(count, column)
+        low = tails.worse_tail(column) == "lower"
+        picked = finite.nsmallest(count, column) if low else finite.nlargest(count, column)
         result[column] = {
-            "meaning": meaning,
+            "meaning": f"{meaning} (among the flown runs, status ok)",
             "runs": [_run_entry(campaign, row, column) for row in picked.to_dict("records")],
         }
     failed = ok[~ok["success"].astype(bool)]
