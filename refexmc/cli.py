@@ -120,7 +120,7 @@ def format_run_summary(result):
 def report(out, no_html, require):
     """Summarise campaign OUT: statistics, requirement verdicts, figures (OUT/report/).
 
-    Exit 1 when a requirement fails (the CI gate).
+    Exit 1 when a requirement fails, or the campaign is incomplete or has errored runs (the CI gate).
     Example: refexmc report runs/refex-mc100 --require 'fuel_remaining.min >= 0.2'
     """
     from refexmc.report import make_report

@@ -1,13 +1,32 @@
 """`refexmc report` and `refexmc rerun` through the command line: exit codes and outputs."""
 
+import json
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from stored import campaign_copy, invoke_run, read_runs
+from test_report import synthetic_runs, write_out
 
 from refexmc.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
+IMAGES = re.compile(r"data:image/png;base64,[A-Za-z0-9+/=]*")  # base64 may spell anything
+
+
+def report_subprocess(out, *args):
+    """`refexmc report OUT ARGS...` in its own process, as CI calls it."""
+    script = Path(sys.executable).with_name("refexmc")
+    command = [str(script)] if script.is_file() else [sys.executable, "-c", "from refexmc.cli import main; main()"]
+    return subprocess.run([*command, "report", str(out), *args], capture_output=True, text=True, timeout=300)
+
+
+def page_text(out):
+    """index.html without its base64 figures."""
+    return IMAGES.sub("", (Path(out) / "report" / "index.html").read_text())
 
 
 @pytest.fixture(scope="module")
@@ -48,3 +67,53 @@ def test_rerun_reproduces_a_run_and_writes_its_history(out, tmp_path):
     assert dest.is_file()
     bad = CliRunner().invoke(main, ["rerun", str(out), "99"])
     assert bad.exit_code == 2 and "run id 0..5" in bad.output
+
+
+def test_report_of_an_incomplete_campaign_never_passes(tmp_path):
+    """180 of 3,000 planned runs, all successful, manifest still 'running' (a killed campaign):
+    every requirement holds on the stored runs, yet the verdict is INCOMPLETE with exit 1."""
+    rows = synthetic_runs(n=180, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, requirements=["fuel_remaining.min >= 0.20", "success_rate >= 1.0"])
+    resolved = out / "campaign.resolved.yaml"
+    resolved.write_text(resolved.read_text().replace("runs: 180", "runs: 3000"))
+    (out / "manifest.json").write_text(json.dumps({"name": "synthetic", "status": "running", "chunk_size": 90}))
+    result = report_subprocess(out)
+    assert result.returncode == 1, result.stdout + result.stderr
+    first = result.stdout.splitlines()[0]
+    assert first.startswith("*** INCOMPLETE campaign: 180 of 3000 planned runs stored; manifest status is 'running'")
+    assert "missing run ids 180-2999" in first
+    assert "verdict: INCOMPLETE (2 of 2 requirements met)" in result.stdout
+    assert "PASS" not in result.stdout and "PASS" not in page_text(out)
+    page = page_text(out)
+    assert page.index('class="banner">INCOMPLETE campaign') < page.index("<h1>")
+    assert "INCOMPLETE: 2 of 2 requirements met on the stored runs; no overall verdict" in page
+    summary = json.loads((out / "report" / "summary.json").read_text())
+    assert summary["verdict"] == "INCOMPLETE" and summary["passed"] is False
+    assert summary["banner"] in first and summary["completeness"]["missing_run_count"] == 2820
+
+
+def test_report_of_a_campaign_whose_flights_all_failed(tmp_path):
+    """Thruster 5 failed in every run: no flight reaches hand-over; fuel_remaining.min >= 0.20 holds for the
+    stored numbers (little propellant used before the timeout) but must FAIL, naming the failed runs."""
+    source = campaign_copy("smoke.yaml", tmp_path, replace=[("mode: none", "mode: fixed\n  thrusters: [5]")])
+    out = tmp_path / "failing"
+    flown = invoke_run(source, "--runs", "3", "-j", "1", "-o", out, "--no-progress")
+    assert flown.exit_code == 0, flown.output
+    runs = read_runs(out)
+    assert not runs["success"].any() and (runs["status"] == "ok").all()
+    assert runs["fuel_remaining"].min() >= 0.20  # what the old report averaged into a PASS
+    (reason,) = set(runs["failure_reason"])
+    result = report_subprocess(out)
+    assert result.returncode == 1, result.stdout + result.stderr
+    text = result.stdout
+    assert "FAIL  fuel_remaining.min >= 0.20" in text and "fails because of the failed flights 0, 1, 2" in text
+    assert "FAIL  success_rate >= 1.0" in text and "verdict: FAIL (0 of 2 requirements met)" in text
+    assert re.search(rf"failed flight +{reason} +3  runs 0, 1, 2", text), text
+    assert "PASS" not in text and "PASS" not in page_text(out)
+    summary = json.loads((out / "report" / "summary.json").read_text())
+    fuel = summary["requirements"][0]
+    assert fuel["actual"] is None and fuel["failing_run_ids"] == [0, 1, 2] and fuel["passed"] is False
+    assert summary["columns"]["fuel_remaining"]["n"] == 0  # the tables cover successful flights: none
+    assert summary["failure_reasons"] == [
+        {"kind": "failed flight", "status": "ok", "reason": reason, "count": 3, "example_run_ids": [0, 1, 2]}
+    ]

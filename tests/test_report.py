@@ -109,7 +109,7 @@ def synthetic(tmp_path_factory):
         rows,
         requirements=["fuel_remaining.min >= 0.20", "success_rate >= 1.0"],
     )
-    report = make_report(out, require=["theta_t_handover_deg.p99 <= 2.0"], html=True)
+    report = make_report(out, require=["theta_t_handover_deg.p99 <= 2.0", "pulses_total.p50 <= 2000"], html=True)
     return out, rows, report
 
 
@@ -117,39 +117,86 @@ def ok_values(rows, column):
     return np.array([r[column] for r in rows if r["status"] == "ok"], dtype=float)
 
 
-def test_success_rate_and_clopper_pearson_exclude_errored_runs(synthetic):
+def successful_values(rows, column):
+    return np.array([r[column] for r in rows if r["status"] == "ok" and r["success"]], dtype=float)
+
+
+def test_success_rate_counts_errored_runs_as_unsuccessful(synthetic):
     _, rows, report = synthetic
     s = report["summary"]
     assert s["counts"] == {"runs": 60, "ok_count": 58, "error_count": 2, "success_count": 55, "failure_count": 3}
-    expected = sps.binomtest(55, 58).proportion_ci(confidence_level=0.95, method="exact")
-    assert s["success"]["rate"] == pytest.approx(55 / 58)
+    expected = sps.binomtest(55, 60).proportion_ci(confidence_level=0.95, method="exact")
+    assert s["success"]["rate"] == pytest.approx(55 / 60)
     assert s["success"]["ci95"] == pytest.approx([expected.low, expected.high], abs=1e-12)
-    lower = sps.binomtest(55, 58, alternative="greater").proportion_ci(method="exact").low
+    lower = sps.binomtest(55, 60, alternative="greater").proportion_ci(method="exact").low
     assert s["metrics"]["success_rate_lower95"] == pytest.approx(lower, abs=1e-12)
-    assert any("2 of 60 runs raised errors" in note for note in s["notes"])
+    assert s["success"]["covers"] == "all 60 runs (2 errored runs count as unsuccessful)"
+    assert "5 of 60 runs did not succeed (3 failed, 2 errored)" in s["success"]["statement"]
 
 
-def test_column_statistics_match_numpy_over_ok_runs(synthetic):
+def test_column_statistics_match_numpy_over_successful_flights(synthetic):
     _, rows, report = synthetic
     columns = report["summary"]["columns"]
-    fuel = ok_values(rows, "fuel_remaining")
+    fuel = successful_values(rows, "fuel_remaining")
     f = columns["fuel_remaining"]
-    assert f["count"] == 58
+    assert f["count"] == f["n"] == 55  # neither the 3 failed flights nor the 2 errored runs
+    assert f["covers"] == "55 successful flights; 5 of 60 runs not included (failed or errored)"
     assert f["min"] == fuel.min()  # the errored run's -5.0 is excluded
-    for percent in (0.135, 1, 50, 99):
+    for percent in (0.135, 1, 5):
         assert f[f"p{percent:g}"] == pytest.approx(np.percentile(fuel, percent), abs=1e-15)
+    assert f["median"] == pytest.approx(np.median(fuel), abs=1e-15)
     assert f["mean"] == pytest.approx(fuel.mean())
     assert f["mean_minus_3sd"] == pytest.approx(fuel.mean() - 3 * fuel.std(ddof=1))
-    k = stats.normal_tolerance_factor(58)
+    k = stats.normal_tolerance_factor(55)
     assert f["tol_lower"] == pytest.approx(fuel.mean() - k * fuel.std(ddof=1))
-    assert f["p0.135_lower95"] is None  # 58 runs cannot bound the 0.135th percentile (needs 2218)
-    theta = ok_values(rows, "theta_t_handover_deg")
-    assert columns["theta_t_handover_deg"]["max"] == theta.max()  # not the errored run's 1e6
+    assert f["p0.135_lower95"] is None  # 55 runs cannot bound the 0.135th percentile (needs 2218)
+    k99 = stats.normal_tolerance_factor(55, 0.99)  # 55 < 299: the normal bound, not an order statistic
+    assert f["tolerance_99_95"] == pytest.approx(fuel.mean() - k99 * fuel.std(ddof=1))
+    assert f["tolerance_99_95_method"].startswith("normal: mean - 2.8")
+    theta = successful_values(rows, "theta_t_handover_deg")
+    t = columns["theta_t_handover_deg"]
+    assert t["max"] == theta.max()  # not the errored run's 1e6
+    for percent in (95, 99, 99.865):
+        assert t[f"p{percent:g}"] == pytest.approx(np.percentile(theta, percent), abs=1e-15)
+    assert t["mean_plus_3sd"] == pytest.approx(theta.mean() + 3 * theta.std(ddof=1))
+    assert t["tolerance_99_95"] == pytest.approx(theta.mean() + k99 * theta.std(ddof=1))
     for name in MODE_COLUMNS:
-        assert columns[name]["median"] == pytest.approx(np.median(ok_values(rows, name)))
-    pulses = sum(ok_values(rows, f"pulses_{k}") for k in range(1, 9))
+        assert columns[name]["median"] == pytest.approx(np.median(successful_values(rows, name)))
+    pulses = sum(successful_values(rows, f"pulses_{k}") for k in range(1, 9))
     assert columns["pulses_total"]["max"] == pulses.max()
-    assert columns["pulses_3"]["mean"] == pytest.approx(ok_values(rows, "pulses_3").mean())
+    assert columns["pulses_3"]["mean"] == pytest.approx(successful_values(rows, "pulses_3").mean())
+
+
+def test_each_column_shows_its_worse_tail_and_no_negative_bounds_on_angles_or_durations(synthetic):
+    _, rows, report = synthetic
+    columns = report["summary"]["columns"]
+    expected = {
+        "fuel_remaining": "lower",
+        "fuel_used_kg": "upper",
+        "theta_t_handover_deg": "upper",
+        "t_end_s": "upper",
+        "t_sam_s": "upper",
+        "pulses_total": "upper",
+        "pulses_5": "upper",
+    }
+    assert {c: columns[c]["tail"] for c in expected} == expected
+    theta = successful_values(rows, "theta_t_handover_deg")
+    assert theta.mean() - 3 * theta.std(ddof=1) < 0  # what the old lower-tail table printed for an angle
+    for column, values in columns.items():
+        if values["tail"] == "upper":
+            assert not {"min", "p1", "p0.135", "mean_minus_3sd", "tol_lower"} & set(values), column
+            numbers = [v for v in values.values() if isinstance(v, float)]
+            assert min(numbers) >= 0, f"{column}: a negative statistic of a non-negative quantity"
+        else:
+            assert not {"max", "p99", "p99.865", "mean_plus_3sd", "tol_upper"} & set(values), column
+    lines = report["text"].splitlines()
+    upper = lines.index("larger is worse (upper tail):")
+    lower = lines.index("smaller is worse (lower tail):")
+    assert lines[upper + 1].split() == ["n", "p50", "mean", "p99", "p99.865", "max", "mean+3sd", "tol99/95"]
+    assert lines[lower + 1].split() == ["n", "p50", "mean", "p1", "p0.135", "min", "mean-3sd", "tol99/95"]
+    assert lines[upper + 3].split()[:2] == ["theta_t_handover_deg", "55"]
+    assert lines[lower + 2].split()[:2] == ["fuel_remaining", "55"]
+    assert "  over 55 successful flights; 5 of 60 runs not included (failed or errored)" in lines
 
 
 def test_requirement_verdicts_and_sources(synthetic):
@@ -159,13 +206,25 @@ def test_requirement_verdicts_and_sources(synthetic):
         "fuel_remaining.min >= 0.20",
         "success_rate >= 1.0",
         "theta_t_handover_deg.p99 <= 2.0",
+        "pulses_total.p50 <= 2000",
     ]
-    assert [v["source"] for v in verdicts] == ["campaign", "campaign", "--require"]
-    assert [v["passed"] for v in verdicts] == [True, False, True]  # 3 runs failed
-    assert verdicts[0]["actual"] == ok_values(rows, "fuel_remaining").min()
-    assert report["passed"] is False
-    assert "FAIL  success_rate >= 1.0" in report["text"]
-    assert "verdict: FAIL (2 of 3 requirements met)" in report["text"]
+    assert [v["source"] for v in verdicts] == ["campaign", "campaign", "--require", "--require"]
+    # 3 failed flights and 2 errored runs fail the minimum, and 5 of 60 are more than the 1 % a p99 may hold
+    assert [v["passed"] for v in verdicts] == [False, False, False, True]
+    assert verdicts[0]["actual"] is None
+    assert verdicts[0]["actual_successful_flights"] == successful_values(rows, "fuel_remaining").min()
+    assert verdicts[0]["failing_run_ids"] == [3, 7, 11, 23, 40] and verdicts[0]["failing_count"] == 5
+    assert verdicts[0]["covers"] == (
+        "all 60 runs: 55 successful flights; failed flights 3, 11, 40 and errored runs 7, 23 count as failing"
+    )
+    assert verdicts[3]["actual"] < 2000 and "5 failing runs ranked at the high end" in verdicts[3]["note"]
+    assert report["passed"] is False and report["verdict"] == "ERRORED"
+    text = report["text"]
+    assert "FAIL  fuel_remaining.min >= 0.20" in text
+    assert "fails because of the failed flights 3, 11, 40 and errored runs 7, 23" in text
+    assert "met   pulses_total.p50 <= 2000" in text
+    assert "verdict: ERRORED (1 of 4 requirements met)" in text
+    assert "PASS" not in text  # errored runs: no PASS, not even for the requirement that holds
 
 
 def test_summary_json_is_strict_json_with_the_report(synthetic):
@@ -173,10 +232,15 @@ def test_summary_json_is_strict_json_with_the_report(synthetic):
     text = (out / "report" / "summary.json").read_text()
     data = json.loads(text, parse_constant=lambda name: pytest.fail(f"non-strict JSON constant {name}"))
     assert data == report["summary"]
-    assert data["passed"] is False
-    assert set(data) >= {"campaign", "counts", "success", "columns", "requirements", "worst_cases", "sensitivity"}
+    assert data["passed"] is False and data["verdict"] == "ERRORED"
+    assert data["banner"].startswith("ERRORED runs: 2 of 60 runs raised errors (run ids 7, 23)")
+    assert data["completeness"]["complete"] is True and data["completeness"]["errored_run_ids"] == [7, 23]
+    keys = {"campaign", "counts", "success", "columns", "requirements", "worst_cases", "sensitivity", "failure_reasons"}
+    assert set(data) >= keys
     worst = data["worst_cases"]["fuel_remaining"]["runs"]
-    assert [w["fuel_remaining"] for w in worst] == sorted(ok_values(synthetic[1], "fuel_remaining"))[:5]
+    assert [w["fuel_remaining"] for w in worst] == sorted(
+        [r["fuel_remaining"] for r in synthetic[1] if r["status"] == "ok"]
+    )[:5]
     assert worst[0]["command"] == f"refexmc rerun {out} {worst[0]['run_id']}"
     assert [r["run_id"] for r in data["worst_cases"]["errored"]["runs"]] == [7, 23]
     assert [r["run_id"] for r in data["worst_cases"]["unsuccessful"]["runs"]] == [3, 11, 40]
@@ -307,12 +371,18 @@ def test_incomplete_campaign_without_nominal_run(tmp_path):
     out = write_out(tmp_path / "out", rows, nominal_first=False, parts=1)
     text = (out / "campaign.resolved.yaml").read_text().replace("runs: 30", "runs: 50")
     (out / "campaign.resolved.yaml").write_text(text)
-    report = make_report(out, html=True)
+    report = make_report(out, require=["success_rate >= 1"], html=True)
     summary = report["summary"]
-    assert "incomplete campaign: 30 of 50 runs stored" in summary["notes"]
+    assert report["verdict"] == "INCOMPLETE" and report["passed"] is False
+    assert summary["completeness"]["missing_run_count"] == 20
+    assert summary["completeness"]["missing_run_ids"] == "30-49"
+    assert summary["banner"].startswith("INCOMPLETE campaign: 30 of 50 planned runs stored; 20 of 50 planned runs")
+    assert "missing run ids 30-49" in summary["banner"]
+    assert report["text"].splitlines()[0] == f"*** {summary['banner']} ***"
+    assert "met   success_rate >= 1" in report["text"]  # holds on the stored runs; still no PASS
     assert summary["nominal"] is None
     assert "no failure in 30 runs" in summary["success"]["statement"]
-    assert "no requirements" in report["text"]
+    assert "PASS" not in report["text"]
 
 
 def test_requirement_that_cannot_be_computed_fails(tmp_path):
@@ -340,6 +410,92 @@ def test_report_on_flown_campaign(tmp_path):
     report = make_report(out, require=["fuel_remaining.min >= 0.05"])
     assert report["summary"]["counts"]["runs"] == 8
     assert report["summary"]["nominal"]["run_id"] == 0
-    fuel = np.array([r["fuel_remaining"] for r in rows if r["status"] == "ok"])
+    fuel = np.array([r["fuel_remaining"] for r in rows if r["status"] == "ok" and r["success"]])
     assert report["summary"]["columns"]["fuel_remaining"]["min"] == fuel.min()
     assert "Angle and rate errors per mode" in report["summary"]["figures"][0]
+
+
+def test_failure_reason_table_counts_and_examples(tmp_path):
+    failed = (2, 4, 5, 9, 12, 15, 17, 21, 30)
+    rows = synthetic_runs(n=40, errored=(6, 33), failed=failed)
+    for i in (2, 4, 5, 9, 12, 15, 17):
+        rows[i]["failure_reason"] = "sam_timeout"
+    rows[21]["failure_reason"] = "rdm1_timeout"
+    rows[30]["failure_reason"] = None
+    rows[33]["failure_reason"] = (
+        "TimeoutError: run 33 exceeded the run time limit\nTraceback (most recent call last): ..."
+    )
+    out = write_out(tmp_path / "out", rows, histories=False, parts=1)
+    report = make_report(out, html=True)
+    reasons = report["summary"]["failure_reasons"]
+    assert [(r["kind"], r["reason"], r["count"], r["example_run_ids"]) for r in reasons] == [
+        ("failed flight", "sam_timeout", 7, [2, 4, 5, 9, 12]),  # the first 5 of 7
+        ("failed flight", "(no reason recorded)", 1, [30]),
+        ("failed flight", "rdm1_timeout", 1, [21]),
+        ("errored run", "RuntimeError: boom", 1, [6]),
+        ("errored run", "TimeoutError: run 33 exceeded the run time limit", 1, [33]),
+    ]
+    assert sum(r["count"] for r in reasons) == len(failed) + 2
+    lines = report["text"].splitlines()
+    table = lines[lines.index("failure reasons:") + 1 :]
+    assert table[0].split() == ["failed", "flight", "sam_timeout", "7", "runs", "2,", "4,", "5,", "9,", "12,", "..."]
+    assert table[4].split()[:3] == ["errored", "run", "TimeoutError:"]
+    page = (out / "report" / "index.html").read_text()
+    section = page.split("<h2>Failure reasons</h2>", 1)[1].split("<h2>", 1)[0]
+    assert "sam_timeout" in section and "2, 4, 5, 9, 12, ..." in section and "Traceback" not in section
+    assert report["verdict"] == "ERRORED"
+
+
+def test_errored_runs_fail_min_but_a_percentile_holds_them_in_its_tail(tmp_path):
+    """One errored run of 200: p1 (h = 199 * 0.01 = 1.99) stays between successful flights; of 100 it does not."""
+    rows = synthetic_runs(n=200, errored=(17,), failed=())
+    out = write_out(tmp_path / "out", rows, histories=False, parts=1)
+    require = ["fuel_remaining.p1 >= 0.2", "fuel_remaining.min >= 0.2", "t_end_s.p99 <= 1000"]
+    report = make_report(out, require=require, html=True)
+    fuel = successful_values(rows, "fuel_remaining")
+    assert [v["passed"] for v in report["requirements"]] == [True, False, True]
+    # reference: the errored run at a far finite value, numpy's percentile
+    assert report["requirements"][0]["actual"] == pytest.approx(np.percentile(np.append(fuel, -1e12), 1), rel=1e-12)
+    assert "1 failing run ranked at the low end" in report["requirements"][0]["note"]
+    assert report["requirements"][1]["note"] == "fails because of the errored run 17"
+    assert report["verdict"] == "ERRORED" and report["passed"] is False
+    assert "met   fuel_remaining.p1 >= 0.2" in report["text"]
+    page = (out / "report" / "index.html").read_text()
+    assert "PASS" not in re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]*", "", page)
+    assert 'class="banner">ERRORED runs: 1 of 200 runs raised errors (run ids 17)' in page
+    rows = synthetic_runs(n=100, errored=(17,), failed=())
+    out = write_out(tmp_path / "hundred", rows, histories=False, parts=1)
+    verdict = make_report(out, require=require[:1], html=False)["requirements"][0]
+    assert verdict["passed"] is False and verdict["actual"] is None  # h = 0.99: interpolates to the errored run
+
+
+def test_all_runs_fine_but_manifest_running_or_a_chunk_missing_is_incomplete(tmp_path):
+    rows = synthetic_runs(n=30, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, requirements=["success_rate >= 1"], parts=3)
+    assert make_report(out, html=False)["verdict"] == "PASS"  # the control: complete, every requirement met
+    storage.write_manifest(out, {"name": "synthetic", "status": "running", "chunk_size": 10})
+    report = make_report(out, html=False)
+    assert report["verdict"] == "INCOMPLETE" and report["passed"] is False
+    assert report["summary"]["completeness"]["problems"] == ["manifest status is 'running', not 'complete'"]
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "chunk_size": 10})
+    (out / "histories" / storage.part_name(1)).unlink()
+    completeness = make_report(out, html=False)["summary"]["completeness"]
+    assert completeness["missing_chunks"] == [storage.part_name(1)] and not completeness["complete"]
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "chunk_size": 5})  # 6 chunks planned
+    completeness = make_report(out, html=False)["summary"]["completeness"]
+    assert completeness["missing_chunks"] == [storage.part_name(k) for k in (1, 3, 4, 5)]
+
+
+def test_docs_list_every_tail_rule():
+    from refexmc.report.tails import TAIL_RULES, worse_tail
+
+    doc = (ROOT / "docs" / "report.md").read_text()
+    for pattern, tail, meaning in TAIL_RULES:
+        assert f"| `{pattern}` | {tail} | {meaning} |" in doc, f"docs/report.md lacks the tail rule of {pattern}"
+    assert [worse_tail(c) for c in ("t_end_s", "t_geem_s", "pulses_total", "fuel_remaining", "p.rcs.isp_s")] == [
+        "upper",
+        "upper",
+        "upper",
+        "lower",
+        None,
+    ]

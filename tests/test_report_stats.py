@@ -146,3 +146,111 @@ def test_binned_quantiles_agree_with_numpy_to_one_bin():
             exact = np.percentile(chunk, percent)
             assert exact / bin_ratio <= q[0, b, k] <= exact * bin_ratio, (b, percent)
     assert binned.sample_counts().sum() == len(values)
+
+
+# Wilks' one-sided 99 %/95 % sample sizes (first, second, third largest value as the bound):
+# 299, 473, 628 (e.g. Wilks 1941; the GRS/BEPU tables of order-statistic tolerance limits)
+WILKS_99_95 = [(298, None), (299, 1), (472, 1), (473, 2), (627, 2), (628, 3), (2000, None)]
+
+
+@pytest.mark.parametrize(("n", "from_top"), WILKS_99_95)
+def test_upper_tolerance_bound_is_the_wilks_order_statistic(n, from_top):
+    values = np.random.default_rng(n).permutation(np.arange(float(n)))  # value = rank - 1
+    bound, method = stats.tolerance_bound(values, "upper")
+    if from_top is None and n < 299:
+        k = stats.normal_tolerance_factor(n, 0.99)
+        assert bound == pytest.approx(values.mean() + k * values.std(ddof=1))
+        assert method.startswith("normal: mean + ")
+        return
+    rank = stats.order_statistic_upper_rank(n, 0.99)
+    # coverage of the chosen rank from the binomial terms, independently of scipy
+    assert 1 - _coverage_lower(n, 0.99, rank) >= 0.95 > 1 - _coverage_lower(n, 0.99, rank - 1)
+    if from_top is not None:
+        assert rank == n + 1 - from_top
+    assert bound == rank - 1 and method == f"order statistic: rank {rank} of {n} (distribution-free)"
+    # the mirror image: the lower bound is the same rank from the bottom
+    low, _ = stats.tolerance_bound(values, "lower")
+    assert low == n - rank
+
+
+def test_maximum_of_299_covers_99_percent_with_95_percent_confidence():
+    # closed form: P(max of n >= x_0.99) = 1 - 0.99^n
+    assert 1 - 0.99**298 < 0.95 <= 1 - 0.99**299
+
+
+def test_normal_upper_tolerance_bound_table_and_coverage():
+    # NIST/SEMATECH e-Handbook 7.2.6.3 / Natrella Table A-7: one-sided k, n = 10, 99 % coverage, 95 % confidence
+    x = np.array([9.2, 10.1, 10.4, 9.8, 10.9, 10.0, 9.5, 10.6, 9.9, 10.3])
+    bound, method = stats.tolerance_bound(x, "upper")
+    assert bound == pytest.approx(x.mean() + 3.981 * x.std(ddof=1), abs=1e-3 * x.std(ddof=1))
+    assert "3.981" in method
+    # coverage by simulation: mean + k sd lies above the true 99th percentile in 95 % of samples
+    rng = np.random.default_rng(17)
+    n, trials = 40, 20000
+    k = stats.normal_tolerance_factor(n, 0.99)
+    samples = rng.standard_normal((trials, n))
+    upper = samples.mean(axis=1) + k * samples.std(axis=1, ddof=1)
+    hit = np.mean(upper >= sps.norm.ppf(0.99))
+    assert hit == pytest.approx(0.95, abs=3 * math.sqrt(0.95 * 0.05 / trials))
+    assert math.isnan(stats.tolerance_bound([1.0], "upper")[0])
+
+
+def test_describe_keeps_the_worse_tail_only():
+    rng = np.random.default_rng(2)
+    durations = rng.exponential(1.0, 400)  # skewed, positive: mean - 3 sd < 0
+    assert durations.mean() - 3 * durations.std(ddof=1) < 0
+    upper = stats.describe(durations, "upper")
+    assert "mean_minus_3sd" not in upper and "min" not in upper and "tol_lower" not in upper
+    for percent in (95, 99, 99.865):
+        assert upper[f"p{percent:g}"] == pytest.approx(np.percentile(durations, percent), abs=1e-15)
+    assert upper["mean_plus_3sd"] == pytest.approx(durations.mean() + 3 * durations.std(ddof=1))
+    assert upper["tolerance_99_95"] == np.sort(durations)[stats.order_statistic_upper_rank(400, 0.99) - 1]
+    lower = stats.describe(durations, "lower")
+    assert "max" not in lower and "mean_plus_3sd" not in lower
+    assert lower["p0.135"] == pytest.approx(np.percentile(durations, 0.135), abs=1e-15)
+
+
+SENTINEL = 1e12  # far beyond every value below: numpy's percentile then shows where a failing run lands
+
+
+@pytest.mark.parametrize("n_failing", [0, 1, 3, 10])
+@pytest.mark.parametrize("stat", ["min", "max", "median", "p1", "p5", "p50", "p95", "p99", "p99_upper95", "p1_lower95"])
+@pytest.mark.parametrize("side", ["low", "high"])
+def test_failing_runs_rank_at_the_failing_end_like_a_far_sentinel(stat, side, n_failing):
+    values = np.random.default_rng(4).normal(0.5, 0.05, 400)
+    got = stats.column_stat_with_failing(values, n_failing, stat, side)
+    sentinel = -SENTINEL if side == "low" else SENTINEL
+    with_sentinel = np.sort(np.concatenate([values, np.full(n_failing, sentinel)]))
+    if stat in ("min", "max", "median"):
+        reference = {"min": with_sentinel[0], "max": with_sentinel[-1], "median": np.median(with_sentinel)}[stat]
+    elif stat.endswith(("_lower95", "_upper95")):
+        percent, bound = stats.parse_percentile_stat(stat)
+        reference = stats.percentile_bound(with_sentinel, percent, bound)
+    else:
+        reference = np.percentile(with_sentinel, float(stat[1:]))
+    if abs(reference) > 1e6:  # numpy's interpolation reached the sentinel: the statistic is the failing run's
+        assert got == (-math.inf if side == "low" else math.inf)
+    else:
+        assert got == pytest.approx(reference, rel=1e-12)
+
+
+def test_failing_runs_fail_moments_and_equality_and_are_not_counted():
+    values = np.linspace(1.0, 2.0, 50)
+    for stat in ("mean", "std", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper"):
+        assert stats.column_stat_with_failing(values, 1, stat, "low") == -math.inf
+        assert stats.column_stat_with_failing(values, 1, stat, "high") == math.inf
+        assert stats.column_stat_with_failing(values, 0, stat, "low") == stats.column_stat(values, stat)
+    assert math.isnan(stats.column_stat_with_failing(values, 1, "median", None))
+    assert stats.column_stat_with_failing(values, 4, "count", "low") == 50
+    # p99 over 1,000 runs holds 9 failing runs at the top, not 10 (h = 999 * 0.99 = 989.01)
+    thousand = np.arange(1000.0)
+    assert math.isfinite(stats.column_stat_with_failing(thousand[:991], 9, "p99", "high"))
+    assert stats.column_stat_with_failing(thousand[:990], 10, "p99", "high") == math.inf
+
+
+def test_sorted_percentile_with_infinities():
+    assert stats.sorted_percentile(np.array([-math.inf, 1.0, 2.0]), 50) == 1.0
+    assert stats.sorted_percentile(np.array([-math.inf, 1.0, 2.0]), 25) == -math.inf
+    assert stats.sorted_percentile(np.array([1.0, 2.0, math.inf]), 75) == math.inf
+    assert stats.sorted_percentile(np.array([-math.inf, -math.inf, 2.0]), 25) == -math.inf  # no inf - inf
+    assert math.isnan(stats.sorted_percentile(np.array([]), 50))

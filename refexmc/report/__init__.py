@@ -6,7 +6,9 @@ the figures as ``OUT/report/figures/*.png``), and returns a dict:
 
 - ``summary``: everything in summary.json;
 - ``requirements``: one verdict dict per requirement (campaign file first, then ``require``);
-- ``passed``: every requirement met (the CLI exits 1 otherwise);
+- ``verdict``: PASS, FAIL, INCOMPLETE (not every planned run stored), ERRORED (some runs
+  errored) or NO REQUIREMENTS (``refexmc.report.requirements.overall_verdict``);
+- ``passed``: the verdict is PASS or NO REQUIREMENTS (the CLI exits 1 otherwise);
 - ``text``: the terminal summary;
 - ``report_dir``, ``files``: where it wrote.
 
@@ -22,7 +24,7 @@ from refexmc.campaign.storage import write_text_atomic
 from refexmc.report import data
 from refexmc.report import summary as summary_module
 from refexmc.report import text as text_module
-from refexmc.report.requirements import evaluate, parse_requirement
+from refexmc.report.requirements import evaluate, overall_verdict, parse_requirement
 
 SENSITIVITY_LABELS = {
     "fuel_used_kg": "propellant used (fuel_used_kg)",
@@ -49,10 +51,9 @@ def make_report(out, require=(), html=True):
     campaign = data.load(out)
     requirements = load_requirements(campaign, require)
     summary = summary_module.build(campaign)
-    level = summary["metrics"]
-    verdicts = [evaluate(r, summary_module.metric_value(campaign, r.metric, level)) for r in requirements]
+    verdicts = [evaluate(r, campaign, summary["metrics"]) for r in requirements]
     summary["requirements"] = verdicts
-    summary["passed"] = all(v["passed"] for v in verdicts)
+    summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
     report_dir = Path(out) / "report"
     report_dir.mkdir(parents=True, exist_ok=True)
     files = []
@@ -77,6 +78,7 @@ def make_report(out, require=(), html=True):
     return {
         "summary": clean,
         "requirements": clean["requirements"],
+        "verdict": summary["verdict"],
         "passed": summary["passed"],
         "text": text,
         "report_dir": report_dir,

@@ -14,6 +14,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from refexmc.campaign import storage
 from refexmc.config import requirements
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import read_yaml
@@ -42,6 +43,16 @@ class Campaign:
     @property
     def errored(self):
         return self.runs[self.runs["status"] != "ok"]
+
+    @property
+    def successful(self):
+        """Flights that flew (status ok) and succeeded: the population of the statistics tables."""
+        return self.runs[(self.runs["status"] == "ok") & self.runs["success"].astype(bool)]
+
+    @property
+    def failed(self):
+        """Flights that flew (status ok) and did not succeed."""
+        return self.runs[(self.runs["status"] == "ok") & ~self.runs["success"].astype(bool)]
 
     @property
     def name(self):
@@ -101,6 +112,72 @@ def load(out):
         manifest=manifest,
         history_parts=sorted((out / "histories").glob("part-*.parquet")),
     )
+
+
+def completeness(campaign):
+    """Did every planned run fly? A dict (JSON-ready) the verdict is built on.
+
+    Incomplete when the manifest's status is not ``complete`` (``run`` writes ``running`` first
+    and ``complete`` last), when run ids 0..runs-1 are not all in the runs table, or when chunks
+    (``part-*.parquet`` of runs, or of histories where the campaign stored histories) are
+    missing. Without a manifest the runs table alone decides. Errored: runs with status error.
+    """
+    planned = campaign.resolved.get("runs")
+    stored_ids = campaign.runs["run_id"].to_numpy(dtype=np.int64)
+    problems = []
+    status = campaign.manifest.get("status") if campaign.manifest else None
+    if campaign.manifest and status != "complete":
+        problems.append(f"manifest status is '{status}', not 'complete'")
+    missing_ids = []
+    if planned is not None:
+        missing_ids = np.setdiff1d(np.arange(int(planned), dtype=np.int64), stored_ids).tolist()
+        if missing_ids:
+            problems.append(f"{len(missing_ids)} of {planned} planned runs missing from the runs table")
+    duplicates = int(len(stored_ids) - len(np.unique(stored_ids)))
+    if duplicates:
+        problems.append(f"{duplicates} run ids stored twice")
+    runs_parts = {p.name for p in (campaign.out / "runs").glob("part-*.parquet")}
+    history_parts = {p.name for p in campaign.history_parts}
+    expected_parts = set()
+    chunk_size = campaign.manifest.get("chunk_size") if campaign.manifest else None
+    if planned is not None and isinstance(chunk_size, int) and chunk_size > 0:
+        expected_parts = {storage.part_name(k) for k in range(-(-int(planned) // chunk_size))}
+    missing_chunks = sorted((expected_parts - runs_parts) | ((runs_parts - history_parts) if history_parts else set()))
+    if missing_chunks:
+        problems.append(
+            f"{len(missing_chunks)} chunk part files missing ({', '.join(missing_chunks[:5])}"
+            + (", ..." if len(missing_chunks) > 5 else "")
+            + ")"
+        )
+    errored_ids = campaign.errored["run_id"].astype(int).tolist()
+    return {
+        "complete": not problems,
+        "problems": problems,
+        "manifest_status": status,
+        "runs_planned": None if planned is None else int(planned),
+        "runs_stored": int(len(stored_ids)),
+        "missing_run_count": len(missing_ids),
+        "missing_run_ids": id_ranges(missing_ids),
+        "missing_chunks": missing_chunks,
+        "errored_count": len(errored_ids),
+        "errored_run_ids": errored_ids[:LISTED_IDS],
+    }
+
+
+LISTED_IDS = 20
+
+
+def id_ranges(ids, limit=LISTED_IDS):
+    """``[0, 1, 2, 5, 7, 8]`` -> ``"0-2, 5, 7-8"`` (at most ``limit`` ranges, then "...")."""
+    ids = sorted(int(i) for i in ids)
+    ranges = []
+    for i in ids:
+        if ranges and i == ranges[-1][1] + 1:
+            ranges[-1][1] = i
+        else:
+            ranges.append([i, i])
+    text = [f"{a}" if a == b else f"{a}-{b}" for a, b in ranges[:limit]]
+    return ", ".join(text) + (", ..." if len(ranges) > limit else "")
 
 
 def mode_codes(column):

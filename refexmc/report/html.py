@@ -5,7 +5,8 @@ import html
 import math
 
 from refexmc.core.layout import MODE_NAMES
-from refexmc.report.text import TABLE_HEADERS, TABLE_STATS, number, percent
+from refexmc.report.requirements import requirement_label
+from refexmc.report.text import TABLE_STATS, TAIL_TITLES, number, percent
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; }
@@ -20,6 +21,8 @@ code { background: #f2f2f2; padding: 0 0.2em; }
 figure { margin: 1em 0; } figcaption { font-size: 0.9em; color: #444; max-width: 1100px; }
 img { max-width: 100%; }
 .note { color: #8a5a00; }
+.banner { background: #f6d0d0; border: 2px solid #b00000; color: #600000; font-weight: bold; padding: 0.6em 0.8em; }
+.incomplete, .errored { background: #f3d9a8; }
 """
 
 
@@ -50,17 +53,57 @@ def requirements_section(summary):
         )
     rows, classes = [], []
     for r in reqs:
-        actual = number(r["actual"], 6) if r["actual"] is not None else e(r["note"])
-        rows.append(["PASS" if r["passed"] else "FAIL", f"<code>{e(r['requirement'])}</code>", actual, e(r["source"])])
+        actual = number(r["actual"], 6) if r["actual"] is not None else "-"
+        if r["actual_successful_flights"] is not None and r["actual"] != r["actual_successful_flights"]:
+            actual += f" (successful flights alone: {number(r['actual_successful_flights'], 6)})"
+        rows.append(
+            [
+                requirement_label(r, summary["verdict"]),
+                f"<code>{e(r['requirement'])}</code>",
+                actual,
+                f'<span class="text">{e(r["covers"])}</span>',
+                e(r["note"]),
+                e(r["source"]),
+            ]
+        )
         classes.append("pass" if r["passed"] else "fail")
-    return table(["verdict", "requirement", "actual", "source"], rows, classes)
+    return table(["verdict", "requirement", "actual", "runs covered", "note", "source"], rows, classes)
 
 
 def statistics_section(summary):
+    """One table per worse tail; each row says which runs it covers and how its tolerance bound was computed."""
+    parts = []
+    for tail, entries in TABLE_STATS.items():
+        rows = []
+        for column, values in summary["columns"].items():
+            if values["tail"] != tail:
+                continue
+            cells = [number(values[key]) for key, _ in entries]
+            rows.append(
+                [
+                    f"<code>{e(column)}</code>",
+                    e(values["covers"]),
+                    *cells,
+                    number(values["std"]),
+                    e(values["tolerance_99_95_method"]),
+                ]
+            )
+        if rows:
+            headers = ["column", "runs covered", *(h for _, h in entries), "std", "tol99/95 method"]
+            parts.append(f"<h3>{e(TAIL_TITLES[tail])}</h3>" + table(headers, rows))
+    return "\n".join(parts)
+
+
+def failure_reasons_section(reasons):
+    if not reasons:
+        return "<p>No failed flight and no errored run.</p>"
     rows = []
-    for column, values in summary["columns"].items():
-        rows.append([f"<code>{e(column)}</code>"] + [number(values[s]) for s in TABLE_STATS] + [number(values["std"])])
-    return table(["column", *TABLE_HEADERS, "std"], rows)
+    for r in reasons:
+        ids = ", ".join(str(i) for i in r["example_run_ids"]) + (
+            ", ..." if r["count"] > len(r["example_run_ids"]) else ""
+        )
+        rows.append([e(r["kind"]), f'<span class="text">{e(r["reason"])}</span>', str(r["count"]), e(ids)])
+    return table(["kind", "reason", "runs", "example run ids"], rows, ["fail"] * len(rows))
 
 
 def failure_sets_section(sets):
@@ -138,38 +181,48 @@ def page(summary, figures, sensitivity_labels):
     counts = summary["counts"]
     success = summary["success"]
     reqs = summary["requirements"]
-    passed = summary["passed"]
-    if reqs:
-        verdict = f"{'PASS' if passed else 'FAIL'}: {sum(r['passed'] for r in reqs)} of {len(reqs)} requirements met"
-        verdict_class = "pass" if passed else "fail"
+    verdict = summary["verdict"]
+    met = f"{sum(r['passed'] for r in reqs)} of {len(reqs)} requirements met"
+    if verdict in ("INCOMPLETE", "ERRORED"):
+        verdict_text, verdict_class = f"{verdict}: {met} on the stored runs; no overall verdict", verdict.lower()
+    elif reqs:
+        verdict_text, verdict_class = f"{verdict}: {met}", verdict.lower()
     else:
-        verdict, verdict_class = "no requirements to judge", "none"
-    body = [
+        verdict_text, verdict_class = "no requirements to judge", "none"
+    body = [f'<p class="banner">{e(summary["banner"])}</p>'] if summary.get("banner") else []
+    body += [
         f"<h1>Campaign {e(c['name'])}</h1>",
-        f"<p>{counts['runs']} runs ({counts['ok_count']} ok, {counts['error_count']} errored), seed {e(c['seed'])}, "
+        f"<p>{counts['runs']} runs ({counts['success_count']} successful, {counts['failure_count']} failed, "
+        f"{counts['error_count']} errored), seed {e(c['seed'])}, "
         f"sampling {e(c['sampling'])}, failures {e(c['failures'])}; output <code>{e(c['out'])}</code>; "
         f"refexmc {e(c['refexmc'])}.</p>",
-        f'<p class="verdict {verdict_class}">{e(verdict)}</p>',
+        f'<p class="verdict {verdict_class}">{e(verdict_text)}</p>',
     ]
     body += [f'<p class="note">{e(note)}</p>' for note in summary["notes"]]
-    body += ["<h2>Requirements</h2>", requirements_section(summary)]
+    body += [
+        "<h2>Requirements</h2>",
+        requirements_section(summary),
+        "<p>Every requirement is judged over all runs: a failed flight or an errored run counts as failing it "
+        "(docs/report.md says how, per statistic).</p>",
+    ]
     low, high = success["ci95"]
     body += [
         "<h2>Success</h2>",
-        f"<p>{success['successes']} of {success['ok_runs']} ok runs succeeded: {percent(success['rate'])}, "
+        f"<p>{success['successes']} of {success['runs']} runs succeeded: {percent(success['rate'])}, "
         f"95 % Clopper-Pearson interval [{percent(low)}, {percent(high)}], one-sided 95 % lower bound "
-        f"{percent(success['lower95'])}.</p>",
+        f"{percent(success['lower95'])} (over {e(success['covers'])}).</p>",
     ]
     if success.get("statement"):
         body.append(f"<p>{e(success['statement'])}.</p>")
+    body += ["<h2>Failure reasons</h2>", failure_reasons_section(summary["failure_reasons"])]
+    notes = summary["statistics_notes"]
     body += [
-        "<h2>Statistics over the ok runs</h2>",
+        "<h2>Statistics over the successful flights</h2>",
+        f"<p>Over the {e(notes['population'])}. Each column shows the tail where it is worse: {e(notes['tails'])}.</p>",
         statistics_section(summary),
-        "<p>Percentiles: numpy's linear interpolation. "
-        f"<code>tol_lower</code>: {e(summary['propellant_bounds']['tol_lower'])}. "
-        f"<code>p0.135_lower95</code>: {e(summary['propellant_bounds']['p0.135_lower95'])}. "
-        "Time in each mode: <code>t_&lt;mode&gt;_s</code>; hand-over angle error over the runs that reached "
-        "hand-over.</p>",
+        f"<p>Percentiles: {e(notes['percentiles'])}. <code>tol99/95</code>: {e(notes['tolerance_99_95'])}. "
+        f"<code>mean±3sd</code>: {e(notes['mean_3sd'])}. Time in each mode: <code>t_&lt;mode&gt;_s</code>; "
+        "hand-over angle error over the flights that reached hand-over.</p>",
     ]
     for title, caption, png_bytes in figures:
         body += [

@@ -1,5 +1,21 @@
-"""Requirement verdicts for the report. The grammar (``'METRIC OP VALUE'``, metric names,
-statistics) belongs to the campaign file and lives in :mod:`refexmc.config.requirements`.
+"""Requirement verdicts and the campaign's overall verdict. The grammar (``'METRIC OP VALUE'``,
+metric names, statistics) belongs to the campaign file and lives in :mod:`refexmc.config.requirements`.
+
+How the report evaluates a metric (docs/report.md):
+
+- campaign metrics (``success_rate``, ``success_rate_lower95``, ...) are over every stored run;
+  an errored run counts as unsuccessful;
+- ``<column>.<stat>`` of an output column is over every stored run: the successful flights give
+  their values, and every failed flight (success false) and errored run counts as failing the
+  requirement. It stands at the failing end of the distribution (-inf for ``>=``/``>``, +inf for
+  ``<=``/``<``): min and max fail with one such run, a percentile fails when its tail reaches
+  them, moment statistics (mean, std, mean_minus_3sd, mean_plus_3sd, tol_lower, tol_upper) fail
+  with one, and ``==`` cannot be met by them (stats.column_stat_with_failing); ``count`` counts
+  the successful flights' values;
+- ``<column>.<stat>`` of an input column (``p.<path>``) is over every run's value.
+
+The overall verdict is INCOMPLETE (not every planned run stored), ERRORED (some runs errored),
+FAIL, PASS or NO REQUIREMENTS; only PASS and NO REQUIREMENTS exit 0.
 """
 
 import math
@@ -12,20 +28,131 @@ from refexmc.config.requirements import (  # noqa: F401 - the grammar, as the re
     parse_requirement,
     split_metric,
 )
+from refexmc.report import stats
+
+FAILING_SIDE = {">=": "low", ">": "low", "<=": "high", "<": "high", "==": None}
+LISTED_IDS = 10
+INPUT_PREFIX = "p."
 
 
-def evaluate(requirement, metric_value):
-    """The verdict of one requirement as a dict (JSON-ready); NaN fails ("not computable")."""
-    actual = float(metric_value)
-    computable = math.isfinite(actual)
-    passed = computable and bool(OPERATORS[requirement.op](actual, requirement.value))
-    return {
+def plural(count, word):
+    return f"{count} {word}{'' if count == 1 else 's'}"
+
+
+def listed_ids(ids, limit=LISTED_IDS):
+    ids = [int(i) for i in ids]
+    text = ", ".join(str(i) for i in ids[:limit])
+    return text + (f", ... ({len(ids)} in all)" if len(ids) > limit else "")
+
+
+def failing_description(failed_ids, errored_ids):
+    """``"failed flights 3, 11 and errored runs 7"`` (ids listed, truncated)."""
+    parts = []
+    if len(failed_ids):
+        parts.append(f"failed flight{'s' if len(failed_ids) > 1 else ''} {listed_ids(failed_ids)}")
+    if len(errored_ids):
+        parts.append(f"errored run{'s' if len(errored_ids) > 1 else ''} {listed_ids(errored_ids)}")
+    return " and ".join(parts)
+
+
+def campaign_metric_covers(campaign):
+    n = len(campaign.runs)
+    errored = len(campaign.errored)
+    return f"all {plural(n, 'run')}" + (f" ({plural(errored, 'errored run')} count as unsuccessful)" if errored else "")
+
+
+def evaluate(requirement, campaign, level):
+    """The verdict of one requirement as a dict (JSON-ready); ``level``: summary.campaign_metrics."""
+    verdict = {
         "requirement": requirement.text,
         "source": requirement.source,
         "metric": requirement.metric,
         "op": requirement.op,
         "value": requirement.value,
-        "actual": actual if computable else None,
-        "passed": passed,
-        "note": "" if computable else "not computable (no runs, or too few runs for this bound)",
     }
+    failing_ids, note = [], ""
+    actual_successful = None
+    if requirement.metric in CAMPAIGN_METRICS:
+        actual = float(level[requirement.metric])
+        covers = campaign_metric_covers(campaign)
+    else:
+        column, stat = split_metric(requirement.metric)
+        if column.startswith(INPUT_PREFIX):
+            actual = stats.column_stat(campaign.runs[column].to_numpy(dtype=float), stat)
+            covers = f"all {plural(len(campaign.runs), 'run')} (an input: every run has its value)"
+        else:
+            values = campaign.successful[column].to_numpy(dtype=float)
+            failed_ids = campaign.failed["run_id"].to_numpy()
+            errored_ids = campaign.errored["run_id"].to_numpy()
+            failing = len(failed_ids) + len(errored_ids)
+            side = FAILING_SIDE[requirement.op]
+            actual = stats.column_stat_with_failing(values, failing, stat, side)
+            finite = int(stats.column_stat(values, "count"))
+            covers = f"all {plural(len(campaign.runs), 'run')}: {plural(finite, 'successful flight')}"
+            if finite < len(values):
+                covers += f" with a value ({len(values) - finite} without)"
+            if failing:
+                covers += f"; {failing_description(failed_ids, errored_ids)} count as failing"
+                failing_ids = sorted(int(i) for i in (*failed_ids, *errored_ids))
+                alone = stats.column_stat(values, stat)
+                actual_successful = alone if math.isfinite(alone) else None
+                if stat != "count":
+                    if math.isinf(actual) or (side is None and math.isnan(actual)):
+                        note = f"fails because of the {failing_description(failed_ids, errored_ids)}"
+                    else:
+                        end = "low" if side == "low" else "high"
+                        note = f"{plural(failing, 'failing run')} ranked at the {end} end"
+    computable = math.isfinite(actual)
+    passed = computable and bool(OPERATORS[requirement.op](actual, requirement.value))
+    if not computable and not note:
+        note = "not computable (no runs, or too few runs for this bound)"
+    verdict.update(
+        actual=actual if computable else None,
+        passed=passed,
+        covers=covers,
+        failing_count=len(failing_ids),
+        failing_run_ids=failing_ids[: LISTED_IDS * 2],
+        actual_successful_flights=actual_successful,
+        note=note,
+    )
+    return verdict
+
+
+def overall_verdict(completeness, verdicts):
+    """(verdict, passed, banner): the campaign's verdict, whether it exits 0, and the banner text ('' if none)."""
+    met = sum(v["passed"] for v in verdicts)
+    judged = f"requirements: {met} of {len(verdicts)} met" + (" on the stored runs" if verdicts else "")
+    if not completeness["complete"]:
+        planned = completeness["runs_planned"]
+        stored = f"{completeness['runs_stored']} of {planned} planned runs stored" if planned is not None else ""
+        detail = "; ".join(filter(None, [stored, *completeness["problems"]]))
+        if completeness["missing_run_count"]:
+            detail += f"; missing run ids {completeness['missing_run_ids']}"
+        if completeness["errored_count"]:
+            detail += f"; {plural(completeness['errored_count'], 'errored run')}"
+        banner = (
+            f"INCOMPLETE campaign: {detail}. No verdict until every planned run has flown "
+            "(finish it with `refexmc run CAMPAIGN -o OUT --resume`)."
+        )
+        return "INCOMPLETE", False, banner + f" {judged}."
+    if completeness["errored_count"]:
+        count = completeness["errored_count"]
+        banner = (
+            f"ERRORED runs: {count} of {completeness['runs_stored']} runs raised errors "
+            f"(run ids {listed_ids(completeness['errored_run_ids'][:LISTED_IDS])}"
+            + (", ..." if count > LISTED_IDS else "")
+            + "); they count as failing every requirement, and the campaign cannot be accepted while runs are errored."
+        )
+        return "ERRORED", False, banner + f" {judged}."
+    if not verdicts:
+        return "NO REQUIREMENTS", True, ""
+    if met == len(verdicts):
+        return "PASS", True, ""
+    return "FAIL", False, ""
+
+
+def requirement_label(verdict, overall):
+    """PASS/FAIL of one requirement; a met requirement of an incomplete or errored campaign says "met"."""
+    if not verdict["passed"]:
+        return "FAIL"
+    return "PASS" if overall in ("PASS", "FAIL") else "met"

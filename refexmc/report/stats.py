@@ -13,6 +13,39 @@ from refexmc.config.requirements import BASIC_STATS, BOUND_STATS, PERCENTILE_STA
 CONFIDENCE = 0.95
 THREE_SIGMA_LOW_FRACTION = 0.00135  # P(Z < -3) of a normal distribution: the "3-sigma" tail, 0.135 %
 THREE_SIGMA_COVERAGE = 1.0 - THREE_SIGMA_LOW_FRACTION
+TOLERANCE_COVERAGE = 0.99  # the statistics tables' tolerance bound: 99 % of flights, 95 % confidence
+MOMENT_STATS = ("mean", "std", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper")
+# the statistics of each tail (refexmc.report.tails): summary.json "columns" holds these
+TAIL_STATS = {
+    "upper": (
+        "count",
+        "median",
+        "mean",
+        "std",
+        "p95",
+        "p99",
+        "p99.865",
+        "max",
+        "mean_plus_3sd",
+        "tol_upper",
+        "p99_upper95",
+        "p99.865_upper95",
+    ),
+    "lower": (
+        "count",
+        "median",
+        "mean",
+        "std",
+        "p5",
+        "p1",
+        "p0.135",
+        "min",
+        "mean_minus_3sd",
+        "tol_lower",
+        "p1_lower95",
+        "p0.135_lower95",
+    ),
+}
 
 
 def clopper_pearson(successes, n, confidence=CONFIDENCE):
@@ -141,10 +174,101 @@ def column_stat(values, stat, confidence=CONFIDENCE):
     return percentile_bound(np.sort(values), percent, bound, confidence)
 
 
-def describe(values, confidence=CONFIDENCE):
-    """The standard statistics of one column, a dict stat -> value (NaN where not computable)."""
-    names = BASIC_STATS + PERCENTILE_STATS + BOUND_STATS + ("p0.135_lower95", "p99.865_upper95")
-    return {name: column_stat(values, name, confidence) for name in names}
+def tolerance_bound(values, side, coverage=TOLERANCE_COVERAGE, confidence=CONFIDENCE):
+    """One-sided tolerance bound and how it was computed: (value, method).
+
+    With probability ``confidence`` at least ``coverage`` of the population lies below the bound
+    (``side`` "upper") or above it ("lower"). Distribution-free when n allows: the order statistic
+    that is a ``confidence`` bound of the ``coverage`` quantile (Wilks; at 99 %/95 % the maximum
+    needs n >= 299: 1 - 0.99^n >= 0.95). Otherwise the normal bound mean +- k sd with
+    k = ``normal_tolerance_factor(n, coverage, confidence)``, which assumes normality. NaN for n < 2.
+    """
+    values = np.asarray(values, dtype=float)
+    values = np.sort(values[np.isfinite(values)])
+    n = len(values)
+    if side == "upper":
+        rank = order_statistic_upper_rank(n, coverage, confidence)
+        if 1 <= rank <= n:
+            return float(values[rank - 1]), f"order statistic: rank {rank} of {n} (distribution-free)"
+    else:
+        rank = order_statistic_lower_rank(n, 1.0 - coverage, confidence)
+        if rank >= 1:
+            return float(values[rank - 1]), f"order statistic: rank {rank} of {n} (distribution-free)"
+    if n < 2:
+        return math.nan, "not computable (fewer than 2 values)"
+    k = normal_tolerance_factor(n, coverage, confidence)
+    sd = float(values.std(ddof=1))
+    value = float(values.mean()) + (k if side == "upper" else -k) * sd
+    sign = "+" if side == "upper" else "-"
+    return value, f"normal: mean {sign} {k:.3f} sd (n = {n} too few for the order statistic; assumes normality)"
+
+
+def describe(values, tail, confidence=CONFIDENCE):
+    """The statistics of one column for its worse ``tail`` ("upper" or "lower"): a dict (NaN where
+    not computable), with ``tolerance_99_95`` and ``tolerance_99_95_method`` from :func:`tolerance_bound`."""
+    result = {name: column_stat(values, name, confidence) for name in TAIL_STATS[tail]}
+    bound, method = tolerance_bound(values, tail, TOLERANCE_COVERAGE, confidence)
+    result["tolerance_99_95"] = bound
+    result["tolerance_99_95_method"] = method
+    return result
+
+
+def sorted_percentile(sorted_values, percent):
+    """numpy's linear (type 7) percentile of sorted values that may hold -inf or +inf.
+
+    Between a finite value and an infinite one the infinite one wins (the interpolation has no
+    finite answer); with only finite values it is ``np.percentile``.
+    """
+    n = len(sorted_values)
+    if n == 0:
+        return math.nan
+    if np.isfinite(sorted_values).all():
+        return percentile(sorted_values, percent)
+    position = (n - 1) * percent / 100.0
+    below = int(math.floor(position))
+    above = min(below + 1, n - 1)
+    fraction = position - below
+    a, b = float(sorted_values[below]), float(sorted_values[above])
+    if fraction == 0.0 or a == b:
+        return a
+    if math.isinf(a):
+        return a
+    if math.isinf(b):
+        return b
+    return a + fraction * (b - a)
+
+
+def column_stat_with_failing(values, failing, stat, failing_side, confidence=CONFIDENCE):
+    """``column_stat`` over ``values`` and ``failing`` runs that have no acceptable value.
+
+    The failing runs (failed flights, errored runs) stand at the end of the distribution where
+    they fail the requirement: ``failing_side`` "low" (-inf: for METRIC >= VALUE) or "high" (+inf:
+    for METRIC <= VALUE); ``None`` (for ==): any failing run makes the statistic NaN. Order
+    statistics (min, max, median, p<q>, p<q>_lower95/_upper95) rank them with the others, so a
+    percentile tolerates the failing runs its tail can hold; moment statistics (mean, std,
+    mean_minus_3sd, mean_plus_3sd, tol_lower, tol_upper) have no room for a run without a value
+    and are infinite on the failing side; count counts the values only.
+    """
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values)]
+    if stat == "count" or failing == 0:
+        return column_stat(values, stat, confidence)
+    if failing_side is None:
+        return math.nan
+    worst = -math.inf if failing_side == "low" else math.inf
+    if stat in MOMENT_STATS:
+        return worst
+    ranked = np.sort(np.concatenate([values, np.full(int(failing), worst)]))
+    if stat == "min":
+        return float(ranked[0])
+    if stat == "max":
+        return float(ranked[-1])
+    if stat == "median":
+        return sorted_percentile(ranked, 50.0)
+    percent, bound = parse_percentile_stat(stat)
+    if bound is None:
+        return sorted_percentile(ranked, percent)
+    return percentile_bound(ranked, percent, bound, confidence)
 
 
 def spearman(x, y):

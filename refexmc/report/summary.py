@@ -6,15 +6,15 @@ import shlex
 import numpy as np
 
 from refexmc.core.layout import MODE_NAMES
-from refexmc.report import data, stats
-from refexmc.report.requirements import CAMPAIGN_METRICS, split_metric
+from refexmc.report import data, stats, tails
+from refexmc.report.requirements import campaign_metric_covers
 
 KEY_COLUMNS = ("fuel_remaining", "fuel_used_kg", "theta_t_handover_deg", "t_end_s", "pulses_total")
 SENSITIVITY_OUTPUTS = ("fuel_used_kg", "theta_t_handover_deg")
-WORST_CASES = (  # (column, "low"/"high": which end is worst, what it means)
-    ("fuel_remaining", "low", "least propellant remaining"),
-    ("theta_t_handover_deg", "high", "largest total angle error at hand-over"),
-    ("t_end_s", "high", "longest flight"),
+WORST_CASES = (  # (column, what its worst end means); the end is the column's worse tail (tails.py)
+    ("fuel_remaining", "least propellant remaining"),
+    ("theta_t_handover_deg", "largest total angle error at hand-over"),
+    ("t_end_s", "longest flight"),
 )
 WORST_COUNT = 5
 
@@ -23,45 +23,43 @@ PAPER_COMPENSABLE = frozenset(
     [(1,), (2,), (3,), (4,), (7,), (8,), (1, 2), (3, 4), (1, 3), (2, 4), (7, 8), (1, 8), (2, 8), (3, 7), (4, 7)]
 )
 LISTED_RUNS = 20
+FAILURE_EXAMPLES = 5
+REASON_CHARACTERS = 160
 
 
 def campaign_metrics(campaign):
-    """Counts, success rate and its Clopper-Pearson bounds (errored runs excluded from the rate)."""
+    """Counts, success rate and its Clopper-Pearson bounds over every stored run (an errored run
+    counts as unsuccessful)."""
     runs = campaign.runs
-    ok = campaign.ok
-    n_ok = len(ok)
-    successes = int(ok["success"].astype(bool).sum())
-    rate = successes / n_ok if n_ok else math.nan
-    lower = stats.clopper_pearson_lower(successes, n_ok)
+    n = len(runs)
+    n_ok = len(campaign.ok)
+    successes = len(campaign.successful)
+    lower = stats.clopper_pearson_lower(successes, n)
     return {
-        "runs": float(len(runs)),
+        "runs": float(n),
         "ok_count": float(n_ok),
-        "error_count": float(len(runs) - n_ok),
-        "error_rate": (len(runs) - n_ok) / len(runs) if len(runs) else math.nan,
+        "error_count": float(n - n_ok),
+        "error_rate": (n - n_ok) / n if n else math.nan,
         "success_count": float(successes),
         "failure_count": float(n_ok - successes),
-        "success_rate": rate,
+        "success_rate": successes / n if n else math.nan,
         "success_rate_lower95": lower,
-        "success_rate_upper95": stats.clopper_pearson_upper(successes, n_ok),
+        "success_rate_upper95": stats.clopper_pearson_upper(successes, n),
         "failure_rate_upper95": 1.0 - lower,
     }
 
 
-def metric_value(campaign, metric, level=None):
-    """The value of a metric of the grammar in ``refexmc.report.requirements`` (already checked)."""
-    if metric in CAMPAIGN_METRICS:
-        return (level or campaign_metrics(campaign))[metric]
-    column, stat = split_metric(metric)
-    return stats.column_stat(campaign.ok[column].to_numpy(dtype=float), stat)
-
-
 def success_section(campaign, level):
-    n = int(level["ok_count"])
+    n = int(level["runs"])
     k = int(level["success_count"])
+    failed, errored = int(level["failure_count"]), int(level["error_count"])
     low, high = stats.clopper_pearson(k, n)
     section = {
         "successes": k,
-        "ok_runs": n,
+        "runs": n,
+        "failed_flights": failed,
+        "errored_runs": errored,
+        "covers": campaign_metric_covers(campaign),
         "rate": level["success_rate"],
         "ci95": [low, high],
         "lower95": level["success_rate_lower95"],
@@ -76,35 +74,97 @@ def success_section(campaign, level):
             f"1 - 0.05^(1/{n}){rule_of_three})"
         )
     elif n:
+        kinds = ", ".join(
+            text for count, text in ((failed, f"{failed} failed"), (errored, f"{errored} errored")) if count
+        )
         section["statement"] = (
-            f"{n - k} of {n} runs failed: success rate {100 * k / n:.4g} %, 95 % interval "
+            f"{n - k} of {n} runs did not succeed ({kinds}): success rate {100 * k / n:.4g} %, 95 % interval "
             f"[{100 * low:.4g}, {100 * high:.4g}] %"
         )
     return section
 
 
+def statistics_columns(campaign):
+    """The runs columns of the statistics tables, in display order: those with a declared tail."""
+    runs = campaign.runs
+    columns = [c for c in KEY_COLUMNS if c in runs]
+    columns += [c for c in data.MODE_TIME_COLUMNS if c in runs]
+    columns += [c for c in runs.columns if c.startswith("pulses_") and c[7:].isdigit()]
+    return [c for c in columns if tails.worse_tail(c) is not None]
+
+
 def column_sections(campaign):
-    ok = campaign.ok
-    columns = [c for c in KEY_COLUMNS if c in ok]
-    columns += [c for c in data.MODE_TIME_COLUMNS if c in ok]
-    columns += [c for c in ok.columns if c.startswith("pulses_") and c[7:].isdigit()]
-    return {c: stats.describe(ok[c].to_numpy(dtype=float)) for c in columns}
+    """Statistics of each output column over the successful flights, for the column's worse tail.
+
+    Each entry also says which runs it covers (``covers``, ``n``) and its ``tail``.
+    """
+    successful = campaign.successful
+    n_runs = len(campaign.runs)
+    left_out = n_runs - len(successful)
+    result = {}
+    for column in statistics_columns(campaign):
+        values = successful[column].to_numpy(dtype=float)
+        tail = tails.worse_tail(column)
+        section = stats.describe(values, tail)
+        n = int(section["count"])
+        covers = f"{n} successful flight{'s' if n != 1 else ''}"
+        if n < len(successful):
+            covers += f" with a value (of {len(successful)})"
+        if left_out:
+            covers += f"; {left_out} of {n_runs} runs not included (failed or errored)"
+        result[column] = {"covers": covers, "n": n, "tail": tail, **section}
+    return result
 
 
-def propellant_bounds_note(n):
-    k = stats.normal_tolerance_factor(n)
+def statistics_notes(campaign):
+    """What the columns of the statistics tables are, for the text and the page."""
+    coverage = f"{100 * stats.TOLERANCE_COVERAGE:g} %"
     return {
-        "tol_lower": (
-            "one-sided normal tolerance bound mean - k sd, k = "
-            + (f"{k:.3f}" if math.isfinite(k) else "n/a")
-            + f" for N = {n}: with 95 % confidence at least 99.865 % of flights keep more "
-            "(the confidence bound of the 3-sigma-low value mean - 3 sd; assumes a normal distribution)"
+        "population": (
+            "successful flights only (status ok, success true); failed flights and errored runs are in the "
+            "failure-reason table and count as failing every requirement"
         ),
-        "p0.135_lower95": (
-            "distribution-free 95 % lower confidence bound of the 0.135th percentile (an order statistic); "
-            "needs N >= 2218 runs"
+        "tails": (
+            "upper tail (larger is worse): durations, angle errors, pulses, propellant used; lower tail "
+            "(smaller is worse): propellant remaining (docs/report.md)"
         ),
+        "tolerance_99_95": (
+            f"one-sided tolerance bound: with 95 % confidence at least {coverage} of successful flights lie on "
+            "its good side; the order statistic (distribution-free) when n allows it (n >= 299), else the normal "
+            "bound mean +- k sd"
+        ),
+        "mean_3sd": "mean +- 3 sd: the normal 3-sigma value (0.135 % tail), no confidence margin",
+        "percentiles": "numpy's linear interpolation (Hyndman-Fan type 7)",
     }
+
+
+def failure_reasons(campaign, examples=FAILURE_EXAMPLES):
+    """Failed flights and errored runs counted per reason, most frequent first, with example run ids."""
+    rows = []
+    for kind, group in (("failed flight", campaign.failed), ("errored run", campaign.errored)):
+        if group.empty:
+            continue
+        reasons = group["failure_reason"].map(reason_text)
+        for reason, ids in group["run_id"].groupby(reasons, sort=False):
+            rows.append(
+                {
+                    "kind": kind,
+                    "status": "ok" if kind == "failed flight" else "error",
+                    "reason": reason,
+                    "count": len(ids),
+                    "example_run_ids": sorted(int(i) for i in ids)[:examples],
+                }
+            )
+    rows.sort(key=lambda r: (r["kind"] != "failed flight", -r["count"], r["reason"]))
+    return rows
+
+
+def reason_text(reason, limit=REASON_CHARACTERS):
+    """A failure reason as one short line (an error's first line, cut at ``limit`` characters)."""
+    if reason is None or (isinstance(reason, float) and math.isnan(reason)) or not str(reason).strip():
+        return "(no reason recorded)"
+    line = str(reason).strip().splitlines()[0]
+    return line if len(line) <= limit else line[: limit - 3] + "..."
 
 
 def failure_sets(campaign):
@@ -219,24 +279,27 @@ def _run_entry(campaign, row, column=None):
 def worst_cases(campaign, count=WORST_COUNT):
     ok = campaign.ok
     result = {}
-    for column, worst, meaning in WORST_CASES:
+    for column, meaning in WORST_CASES:
         if column not in ok:
             continue
         finite = ok[np.isfinite(ok[column].to_numpy(dtype=float))]
-        picked = finite.nsmallest(count, column) if worst == "low" else finite.nlargest(count, column)
+        low = tails.worse_tail(column) == "lower"
+        picked = finite.nsmallest(count, column) if low else finite.nlargest(count, column)
         result[column] = {
-            "meaning": meaning,
+            "meaning": f"{meaning} (among the flown runs, status ok)",
             "runs": [_run_entry(campaign, row, column) for row in picked.to_dict("records")],
         }
     failed = ok[~ok["success"].astype(bool)]
     result["unsuccessful"] = {
-        "meaning": f"runs that did not succeed (first {LISTED_RUNS})",
+        "meaning": f"flown runs (status ok) that did not succeed (first {LISTED_RUNS})",
         "count": len(failed),
         "runs": [_run_entry(campaign, row) for row in failed.head(LISTED_RUNS).to_dict("records")],
     }
     errored = campaign.errored
     result["errored"] = {
-        "meaning": f"runs that raised errors, excluded from the statistics (first {LISTED_RUNS})",
+        "meaning": (
+            f"runs that raised errors: not in the statistics tables, failing every requirement (first {LISTED_RUNS})"
+        ),
         "count": len(errored),
         "runs": [_run_entry(campaign, row) for row in errored.head(LISTED_RUNS).to_dict("records")],
     }
@@ -244,18 +307,11 @@ def worst_cases(campaign, count=WORST_COUNT):
 
 
 def build(campaign):
-    """Every number of the report except the requirement verdicts."""
+    """Every number of the report except the requirement verdicts and the overall verdict."""
     level = campaign_metrics(campaign)
     n_ok = int(level["ok_count"])
     notes = []
-    if level["error_count"]:
-        notes.append(
-            f"{int(level['error_count'])} of {int(level['runs'])} runs raised errors; they are excluded from every "
-            "statistic (see 'errored' under worst cases)"
-        )
     expected = campaign.resolved.get("runs")
-    if expected is not None and len(campaign.runs) < expected:
-        notes.append(f"incomplete campaign: {len(campaign.runs)} of {expected} runs stored")
     nominal = campaign.nominal_run_id
     if nominal is not None:
         notes.append("run 0 is the undispersed nominal case; it counts as a run in every statistic")
@@ -273,13 +329,15 @@ def build(campaign):
             "manifest_status": campaign.manifest.get("status"),
             "refexmc": campaign.manifest.get("refexmc"),
         },
+        "completeness": data.completeness(campaign),
         "counts": {
             key: int(level[key]) for key in ("runs", "ok_count", "error_count", "success_count", "failure_count")
         },
         "metrics": level,
         "success": success_section(campaign, level),
         "columns": column_sections(campaign),
-        "propellant_bounds": propellant_bounds_note(n_ok),
+        "statistics_notes": statistics_notes(campaign),
+        "failure_reasons": failure_reasons(campaign),
         "nominal": None
         if nominal_row is None
         else {

@@ -3,9 +3,30 @@
 import math
 
 from refexmc.core.layout import MODE_NAMES
+from refexmc.report.requirements import requirement_label
 
-TABLE_STATS = ("min", "p0.135", "p1", "median", "mean", "mean_minus_3sd", "tol_lower", "max")
-TABLE_HEADERS = ("min", "p0.135", "p1", "p50", "mean", "mean-3sd", "tol_lower", "max")
+# the statistics tables: (stat key, header) per worse tail (refexmc.report.tails)
+TABLE_STATS = {
+    "upper": (
+        ("median", "p50"),
+        ("mean", "mean"),
+        ("p99", "p99"),
+        ("p99.865", "p99.865"),
+        ("max", "max"),
+        ("mean_plus_3sd", "mean+3sd"),
+        ("tolerance_99_95", "tol99/95"),
+    ),
+    "lower": (
+        ("median", "p50"),
+        ("mean", "mean"),
+        ("p1", "p1"),
+        ("p0.135", "p0.135"),
+        ("min", "min"),
+        ("mean_minus_3sd", "mean-3sd"),
+        ("tolerance_99_95", "tol99/95"),
+    ),
+}
+TAIL_TITLES = {"upper": "larger is worse (upper tail)", "lower": "smaller is worse (lower tail)"}
 TABLE_COLUMNS = ("fuel_remaining", "fuel_used_kg", "theta_t_handover_deg", "t_end_s", "pulses_total")
 
 
@@ -19,33 +40,65 @@ def percent(value):
     return "-" if value is None or not math.isfinite(value) else f"{100 * value:.4g} %"
 
 
+def statistics_lines(summary, columns=TABLE_COLUMNS):
+    """The terminal statistics tables: one per worse tail, each row with the runs it covers."""
+    lines = []
+    width = max(len(c) for c in columns) + 2
+    for tail, entries in TABLE_STATS.items():
+        rows = [c for c in columns if summary["columns"].get(c, {}).get("tail") == tail]
+        if not rows:
+            continue
+        lines.append(f"{TAIL_TITLES[tail]}:")
+        lines.append("".ljust(width) + "n".rjust(6) + "".join(h.rjust(10) for _, h in entries))
+        for column in rows:
+            values = summary["columns"][column]
+            cells = "".join(number(values[key]).rjust(10) for key, _ in entries)
+            lines.append(column.ljust(width) + str(values["n"]).rjust(6) + cells)
+    covers = {summary["columns"][c]["covers"] for c in columns if c in summary["columns"]}
+    for text in sorted(covers):
+        lines.append(f"  over {text}")
+    lines.append(
+        "  tol99/95: one-sided tolerance bound, 99 % of successful flights on its good side with 95 % confidence "
+        "(order statistic from n = 299, else normal mean +- k sd)"
+    )
+    return lines
+
+
+def failure_reason_lines(summary):
+    reasons = summary["failure_reasons"]
+    if not reasons:
+        return []
+    lines = ["failure reasons:"]
+    width = max(len(r["reason"]) for r in reasons) + 2
+    for r in reasons:
+        ids = ", ".join(str(i) for i in r["example_run_ids"]) + (
+            ", ..." if r["count"] > len(r["example_run_ids"]) else ""
+        )
+        lines.append(f"  {r['kind'].ljust(14)}{r['reason'].ljust(width)}{str(r['count']).rjust(6)}  runs {ids}")
+    return lines
+
+
 def format_summary(summary, report_dir=None):
-    """A one-screen summary: counts, success, key statistics, mode times, requirements, verdict."""
+    """A one-screen summary: banner, counts, success, key statistics, failure reasons, requirements, verdict."""
     counts = summary["counts"]
     success = summary["success"]
-    lines = [
-        f"campaign {summary['campaign']['name']}: {counts['runs']} runs, {counts['ok_count']} ok, "
-        f"{counts['error_count']} errored" + (f" -> {report_dir}" if report_dir else ""),
-    ]
+    lines = [f"*** {summary['banner']} ***", ""] if summary.get("banner") else []
+    lines.append(
+        f"campaign {summary['campaign']['name']}: {counts['runs']} runs, {counts['success_count']} successful, "
+        f"{counts['failure_count']} failed, {counts['error_count']} errored"
+        + (f" -> {report_dir}" if report_dir else "")
+    )
     lines += [f"note: {note}" for note in summary["notes"]]
     low, high = success["ci95"]
     lines.append(
-        f"success: {success['successes']}/{success['ok_runs']} = {percent(success['rate'])} "
-        f"(95 % Clopper-Pearson [{percent(low)}, {percent(high)}]; one-sided lower bound {percent(success['lower95'])})"
+        f"success: {success['successes']}/{success['runs']} = {percent(success['rate'])} "
+        f"(95 % Clopper-Pearson [{percent(low)}, {percent(high)}]; "
+        f"one-sided lower bound {percent(success['lower95'])}; over {success['covers']})"
     )
     if success.get("statement"):
         lines.append(f"  {success['statement']}")
-    width = max(len(c) for c in TABLE_COLUMNS) + 2
     lines.append("")
-    lines.append("".ljust(width) + "".join(h.rjust(10) for h in TABLE_HEADERS))
-    for column in TABLE_COLUMNS:
-        values = summary["columns"].get(column)
-        if values:
-            lines.append(column.ljust(width) + "".join(number(values[s]).rjust(10) for s in TABLE_STATS))
-    lines.append(
-        "  (over the ok runs; tol_lower: one-sided normal tolerance bound, 99.865 % of flights above it "
-        "with 95 % confidence)"
-    )
+    lines += statistics_lines(summary)
     modes = []
     for name in MODE_NAMES:
         values = summary["columns"].get(f"t_{name.lower()}_s")
@@ -74,20 +127,27 @@ def format_summary(summary, report_dir=None):
             f"largest hand-over angle error: run {run['run_id']} ({number(run['theta_t_handover_deg'])} deg): "
             f"{run['command']}"
         )
+    reasons = failure_reason_lines(summary)
+    if reasons:
+        lines += ["", *reasons]
     requirements = summary["requirements"]
+    verdict = summary["verdict"]
     if requirements:
         lines.append("")
-        lines.append("requirements:")
+        lines.append("requirements (over all runs; failed flights and errored runs count as failing):")
         width = max(len(r["requirement"]) for r in requirements) + 2
         for r in requirements:
-            verdict = "PASS" if r["passed"] else "FAIL"
-            detail = f"actual {number(r['actual'], 6)}" if r["actual"] is not None else r["note"]
-            lines.append(f"  {verdict}  {r['requirement'].ljust(width)}{detail}  ({r['source']})")
-        failed = sum(not r["passed"] for r in requirements)
-        lines.append(
-            f"verdict: {'PASS' if not failed else 'FAIL'} "
-            f"({len(requirements) - failed} of {len(requirements)} requirements met)"
-        )
+            label = requirement_label(r, verdict)
+            detail = f"actual {number(r['actual'], 6)}" if r["actual"] is not None else "actual -"
+            if r["note"]:
+                detail += f"; {r['note']}"
+            if r["actual_successful_flights"] is not None and r["actual"] != r["actual_successful_flights"]:
+                detail += f" (successful flights alone: {number(r['actual_successful_flights'], 6)})"
+            lines.append(f"  {label.ljust(4)}  {r['requirement'].ljust(width)}{detail}  ({r['source']})")
     else:
         lines.append("no requirements (add `requirements:` to the campaign file or --require 'METRIC OP VALUE')")
+    met = sum(r["passed"] for r in requirements)
+    lines.append(f"verdict: {verdict}" + (f" ({met} of {len(requirements)} requirements met)" if requirements else ""))
+    if summary.get("banner"):
+        lines.append(f"*** {summary['banner']} ***")
     return "\n".join(lines)

@@ -1,0 +1,27 @@
+"""Which end of each runs column is the bad one: the one place the report declares it.
+
+``upper``: larger is worse (durations, angle errors, valve pulses, propellant used); the
+statistics tables show upper percentiles and upper bounds. ``lower``: smaller is worse
+(propellant remaining, modes completed); they show lower percentiles and lower bounds.
+The first rule whose pattern (``fnmatch``) matches a column decides; docs/report.md lists them.
+"""
+
+from fnmatch import fnmatchcase
+
+TAIL_RULES = (  # (column pattern, worse tail, what the column is)
+    ("fuel_remaining", "lower", "propellant remaining (fraction of the load)"),
+    ("modes_completed", "lower", "modes completed"),
+    ("fuel_used_kg", "upper", "propellant used"),
+    ("theta_t_handover_deg", "upper", "total angle error at hand-over"),
+    ("t_end_s", "upper", "flight duration"),
+    ("t_*_s", "upper", "time spent in a mode"),
+    ("pulses_*", "upper", "valve pulses (per thruster, and pulses_total)"),
+)
+
+
+def worse_tail(column):
+    """ "upper" or "lower" for a column of ``TAIL_RULES``; None for any other (e.g. ``p.`` inputs)."""
+    for pattern, tail, _ in TAIL_RULES:
+        if fnmatchcase(column, pattern):
+            return tail
+    return None
