@@ -134,6 +134,19 @@ def test_success_rate_counts_errored_runs_as_unsuccessful(synthetic):
     assert "5 of 60 runs did not succeed (3 failed, 2 errored)" in s["success"]["statement"]
 
 
+def test_share_of_dispersed_runs_using_more_propellant_than_the_nominal(synthetic):
+    """000 sec. 6.2 / Fig. 12 says "most" runs use more than the nominal one: the report counts them
+    over the flown dispersed runs (errored runs have no flight to compare)."""
+    _, rows, report = synthetic
+    nominal = rows[0]["fuel_used_kg"]
+    flown = [r for r in rows[1:] if r["status"] == "ok"]
+    more = sum(r["fuel_used_kg"] > nominal for r in flown)
+    against = report["summary"]["nominal"]["propellant_used_vs_dispersed"]
+    assert (against["more_than_nominal"], against["of"]) == (more, len(flown)) == (against["more_than_nominal"], 57)
+    assert 0 < more < len(flown)
+    assert f"dispersed runs using more propellant than the nominal run: {more} of 57" in report["text"]
+
+
 def test_column_statistics_match_numpy_over_successful_flights(synthetic):
     _, rows, report = synthetic
     columns = report["summary"]["columns"]

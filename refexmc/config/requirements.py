@@ -7,7 +7,8 @@ METRIC is either a campaign-level metric (``CAMPAIGN_METRICS``) or ``<column>.<s
 - ``<column>``: a numeric column of the ``runs`` table (``fuel_remaining``, ``fuel_used_kg``,
   ``t_end_s``, ``t_<mode>_s``, ``theta_t_handover_deg``, ``modes_completed``, ``pulses_<k>``,
   ``p.<path>``), or the derived ``pulses_total`` (sum of the thrusters' pulse counts);
-- ``<stat>``, over the runs with status ``ok`` (errored runs excluded), NaN values dropped:
+- ``<stat>``, judged by the report over every stored run: a failed flight or an errored run
+  counts as failing the requirement (docs/report.md says how for each statistic):
   ``count min max mean median std`` (std with ddof 1); ``mean_minus_3sd mean_plus_3sd``;
   ``p<q>`` the q-th percentile, 0 <= q <= 100 (``p0.135 p1 p50 p99 p99.865``; numpy's linear
   interpolation); ``tol_lower tol_upper`` the one-sided normal tolerance bounds, 99.865 % coverage
@@ -34,12 +35,12 @@ from refexmc.core.layout import MODE_NAMES
 
 CAMPAIGN_METRICS = {
     "runs": "runs in the runs table (ok and errored)",
-    "ok_count": "runs with status ok",
-    "error_count": "runs with status error (excluded from every other statistic)",
+    "ok_count": "runs with status ok (flown)",
+    "error_count": "runs with status error (they count as failing every other requirement)",
     "error_rate": "error_count / runs",
-    "success_count": "ok runs that succeeded",
-    "failure_count": "ok runs that did not succeed",
-    "success_rate": "success_count / ok_count",
+    "success_count": "flown runs that succeeded",
+    "failure_count": "flown runs that did not succeed",
+    "success_rate": "success_count / runs (an errored run counts as unsuccessful)",
     "success_rate_lower95": "one-sided 95 % Clopper-Pearson lower bound of the success probability",
     "success_rate_upper95": "one-sided 95 % Clopper-Pearson upper bound of the success probability",
     "failure_rate_upper95": "1 - success_rate_lower95: the failure probability bound",

@@ -248,6 +248,12 @@ def page(summary, figures, sensitivity_labels):
             f"{number(nominal.get('fuel_remaining', math.nan))}, "
             f"hand-over angle error {number(nominal.get('theta_t_handover_deg', math.nan))} deg.</p>"
         )
+        against = nominal.get("propellant_used_vs_dispersed")
+        if against:
+            body.append(
+                f"<p>Dispersed runs using more propellant than the nominal run: {against['more_than_nominal']} "
+                f"of {against['of']} ({100 * against['share']:.1f} %).</p>"
+            )
     body.append(f"<p>Modes: {e(' → '.join(MODE_NAMES))}. Numbers: <code>summary.json</code> beside this page.</p>")
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'

@@ -306,6 +306,23 @@ def worst_cases(campaign, count=WORST_COUNT):
     return result
 
 
+def against_nominal(campaign, nominal_row, column="fuel_used_kg"):
+    """How many flown dispersed runs used more propellant than the nominal run (000 sec. 6.2: "most")."""
+    if nominal_row is None or column not in campaign.ok:
+        return None
+    dispersed = campaign.ok[campaign.ok["run_id"] != nominal_row["run_id"]][column].dropna()
+    if dispersed.empty:
+        return None
+    more = int((dispersed > nominal_row[column]).sum())
+    return {
+        "column": column,
+        "more_than_nominal": more,
+        "of": int(len(dispersed)),
+        "share": more / len(dispersed),
+        "covers": "flown dispersed runs (status ok), failed flights included",
+    }
+
+
 def build(campaign):
     """Every number of the report except the requirement verdicts and the overall verdict."""
     level = campaign_metrics(campaign)
@@ -344,6 +361,7 @@ def build(campaign):
             "run_id": int(nominal),
             "success": bool(nominal_row["success"]),
             **{c: float(nominal_row[c]) for c in KEY_COLUMNS if c in nominal_row},
+            "propellant_used_vs_dispersed": against_nominal(campaign, nominal_row),
         },
         "failure_sets": sets,
         "failure_sets_vs_000_table4": paper_table4_agreement(campaign, sets),

@@ -116,6 +116,12 @@ def format_summary(summary, report_dir=None):
                 f"  against 000 Table 4: {table4['agree']} of {table4['compared']} single/double sets agree"
                 + (f"; differ: {'; '.join(f'[{d}]' for d in table4['disagree'])}" if table4["disagree"] else "")
             )
+    against = (summary.get("nominal") or {}).get("propellant_used_vs_dispersed")
+    if against:
+        lines.append(
+            f"dispersed runs using more propellant than the nominal run: {against['more_than_nominal']} of "
+            f"{against['of']} ({percent(against['share'])})"
+        )
     worst = summary["worst_cases"].get("fuel_remaining", {}).get("runs")
     if worst:
         run = worst[0]
