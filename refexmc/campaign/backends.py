@@ -28,7 +28,7 @@ from joblib.externals.loky import get_reusable_executor
 from joblib.externals.loky.process_executor import TerminatedWorkerError
 
 from refexmc.campaign import storage
-from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded
+from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded, ignore_interrupts
 from refexmc.config.errors import ConfigError
 
 TASKS_PER_WORKER = 2  # chunks in flight per worker: one flying, one queued
@@ -133,7 +133,7 @@ def loky_backend(campaign, chunks, jobs, guard):
     isolate = deque()  # suspects of a crash, flown one at a time with nothing else in flight
     blind_retries = {}
     inflight = {}
-    executor = get_reusable_executor(max_workers=jobs)
+    executor = get_reusable_executor(max_workers=jobs, initializer=ignore_interrupts)
     finished = False
     try:
         while queue or isolate or inflight:
@@ -166,11 +166,11 @@ def loky_backend(campaign, chunks, jobs, guard):
             if crash:
                 executor.shutdown(wait=True, kill_workers=True)
                 yield from _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries)
-                executor = get_reusable_executor(max_workers=jobs)
+                executor = get_reusable_executor(max_workers=jobs, initializer=ignore_interrupts)
         finished = True
     finally:
-        if not finished:  # interrupted or failed: leave no worker running
-            executor.shutdown(wait=False, kill_workers=True)
+        if not finished:  # interrupted or failed: leave no worker running (wait: they are gone on return)
+            executor.shutdown(wait=True, kill_workers=True)
 
 
 def _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries):
