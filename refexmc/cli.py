@@ -46,7 +46,9 @@ def main():
 @click.option("--runs", type=int, help="Override the number of runs.")
 @click.option("--seed", type=int, help="Override the campaign seed.")
 @click.option("--resume", is_flag=True, help="Finish what is missing in an existing OUT of the same campaign.")
-@click.option("--overwrite", is_flag=True, help="Replace an existing OUT.")
+@click.option(
+    "--overwrite", is_flag=True, help="Replace an existing OUT (only a refexmc output with nothing else in it)."
+)
 @click.option(
     "--backend",
     type=click.Choice(["loky", "dask"]),
@@ -66,6 +68,9 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
 
     Chunks of runs are flown in parallel worker processes; a run that raises, crashes its
     worker or exceeds the campaign's run_time_limit_s (default 60 s) is recorded as an error.
+
+    One run at a time writes OUT (lock file OUT/.refexmc.lock). Ctrl-C or SIGTERM stops the
+    workers, keeps the completed chunks and prints the --resume command (exit 130 / 143).
 
     Example: refexmc run campaigns/nominal.yaml -o runs/nominal -j 2 --overwrite
 
