@@ -20,6 +20,7 @@ flight: the one that crashes again is the culprit.
 """
 
 import re
+import threading
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, wait
 
@@ -169,8 +170,28 @@ def loky_backend(campaign, chunks, jobs, guard):
                 executor = get_reusable_executor(max_workers=jobs, initializer=ignore_interrupts)
         finished = True
     finally:
-        if not finished:  # interrupted or failed: leave no worker running (wait: they are gone on return)
-            executor.shutdown(wait=True, kill_workers=True)
+        if not finished:  # interrupted or failed: leave no worker running
+            _kill_workers(executor)
+
+
+def _kill_workers(executor):
+    """Shut ``executor`` down, killing its workers; return when they are gone.
+
+    loky's manager thread can trip over the work queue it has just cleared (a KeyError in
+    ``add_call_item_to_queue``, joblib 1.6) when tasks are still queued: the workers are killed
+    all the same, so that thread's traceback is not printed over the user's message.
+    """
+    previous = threading.excepthook
+
+    def quiet(args):
+        if args.thread is None or args.thread.name != "ExecutorManagerThread":
+            previous(args)
+
+    threading.excepthook = quiet
+    try:
+        executor.shutdown(wait=True, kill_workers=True)
+    finally:
+        threading.excepthook = previous
 
 
 def _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries):
