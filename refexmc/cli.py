@@ -30,6 +30,7 @@ def _unreadable(exc, what, hint=""):
     _bad_input(f"{what}: {' '.join(str(exc).split())}{hint}")
 
 
+RESUME_HINT = "; completed chunks are kept: fix this, then finish with --resume"
 DAMAGED_HINT = "; a damaged part file is flown again by `refexmc run CAMPAIGN -o OUT --resume`"
 
 
@@ -80,6 +81,7 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler tcp://head:8786
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler local:4
     """
+    from refexmc.campaign import storage
     from refexmc.campaign.progress import progress_mode
     from refexmc.campaign.run import CampaignInterrupted, resume_command, run_campaign
 
@@ -101,7 +103,8 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
     except ConfigError as exc:
         _bad_input(str(exc))
     except OSError as exc:
-        _os_error(exc, "run stopped", "; completed chunks are kept: fix this, then finish with --resume")
+        started = out is not None and storage.is_output(out)  # a manifest: there is something to resume
+        _os_error(exc, "run stopped", RESUME_HINT if started else "")
     except CampaignInterrupted as exc:
         command = resume_command(campaign, out or exc.out, runs, seed, backend, scheduler)
         click.echo(

@@ -338,6 +338,19 @@ def test_rerun_into_an_impossible_path_is_one_line(finished, tmp_path):
     assert blocker.read_text() == "not a folder"
 
 
+@pytest.mark.parametrize("damaged", ["manifest.json", "campaign.resolved.yaml"])
+def test_resume_of_an_output_with_a_damaged_manifest_is_refused_untouched(finished, damaged):
+    campaign, out = finished
+    if damaged == "manifest.json":
+        _truncate(out / damaged)
+    else:
+        (out / damaged).write_bytes(b"name: [\xff\xfe")  # neither UTF-8 nor YAML
+    before = snapshot(out)
+    result = invoke_run(campaign, "-o", out, "--resume", "--runs", 6)
+    one_line_error(result, "cannot resume: ", "remove OUT or use another -o")
+    assert snapshot(out) == before
+
+
 # --- damaged parts and a stale report ---------------------------------------------------------------
 
 

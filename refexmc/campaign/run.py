@@ -94,7 +94,19 @@ def check_resumable(out, campaign):
             "use --overwrite or another -o",
             file=out,
         )
-    stored = yaml.safe_load(resolved.read_text())
+    try:
+        stored = yaml.safe_load(resolved.read_text())
+        manifest = storage.read_manifest(out)
+    except (yaml.YAMLError, ValueError) as exc:  # damaged: what was flown cannot be known
+        reason = " ".join(str(exc).split())
+        raise ConfigError(
+            f"cannot resume: unreadable manifest or resolved campaign ({reason}); remove OUT or use another -o",
+            file=out,
+        ) from None
+    if not isinstance(stored, dict):
+        raise ConfigError(
+            "cannot resume: campaign.resolved.yaml holds no campaign; remove OUT or use another -o", file=out
+        )
     current = storage.normalized_campaign(campaign)
     if stored != current:
         keys = sorted(key for key in {*stored, *current} if stored.get(key) != current.get(key))
@@ -103,7 +115,7 @@ def check_resumable(out, campaign):
             "use --overwrite or another -o",
             file=out,
         )
-    return storage.read_manifest(out)
+    return manifest
 
 
 def plan_chunks(runs, chunk_size):
