@@ -376,6 +376,10 @@ def test_resume_flies_a_damaged_chunk_again_and_drops_the_stale_report(finished,
     if damage == "runs-truncated":
         report = CliRunner().invoke(main, ["report", str(out), "--no-html"])
         one_line_error(report, f"report failed: cannot read {out}", "--resume")
+        compared = CliRunner().invoke(main, ["compare", str(out), str(out)])
+        one_line_error(compared, "compare failed: cannot read", "--resume")
+        rerun = CliRunner().invoke(main, ["rerun", str(out), "2", "-o", str(out.parent / "run-2.parquet")])
+        one_line_error(rerun, "rerun failed: cannot read", "--resume")
     others = {path: data for path, data in part_files(out).items() if path.name != part}
 
     resumed = invoke_run(campaign, "-o", out, "--resume", "--runs", 6, "--no-progress")
