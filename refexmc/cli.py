@@ -1,5 +1,6 @@
 """Command line: a thin click layer over functions that tests call directly."""
 
+import errno
 import json
 import math
 import sys
@@ -16,6 +17,23 @@ def _bad_input(message):
     sys.exit(2)
 
 
+def _os_error(exc, what, hint=""):
+    """One line for an OSError (disk full, read-only, no permission): what failed, the path, the reason; exit 2."""
+    reason = (exc.strerror or str(exc)).replace("\n", " ")
+    name = errno.errorcode.get(exc.errno) if exc.errno else None
+    where = f"{exc.filename}: " if exc.filename else ""
+    _bad_input(f"{what}: {where}{reason}{f' ({name})' if name else ''}{hint}")
+
+
+def _unreadable(exc, what, hint=""):
+    """One line for a Parquet file pyarrow cannot read (a damaged part); exit 2."""
+    _bad_input(f"{what}: {' '.join(str(exc).split())}{hint}")
+
+
+RESUME_HINT = "; completed chunks are kept: fix this, then finish with --resume"
+DAMAGED_HINT = "; a damaged part file is flown again by `refexmc run CAMPAIGN -o OUT --resume`"
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="refexmc")
 def main():
@@ -29,7 +47,9 @@ def main():
 @click.option("--runs", type=int, help="Override the number of runs.")
 @click.option("--seed", type=int, help="Override the campaign seed.")
 @click.option("--resume", is_flag=True, help="Finish what is missing in an existing OUT of the same campaign.")
-@click.option("--overwrite", is_flag=True, help="Replace an existing OUT.")
+@click.option(
+    "--overwrite", is_flag=True, help="Replace an existing OUT (only a refexmc output with nothing else in it)."
+)
 @click.option(
     "--backend",
     type=click.Choice(["loky", "dask"]),
@@ -50,6 +70,9 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
     Chunks of runs are flown in parallel worker processes; a run that raises, crashes its
     worker or exceeds the campaign's run_time_limit_s (default 60 s) is recorded as an error.
 
+    One run at a time writes OUT (lock file OUT/.refexmc.lock). Ctrl-C or SIGTERM stops the
+    workers, keeps the completed chunks and prints the --resume command (exit 130 / 143).
+
     Example: refexmc run campaigns/nominal.yaml -o runs/nominal -j 2 --overwrite
 
     On a Dask cluster (pip install 'refexmc[dask]'; docs/cluster.md):
@@ -58,8 +81,9 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler tcp://head:8786
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler local:4
     """
+    from refexmc.campaign import storage
     from refexmc.campaign.progress import progress_mode
-    from refexmc.campaign.run import run_campaign
+    from refexmc.campaign.run import CampaignInterrupted, resume_command, run_campaign
 
     if resume and overwrite:
         _bad_input("--resume and --overwrite exclude each other")
@@ -78,8 +102,18 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
         )
     except ConfigError as exc:
         _bad_input(str(exc))
-    except FileExistsError as exc:
-        _bad_input(f"{exc}: output directory exists; use --resume or --overwrite")
+    except OSError as exc:
+        started = out is not None and storage.is_output(out)  # a manifest: there is something to resume
+        _os_error(exc, "run stopped", RESUME_HINT if started else "")
+    except CampaignInterrupted as exc:
+        command = resume_command(campaign, out or exc.out, runs, seed, backend, scheduler)
+        click.echo(
+            f"{exc}: {exc.done} of {exc.total} runs done and kept in {exc.out}; finish with: {command}", err=True
+        )
+        sys.exit(exc.exit_code)
+    except KeyboardInterrupt:  # before the campaign started
+        click.echo("interrupted by SIGINT: nothing was flown", err=True)
+        sys.exit(130)
     click.echo(format_run_summary(result))
     errored = result["runs"].loc[result["runs"]["status"] == "error", "run_id"].tolist()
     if errored:
@@ -123,12 +157,18 @@ def report(out, no_html, require):
     Exit 1 when a requirement fails, or the campaign is incomplete or has errored runs (the CI gate).
     Example: refexmc report runs/refex-mc100 --require 'fuel_remaining.min >= 0.2'
     """
+    from pyarrow import ArrowException
+
     from refexmc.report import make_report
 
     try:
         result = make_report(out, require=require, html=not no_html)
     except ConfigError as exc:
         _bad_input(str(exc))
+    except OSError as exc:
+        _os_error(exc, "report failed")
+    except ArrowException as exc:
+        _unreadable(exc, f"report failed: cannot read {out}", DAMAGED_HINT)
     click.echo(result["text"])
     sys.exit(0 if result["passed"] else 1)
 
@@ -151,6 +191,8 @@ def compare(baseline_out, out, tolerances):
     by more than its tolerance (the CI gate; defaults in docs/compare.md).
     Example: refexmc compare baselines/smoke runs/smoke --tolerance fuel_remaining=0.02
     """
+    from pyarrow import ArrowException
+
     from refexmc.report.compare import compare as compare_campaigns
     from refexmc.report.compare import format_table
 
@@ -158,6 +200,10 @@ def compare(baseline_out, out, tolerances):
         result = compare_campaigns(baseline_out, out, tolerances)
     except ConfigError as exc:
         _bad_input(str(exc))
+    except OSError as exc:
+        _os_error(exc, "compare failed")
+    except ArrowException as exc:
+        _unreadable(exc, f"compare failed: cannot read {baseline_out} or {out}", DAMAGED_HINT)
     click.echo(format_table(result))
     sys.exit(0 if result.passed else 1)
 
@@ -173,12 +219,18 @@ def rerun(out, run_id, history_rate, dest):
     Prints the run's summary row and whether it equals the stored one (exit 1 if not).
     Example: refexmc rerun runs/refex-mc100 42 -o worst.parquet
     """
+    from pyarrow import ArrowException
+
     from refexmc.campaign.rerun import rerun as rerun_run
 
     try:
         result = rerun_run(out, run_id, history_rate_hz=history_rate, dest=dest)
     except ConfigError as exc:
         _bad_input(str(exc))
+    except OSError as exc:
+        _os_error(exc, "rerun failed")
+    except ArrowException as exc:
+        _unreadable(exc, f"rerun failed: cannot read {out}", DAMAGED_HINT)
     row = result["row"]
     verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
     click.echo(f"run {run_id} of {result['campaign']['name']}: {verdict}, status {row['status']}")

@@ -1,5 +1,6 @@
 """Helpers the tests share: campaign files made runnable from a temporary directory, `refexmc run`
-through click, reading a stored runs table, and building an output directory in-process."""
+through click, a snapshot of a directory's files, reading a stored runs table, and building an
+output directory in-process."""
 
 from pathlib import Path
 
@@ -29,6 +30,11 @@ def campaign_copy(source, tmp_path, name=None, replace=(), **extra):
 def invoke_run(*args):
     """`refexmc run ARGS...` through click (arguments as strings)."""
     return CliRunner().invoke(main, ["run", *map(str, args)])
+
+
+def snapshot(out):
+    """Every file under OUT with its modification time and content."""
+    return {p.relative_to(out): (p.stat().st_mtime_ns, p.read_bytes()) for p in Path(out).rglob("*") if p.is_file()}
 
 
 def read_runs(out):

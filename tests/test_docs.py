@@ -119,3 +119,15 @@ def test_failure_sweep_doc_lists_every_set_in_run_order():
     expected = [()] + failure_sets(campaign["failures"]["sizes"], len(campaign["vehicle"]["rcs"]["thrusters"]))
     assert [int(run) for run, _ in rows] == list(range(campaign["runs"]))
     assert [() if s == "none" else tuple(int(t) for t in s.strip("[]").split(", ")) for _, s in rows] == expected
+
+
+def test_every_exit_code_is_in_the_interface_table():
+    """docs/interface.md's exit-code table lists what the commands return, interrupted runs included."""
+    import signal
+
+    from refexmc.campaign.run import CampaignInterrupted
+
+    table = (DOCS / "interface.md").read_text().split("Exit codes, every command:", 1)[1].split("\n\n")[1]
+    codes = [int(code) for code in re.findall(r"^\| (\d+) \|", table, flags=re.M)]
+    interrupted = [CampaignInterrupted(signum).exit_code for signum in (signal.SIGINT, signal.SIGTERM)]
+    assert codes == [0, 1, 2, *interrupted] == [0, 1, 2, 130, 143]

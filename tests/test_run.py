@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
-from stored import campaign_copy, invoke_run, read_runs
+from stored import campaign_copy, invoke_run, read_runs, snapshot
 
 from refexmc.campaign import run as run_module
 from refexmc.campaign.progress import Progress
@@ -29,11 +29,6 @@ SMOKE = ROOT / "campaigns/smoke.yaml"  # 20 dispersed runs (LHS): every row diff
 def campaign_file(tmp_path, runs, name="nominal.yaml", **extra):
     """campaigns/nominal.yaml with ``runs`` and extra top-level keys, config paths made absolute."""
     return campaign_copy("nominal.yaml", tmp_path, name, [("runs: 1\n", f"runs: {runs}\n")], **extra)
-
-
-def snapshot(out):
-    """Every file under OUT with its modification time and content."""
-    return {p.relative_to(out): (p.stat().st_mtime_ns, p.read_bytes()) for p in Path(out).rglob("*") if p.is_file()}
 
 
 def parts(out):
@@ -79,6 +74,7 @@ def test_killed_campaign_resumes_to_the_uninterrupted_table(tmp_path):
 
     resumed = invoke_run(campaign, "-o", out, "--resume", "-j", 2, "--no-progress")
     assert resumed.exit_code == 0, resumed.output
+    assert "taking over the lock left by pid" in resumed.stderr  # the killed run's
     assert parts(out) == [f"part-{k:05d}.parquet" for k in range(80)]
     assert sorted(p.name for p in (out / "histories").iterdir()) == parts(out)
     assert not list(out.rglob("*.tmp-*")) and not (out / run_module.WORK_DIR).exists()

@@ -20,6 +20,7 @@ flight: the one that crashes again is the culprit.
 """
 
 import re
+import threading
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, wait
 
@@ -28,7 +29,7 @@ from joblib.externals.loky import get_reusable_executor
 from joblib.externals.loky.process_executor import TerminatedWorkerError
 
 from refexmc.campaign import storage
-from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded
+from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded, ignore_interrupts
 from refexmc.config.errors import ConfigError
 
 TASKS_PER_WORKER = 2  # chunks in flight per worker: one flying, one queued
@@ -133,7 +134,7 @@ def loky_backend(campaign, chunks, jobs, guard):
     isolate = deque()  # suspects of a crash, flown one at a time with nothing else in flight
     blind_retries = {}
     inflight = {}
-    executor = get_reusable_executor(max_workers=jobs)
+    executor = get_reusable_executor(max_workers=jobs, initializer=ignore_interrupts)
     finished = False
     try:
         while queue or isolate or inflight:
@@ -166,11 +167,31 @@ def loky_backend(campaign, chunks, jobs, guard):
             if crash:
                 executor.shutdown(wait=True, kill_workers=True)
                 yield from _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries)
-                executor = get_reusable_executor(max_workers=jobs)
+                executor = get_reusable_executor(max_workers=jobs, initializer=ignore_interrupts)
         finished = True
     finally:
         if not finished:  # interrupted or failed: leave no worker running
-            executor.shutdown(wait=False, kill_workers=True)
+            _kill_workers(executor)
+
+
+def _kill_workers(executor):
+    """Shut ``executor`` down, killing its workers; return when they are gone.
+
+    loky's manager thread can trip over the work queue it has just cleared (a KeyError in
+    ``add_call_item_to_queue``, joblib 1.6) when tasks are still queued: the workers are killed
+    all the same, so that thread's traceback is not printed over the user's message.
+    """
+    previous = threading.excepthook
+
+    def quiet(args):
+        if args.thread is None or args.thread.name != "ExecutorManagerThread":
+            previous(args)
+
+    threading.excepthook = quiet
+    try:
+        executor.shutdown(wait=True, kill_workers=True)
+    finally:
+        threading.excepthook = previous
 
 
 def _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries):

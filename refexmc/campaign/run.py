@@ -3,19 +3,25 @@
 The parent process plans chunks of ``chunk_size`` runs, hands them to an execution backend
 (:mod:`refexmc.campaign.backends`) and writes each chunk's ``runs`` and ``histories`` parts
 atomically as it arrives, so that memory stays flat in the number of runs and a killed campaign
-leaves only complete parts. ``resume`` flies exactly the chunks whose two parts are not both there.
+leaves only complete parts. ``resume`` flies exactly the chunks whose two parts are not both there
+and sound (readable, holding the chunk's runs). SIGINT and SIGTERM stop the workers and keep what is done.
 """
 
 import math
 import os
+import shlex
 import shutil
+import signal
+import sys
+import threading
+from contextlib import closing, contextmanager, suppress
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import yaml
 
 import refexmc
-from refexmc.campaign import storage
+from refexmc.campaign import lock, storage
 from refexmc.campaign.backends import BACKENDS, check_backend
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import Guard
@@ -28,7 +34,7 @@ TARGET_CHUNKS = 32  # enough chunks that the last one to finish leaves the other
 CHUNK_SIZE_ENV = "REFEXMC_CHUNK_SIZE"  # runs per chunk for a new OUT (tests use small chunks)
 DEFAULT_RUN_TIME_LIMIT_S = 60.0  # per-run wall-time limit when the campaign has no run_time_limit_s
 DEFAULT_CAMPAIGN = Path(refexmc.__file__).resolve().parents[1] / "campaigns" / "refex-mc100.yaml"
-WORK_DIR = ".refexmc-work"  # private to a running campaign: worker state files
+WORK_DIR = storage.WORK_DIR
 
 
 def default_output(campaign):
@@ -88,7 +94,19 @@ def check_resumable(out, campaign):
             "use --overwrite or another -o",
             file=out,
         )
-    stored = yaml.safe_load(resolved.read_text())
+    try:
+        stored = yaml.safe_load(resolved.read_text())
+        manifest = storage.read_manifest(out)
+    except (yaml.YAMLError, ValueError) as exc:  # damaged: what was flown cannot be known
+        reason = " ".join(str(exc).split())
+        raise ConfigError(
+            f"cannot resume: unreadable manifest or resolved campaign ({reason}); remove OUT or use another -o",
+            file=out,
+        ) from None
+    if not isinstance(stored, dict):
+        raise ConfigError(
+            "cannot resume: campaign.resolved.yaml holds no campaign; remove OUT or use another -o", file=out
+        )
     current = storage.normalized_campaign(campaign)
     if stored != current:
         keys = sorted(key for key in {*stored, *current} if stored.get(key) != current.get(key))
@@ -97,7 +115,7 @@ def check_resumable(out, campaign):
             "use --overwrite or another -o",
             file=out,
         )
-    return storage.read_manifest(out)
+    return manifest
 
 
 def plan_chunks(runs, chunk_size):
@@ -108,6 +126,82 @@ def plan_chunks(runs, chunk_size):
 def chunk_done(out, chunk):
     name = storage.part_name(chunk)
     return (Path(out) / "runs" / name).is_file() and (Path(out) / "histories" / name).is_file()
+
+
+def chunks_to_fly(out, chunks, notify):
+    """The chunks of ``chunks`` without two sound parts in OUT; a damaged part is reported to ``notify``."""
+    todo = []
+    for chunk, run_ids in chunks:
+        problem = storage.part_problem(out, chunk, run_ids) if chunk_done(out, chunk) else "missing"
+        if problem is None:
+            continue
+        if problem != "missing":
+            notify(f"{out}: chunk {chunk} (runs {run_ids[0]}..{run_ids[-1]}) is damaged, flying it again: {problem}")
+        todo.append((chunk, run_ids))
+    return todo
+
+
+class CampaignInterrupted(Exception):
+    """SIGINT or SIGTERM stopped a campaign; every chunk completed before it is kept in ``out``."""
+
+    def __init__(self, signum, out=None, done=0, total=0):
+        self.signum = signum
+        self.out = out
+        self.done = done
+        self.total = total
+        super().__init__(f"interrupted by {signal.Signals(signum).name}")
+
+    @property
+    def exit_code(self):
+        """The shell's code for a process ended by the signal: 130 (SIGINT), 143 (SIGTERM)."""
+        return 128 + self.signum
+
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextmanager
+def stop_on_signals():
+    """In the body, SIGINT and SIGTERM raise :class:`CampaignInterrupted` (main thread only).
+
+    After the first, both are ignored until the body is left, so that a second Ctrl-C does not cut
+    short the cleanup (workers stopped, lock released); the previous handlers come back afterwards.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        for number in STOP_SIGNALS:
+            signal.signal(number, signal.SIG_IGN)
+        raise CampaignInterrupted(signum)
+
+    previous = {number: signal.signal(number, interrupt) for number in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler if handler is not None else signal.SIG_DFL)
+
+
+def resume_command(campaign_file=None, out=None, runs=None, seed=None, backend="loky", scheduler=None):
+    """The `refexmc run ... --resume` command line that finishes this campaign (shell-quoted)."""
+    words = ["refexmc", "run"]
+    if campaign_file is not None:
+        words.append(str(campaign_file))
+    if out is not None:
+        words += ["-o", str(out)]
+    words.append("--resume")
+    for option, value in (("--runs", runs), ("--seed", seed)):
+        if value is not None:
+            words += [option, str(value)]
+    if backend != "loky":
+        words += ["--backend", backend, "--scheduler", str(scheduler)]
+    return shlex.join(words)
+
+
+def notify_stderr(message):
+    print(f"refexmc: {message}", file=sys.stderr, flush=True)
 
 
 def run_campaign(
@@ -122,59 +216,93 @@ def run_campaign(
     progress=None,
     chunk_size=None,
     scheduler=None,
+    notify=notify_stderr,
 ):
     """Validate and run a campaign file (default: DEFAULT_CAMPAIGN); return output path, counts, runs table.
 
     ``jobs``: worker processes (default all usable cores). ``progress``: 'bar', 'lines' or None.
     ``chunk_size``: runs per chunk of a new OUT (default ``$REFEXMC_CHUNK_SIZE`` or :func:`default_chunk_size`);
     a resumed OUT keeps the chunk size in its manifest. ``scheduler``: the Dask cluster of
-    ``backend='dask'`` (an address, a scheduler file, or ``local:N``). Raises ConfigError for bad input and
-    FileExistsError for an existing OUT without ``overwrite``/``resume``; in both cases nothing
-    is written.
+    ``backend='dask'`` (an address, a scheduler file, or ``local:N``). ``notify(message)``: what
+    the user should know on the way (a damaged part flown again, a stale lock taken over).
+
+    OUT is locked for the whole campaign (:mod:`refexmc.campaign.lock`). Raises ConfigError for
+    bad input, an OUT this run may not write (:func:`storage.check_output`) or one another run
+    holds, with nothing written; :class:`CampaignInterrupted` on SIGINT/SIGTERM (workers stopped,
+    completed chunks kept); OSError when OUT cannot be written.
     """
     campaign_file, campaign = resolve_campaign(campaign_file, runs, seed)
     jobs = default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
     options = check_backend(backend, scheduler=scheduler)
-    chunk_size = _chunk_size(chunk_size, campaign["runs"])
     out = Path(out) if out is not None else default_output(campaign)
-    time_limit_s = float(campaign.get("run_time_limit_s", DEFAULT_RUN_TIME_LIMIT_S))
+    flight = {
+        "campaign_file": campaign_file,
+        "campaign": campaign,
+        "out": out,
+        "chunk_size": _chunk_size(chunk_size, campaign["runs"]),
+        "execution": {
+            "jobs": jobs,
+            "backend": backend,
+            "scheduler": scheduler,
+            "run_time_limit_s": float(campaign.get("run_time_limit_s", DEFAULT_RUN_TIME_LIMIT_S)),
+        },
+    }
 
-    previous = check_resumable(out, campaign) if resume and out.exists() else None
-    storage.prepare_output(out, overwrite=overwrite, resume=resume)
+    def check():
+        """The manifest of the OUT to resume (None for a new one); ConfigError when OUT is not to be written."""
+        storage.check_output(out, overwrite=overwrite, resume=resume, protect=[campaign_file])
+        return check_resumable(out, campaign) if resume and not storage.is_empty(out) else None
+
+    lock.check_free(out)
+    check()  # before OUT is created or locked: a refusal leaves no trace
+    with stop_on_signals(), lock.locked(out, notify):
+        try:
+            previous = check()  # again, now that no other run can change OUT
+            storage.prepare_output(out, overwrite=overwrite, resume=resume, protect=[campaign_file])
+            return _run_locked(flight, previous, options, progress, notify)
+        except CampaignInterrupted as exc:
+            exc.out, exc.total = out, campaign["runs"]
+            exc.done = _runs_done(out, campaign["runs"])
+            raise
+
+
+def _runs_done(out, runs):
+    """How many runs of OUT have both parts (0 when OUT has no manifest yet)."""
+    if not storage.is_output(out):
+        return 0
+    chunks = plan_chunks(runs, storage.read_manifest(out)["chunk_size"])
+    return sum(len(run_ids) for chunk, run_ids in chunks if chunk_done(out, chunk))
+
+
+def _run_locked(flight, previous, options, progress, notify):
+    """Fly what OUT (prepared and locked) still needs and write the manifest; the result of :func:`run_campaign`."""
+    campaign_file, campaign, out = flight["campaign_file"], flight["campaign"], flight["out"]
     if previous:
-        chunk_size = previous["chunk_size"]
-        started = previous["started"]
+        chunk_size, started = previous["chunk_size"], previous["started"]
         resumed = [*previous.get("resumed", []), storage.now()]
     else:
-        started, resumed = storage.now(), []
+        chunk_size, started, resumed = flight["chunk_size"], storage.now(), []
         storage.write_resolved(out, campaign)
-    execution = {
-        "jobs": jobs,
-        "backend": backend,
-        "scheduler": scheduler,
-        "run_time_limit_s": time_limit_s,
-        "resumed": resumed,
-    }
-    storage.write_manifest(out, storage.manifest(campaign_file, campaign, chunk_size, "running", started, **execution))
+    execution = {**flight["execution"], "resumed": resumed}
 
-    work = out / WORK_DIR
-    shutil.rmtree(work, ignore_errors=True)  # a killed campaign's worker state
-    work.mkdir()
+    def write_manifest(status, finished=None, counts=None):
+        info = storage.manifest(campaign_file, campaign, chunk_size, status, started, finished, counts, **execution)
+        storage.write_manifest(out, info)
+
     chunks = plan_chunks(campaign["runs"], chunk_size)
-    todo = [(chunk, run_ids) for chunk, run_ids in chunks if not chunk_done(out, chunk)]
+    todo = chunks_to_fly(out, chunks, notify) if previous else chunks
+    if todo:
+        storage.remove_report(out)  # it would describe other contents
+    write_manifest("running")
     meter = Progress(campaign["runs"], campaign["runs"] - sum(len(r) for _, r in todo), progress)
     try:
-        guard = Guard.create(work, time_limit_s)
-        for chunk, rows, runs, history in BACKENDS[backend](campaign, todo, jobs, guard, **options):
-            name = storage.part_name(chunk)
-            storage.write_bytes_atomic(history, out / "histories" / name)
-            storage.write_bytes_atomic(runs, out / "runs" / name)
-            meter.update(len(rows))
-    finally:
-        meter.close()
-    shutil.rmtree(work, ignore_errors=True)
+        _fly(campaign, todo, out, execution, options, meter)
+    except CampaignInterrupted:
+        with suppress(OSError):
+            write_manifest("interrupted")
+        raise
 
     table = pq.read_table(out / "runs").to_pandas().sort_values("run_id", ignore_index=True)
     counts = {
@@ -183,8 +311,24 @@ def run_campaign(
         "error": int((table["status"] == "error").sum()),
         "success": int(table["success"].sum()),
     }
-    info = storage.manifest(
-        campaign_file, campaign, chunk_size, "complete", started, storage.now(), counts, **execution
-    )
-    storage.write_manifest(out, info)
+    write_manifest("complete", storage.now(), counts)
     return {"out": out, "counts": counts, "runs": table, "campaign": campaign}
+
+
+def _fly(campaign, todo, out, execution, options, meter):
+    """Fly the chunks ``todo`` on ``backend``, writing each chunk's parts into OUT as it completes."""
+    work = out / WORK_DIR
+    shutil.rmtree(work, ignore_errors=True)  # a killed campaign's worker state
+    work.mkdir()
+    try:
+        guard = Guard.create(work, execution["run_time_limit_s"])
+        backend = BACKENDS[execution["backend"]](campaign, todo, execution["jobs"], guard, **options)
+        with closing(backend) as flown:  # an exception here (a signal, a full disk) stops the workers at once
+            for chunk, rows, runs, history in flown:
+                name = storage.part_name(chunk)
+                storage.write_bytes_atomic(history, out / "histories" / name)
+                storage.write_bytes_atomic(runs, out / "runs" / name)
+                meter.update(len(rows))
+    finally:
+        meter.close()
+        shutil.rmtree(work, ignore_errors=True)

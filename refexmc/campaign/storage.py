@@ -4,7 +4,9 @@ import hashlib
 import json
 import os
 import platform
+import re
 import shutil
+from contextlib import suppress
 from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
@@ -15,6 +17,7 @@ import pyarrow.parquet as pq
 import yaml
 
 import refexmc
+from refexmc.config.errors import ConfigError
 from refexmc.config.requirements import MODE_TIME_COLUMNS, RUN_VALUE_COLUMNS
 from refexmc.core import layout as L
 
@@ -41,30 +44,36 @@ def decode_table(data):
     return pq.read_table(pa.BufferReader(data))
 
 
+def _write_atomic(path, write):
+    """Call ``write(tmp)`` for a temporary name beside ``path``, then rename: readers never see a partial file.
+
+    An OSError (disk full, read-only file system) removes the temporary file and is raised again naming
+    ``path`` (a failed ``write`` names no file).
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write(tmp)
+        os.replace(tmp, path)
+    except OSError as exc:
+        with suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+
+
 def write_bytes_atomic(data, path):
     """Write bytes under a temporary name, then rename: readers never see a partial file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as file:
-        file.write(data)
-    os.replace(tmp, path)
+    _write_atomic(path, lambda tmp: tmp.write_bytes(data))
 
 
 def write_table_atomic(table, path):
     """Write a Parquet file under a temporary name, then rename: readers never see a partial file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    pq.write_table(table, tmp, compression=PARQUET_COMPRESSION)
-    os.replace(tmp, path)
+    _write_atomic(path, lambda tmp: pq.write_table(table, tmp, compression=PARQUET_COMPRESSION))
 
 
 def write_text_atomic(text, path):
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    _write_atomic(path, lambda tmp: tmp.write_text(text))
 
 
 def part_name(chunk_index):
@@ -219,21 +228,106 @@ def write_resolved(out, campaign):
     write_text_atomic(text, Path(out) / "campaign.resolved.yaml")
 
 
-def prepare_output(out, overwrite=False, resume=False):
-    """Create OUT; an existing OUT is refused unless ``overwrite`` (emptied) or ``resume`` (kept).
+WORK_DIR = ".refexmc-work"  # private to a running campaign: worker state files
+LOCK_NAME = ".refexmc.lock"  # the lock of the process writing OUT (refexmc.campaign.lock)
+REPORT_DIR = "report"  # written by `refexmc report`
+# what refexmc writes at the top of an output directory, besides the temporary files of atomic writes
+OUTPUT_ENTRIES = frozenset(
+    {"manifest.json", "campaign.resolved.yaml", "runs", "histories", REPORT_DIR, "reruns", WORK_DIR, LOCK_NAME}
+)
+_TEMPORARY = re.compile(r"\..+\.tmp-\d+")
 
-    On resume, the temporary files a killed campaign left behind are removed.
+
+def is_empty(out):
+    """True when OUT holds nothing but a lock file (a missing OUT is empty too)."""
+    out = Path(out)
+    return not out.exists() or all(path.name == LOCK_NAME for path in out.iterdir())
+
+
+def is_output(out):
+    """True when OUT holds a refexmc ``manifest.json``."""
+    try:
+        info = read_manifest(out)
+    except (OSError, ValueError):
+        return False
+    return isinstance(info, dict) and {"refexmc", "resolved_sha256", "chunk_size"} <= info.keys()
+
+
+def foreign_entries(out):
+    """Names at the top of OUT that refexmc does not write."""
+    names = (path.name for path in Path(out).iterdir())
+    return sorted(name for name in names if name not in OUTPUT_ENTRIES and not _TEMPORARY.fullmatch(name))
+
+
+def _within(path, folder):
+    path = Path(path).resolve()
+    return path == folder or folder in path.parents
+
+
+def check_output(out, overwrite=False, resume=False, protect=()):
+    """Refuse (ConfigError) an OUT that this run must not write; writes nothing.
+
+    A missing or empty OUT is always fine. An existing output needs ``resume`` (kept) or
+    ``overwrite`` (replaced), and ``overwrite`` replaces only a directory that holds a refexmc
+    manifest and nothing refexmc does not write, that is neither the current directory nor
+    contains it, nor contains any of the ``protect`` files (the campaign file).
     """
     out = Path(out)
-    if out.exists():
-        if not resume and not overwrite:
-            raise FileExistsError(str(out))
-        if overwrite:
-            shutil.rmtree(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError("expected a directory for the output, got a file", file=out)
+    if is_empty(out):
+        return
+    if not resume and not overwrite:
+        raise ConfigError("output directory exists; use --resume to finish it or --overwrite to replace it", file=out)
+    if not overwrite:
+        return
+    folder = out.resolve()
+    if _within(Path.cwd(), folder):
+        raise ConfigError("--overwrite would delete the current directory's files; choose another -o", file=out)
+    kept = [str(path) for path in protect if path is not None and _within(path, folder)]
+    if kept:
+        raise ConfigError(f"--overwrite would delete {', '.join(kept)}; choose another -o", file=out)
+    if not is_output(out):
+        raise ConfigError(
+            "--overwrite replaces only a refexmc output directory (with a manifest.json) or an empty one; "
+            "this is neither, nothing was touched",
+            file=out,
+        )
+    foreign = foreign_entries(out)
+    if foreign:
+        raise ConfigError(
+            f"--overwrite would delete files refexmc did not write: {', '.join(foreign)}; "
+            "move them or choose another -o (nothing was touched)",
+            file=out,
+        )
+
+
+def prepare_output(out, overwrite=False, resume=False, protect=()):
+    """Create OUT, checked with :func:`check_output`: emptied with ``overwrite`` (but its lock), kept with ``resume``.
+
+    The temporary files a killed campaign left behind are removed.
+    """
+    out = Path(out)
+    check_output(out, overwrite=overwrite, resume=resume, protect=protect)
+    if overwrite and out.exists():
+        for path in out.iterdir():
+            if path.name == LOCK_NAME:
+                continue
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path)
+            else:
+                path.unlink()
     if out.exists():
         remove_temporary_files(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     (out / "histories").mkdir(exist_ok=True)
+
+
+def remove_report(out):
+    """Delete OUT/report/: it describes contents that are about to change."""
+    report = Path(out) / REPORT_DIR
+    if report.is_dir():
+        shutil.rmtree(report)
 
 
 def remove_temporary_files(out):
@@ -242,3 +336,30 @@ def remove_temporary_files(out):
     for folder in (out, out / "runs", out / "histories"):
         for path in folder.glob(".*.tmp-*") if folder.is_dir() else ():
             path.unlink()
+
+
+def part_problem(out, chunk, run_ids):
+    """Why chunk ``chunk``'s two parts in OUT are not a complete record of ``run_ids``; None when they are.
+
+    The runs part must be readable Parquet holding exactly those runs; the histories part readable
+    Parquet holding no other runs (a run that errored has no history).
+    """
+    name = part_name(chunk)
+    runs, histories = Path(out) / "runs" / name, Path(out) / "histories" / name
+    if not runs.is_file() or not histories.is_file():
+        return "missing"
+    expected = list(run_ids)
+    try:
+        stored = sorted(pq.read_table(runs).column("run_id").to_pylist())
+        if stored != expected:
+            return f"runs/{name} holds runs {_span(stored)}, expected {_span(expected)}"
+        history_ids = set(pq.read_table(histories, columns=["run_id"]).column("run_id").to_pylist())
+        if not history_ids <= set(expected):
+            return f"histories/{name} holds runs of another chunk"
+    except (OSError, KeyError, pa.ArrowException) as exc:
+        return f"unreadable: {exc}"
+    return None
+
+
+def _span(ids):
+    return f"{ids[0]}..{ids[-1]} ({len(ids)})" if ids else "none"

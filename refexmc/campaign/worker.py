@@ -183,6 +183,15 @@ class Flown(NamedTuple):
         return cls(rows, runs, storage.encode_table(pa.concat_tables(histories)) if histories else None)
 
 
+def ignore_interrupts():
+    """Worker initializer: Ctrl-C (SIGINT to the terminal's process group) is for the parent to handle.
+
+    The parent stops the campaign and its workers; a worker that raised KeyboardInterrupt in the
+    middle of a run would only add tracebacks to the terminal.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def fly_guarded(campaign, run_ids, guard):
     """Fly ``run_ids`` one by one under the watchdog; return a :class:`Flown`."""
     from refexmc.campaign.chunk import fly_chunk, plan_for  # here: the parent imports this module, never flies
