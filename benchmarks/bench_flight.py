@@ -7,7 +7,7 @@ Usage::
 Four measurements, all in one invocation so that ratios come from one process and one machine
 state (absolute times drift on a shared machine, ratios much less):
 
-1. ``flight``: one nominal flight (``campaigns/nominal.yaml``) through ``refexmc.campaign.execute.fly``
+1. ``flight``: one nominal flight (``campaigns/nominal.yaml``) through ``refexmc.simulate.fly``
    after compilation; median, min and IQR over ``--reps`` repetitions, pinned to one CPU.
    Target: median <= 25 ms.
 2. ``bare_rk4``: the same number of attitude RK4 steps as that flight took
@@ -62,7 +62,7 @@ import json, sys, time
 t0 = time.perf_counter()
 from refexmc.config.load import load_campaign
 from refexmc.config.pack import pack
-from refexmc.campaign.execute import fly
+from refexmc.simulate import fly
 t1 = time.perf_counter()
 c = load_campaign(sys.argv[1])
 inputs = pack(c["vehicle"], c["mission"])
@@ -156,11 +156,11 @@ def _git_commit():
 
 
 def bench_flight_vs_rk4(reps, cpu):
-    from refexmc.campaign.execute import fly, history_every
     from refexmc.config.load import load_campaign
     from refexmc.config.pack import pack
     from refexmc.core import layout as L
     from refexmc.core.flight import run_flight
+    from refexmc.simulate import fly, history_every
 
     campaign = load_campaign(ROOT / CAMPAIGN)
     inputs = pack(campaign["vehicle"], campaign["mission"])
@@ -194,10 +194,10 @@ def bench_flight_vs_rk4(reps, cpu):
 
     # The kernel alone, outputs preallocated: fly() minus this is the Python wrapper + dispatch.
     every = history_every(inputs, campaign["output"]["history_rate_hz"])
-    summary = np.zeros(L.SUMMARY_SIZE)
+    summary = np.zeros(L.summary_size(inputs.modes.shape[0]))
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
     history = np.zeros((result.history.shape[0] + 3, L.HISTORY_SIZE))
-    kernel_args = (*inputs, np.int64(0), np.int64(every), summary, pulses, history)
+    kernel_args = (inputs, np.int64(0), np.int64(every), summary, pulses, history)
     run_flight(*kernel_args)
 
     flight_s, bare_s, kernel_s = [], [], []

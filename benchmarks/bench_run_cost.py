@@ -35,9 +35,9 @@ if str(ROOT) not in sys.path:
 
 from refexmc.campaign import storage  # noqa: E402
 from refexmc.campaign.chunk import RunPlan  # noqa: E402
-from refexmc.campaign.execute import fly  # noqa: E402
 from refexmc.campaign.worker import Flown  # noqa: E402
 from refexmc.config.load import apply_overrides, load_campaign  # noqa: E402
+from refexmc.simulate import fly  # noqa: E402
 
 CAMPAIGN = ROOT / "campaigns" / "refex-mc100.yaml"
 STAGES = ("sampling", "kernel", "runs_row", "history_table", "encode", "transfer", "parent_write")
@@ -58,12 +58,12 @@ def stage_times(runs, chunk):
                 t0 = clock()
                 seed, failed, params, inputs = plan.prepare(run_id)
                 t1 = clock()
-                result = fly(inputs, nav_seed=seed, history_rate_hz=rate)
+                result = fly(inputs, nav_seed=seed, history_rate_hz=rate, mode_names=plan.mode_names)
                 t2 = clock()
-                row = storage.runs_row(run_id, seed, failed, result, plan.n_thrusters)
+                row = storage.runs_row(run_id, seed, failed, result, plan.value_columns, plan.n_thrusters)
                 row.update(params)
                 t3 = clock()
-                histories.append(storage.history_table(run_id, result.history))
+                histories.append(storage.history_table(run_id, result))
                 t4 = clock()
                 rows.append(row)
                 spent["sampling"] += t1 - t0

@@ -9,7 +9,6 @@ from pathlib import Path
 import click
 
 from refexmc.config.errors import ConfigError
-from refexmc.core.layout import MODE_NAMES
 
 
 def _bad_input(message):
@@ -137,7 +136,8 @@ def format_run_summary(result):
         lines.append(f"  propellant remaining: {100 * row['fuel_remaining']:.1f} % ({row['fuel_used_kg']:.3f} kg used)")
         theta = row["theta_t_handover_deg"]
         lines.append(f"  total angle error at hand-over: {theta:.2f} deg" if not math.isnan(theta) else "")
-        times = ", ".join(f"{m} {row[f't_{m.lower()}_s']:.1f}" for m in MODE_NAMES)
+        names = [mode["name"] for mode in result["campaign"]["mission"]["modes"]]
+        times = ", ".join(f"{m} {row[f't_{m.lower()}_s']:.1f}" for m in names)
         lines.append(f"  time in mode [s]: {times}")
     elif len(ok) > 1:
         lines.append(

@@ -254,3 +254,20 @@ def thrust_impulse(knots_per_thruster, nominal_thrust, derating, t_start, t_end,
             if arms is not None:
                 angular += nominal_thrust * factor * area * np.asarray(arms[i])
     return impulse, angular
+
+
+# --- mode program: exit conditions read straight from the mission file (refexmc.core.modes) ---
+def exit_holds(mode_config, time_in_mode, t1, rates, rate_error, angle_error, altitude, climb, qbar):
+    """A mode's exit conditions as the mission file states them, in its own units (deg, m, Pa):
+    any group whose predicates all hold. Rates in deg/s, angles in deg."""
+    tests = {
+        "time_in_mode_s": lambda v: time_in_mode >= v,
+        "guidance_finished": lambda v: time_in_mode > t1,
+        "rates_below_deg_s": lambda v: all(abs(r) < v for r in rates),
+        "rate_error_below_deg_s": lambda v: rate_error < v,
+        "angle_error_below_deg": lambda v: angle_error < v,
+        "altitude_below_m": lambda v: altitude < v,
+        "descending": lambda v: climb < 0.0,
+        "dynamic_pressure_above_pa": lambda v: qbar >= v,
+    }
+    return any(all(tests[name](value) for name, value in group.items()) for group in mode_config["exit"])

@@ -274,3 +274,92 @@ def test_refexmc_run_process_refuses_non_finite_options(tmp_path):
         assert proc.returncode == 2 and "Traceback" not in proc.stderr
         assert f"Invalid value for '{option}': '{value}' is not a valid integer" in proc.stderr
         assert not out.exists()
+
+
+# --- bad mode programs: the mission file's own line and key path ---------------------------------
+
+
+def _mission_edit(old, new):
+    assert old in MISSION_TEXT, old
+    return MISSION_TEXT.replace(old, new, 1)
+
+
+def _mission_line(text, fragment):
+    return next(n for n, line in enumerate(text.splitlines(), 1) if fragment in line)
+
+
+_SAM_TARGET = "    target: {type: sun_horizontal}\n    thrust: low\n    exit: [{angle_error_below_deg"
+_EMPTY = MISSION_TEXT[: MISSION_TEXT.index("modes:\n")] + "modes: []\n" + MISSION_TEXT[MISSION_TEXT.index("handover") :]
+# (case id, mission text, words the message must contain, fragment of the line it must name)
+MISSION_CASES = [
+    (
+        "unknown-kind",
+        _mission_edit("kind: spin_up", "kind: spin"),
+        ["modes.3.kind", "expected one of locked"],
+        "kind: spin",
+    ),
+    (
+        "unknown-predicate",
+        _mission_edit("{time_in_mode_s: 8.0}", "{time_in_mode: 8.0}"),
+        ["modes.4.exit.0.time_in_mode", "unknown key 'time_in_mode'", "did you mean 'time_in_mode_s'"],
+        "time_in_mode: 8.0",
+    ),
+    (
+        "target-the-kind-cannot-use",
+        _mission_edit(_SAM_TARGET, _SAM_TARGET.replace("sun_horizontal", "previous")),
+        ["modes.2.target.type", "kind slew cannot use target previous"],
+        "type: previous",
+    ),
+    (
+        "target-on-a-kind-without-one",
+        _mission_edit(
+            "    kind: locked\n", "    kind: locked\n    target: {type: inertial, quaternion: [0, 0, 0, 1]}\n"
+        ),
+        ["modes.0.target", "kind locked takes no target"],
+        "type: inertial",
+    ),
+    (
+        "unknown-target-key",
+        _mission_edit("bank_deg: 0.0, predicted_at_altitude_m", "bank_deg: 0.0, predicted_altitude_m"),
+        ["modes.5.target.predicted_altitude_m", "unknown key", "did you mean 'predicted_at_altitude_m'"],
+        "predicted_altitude_m",
+    ),
+    (
+        "predicate-the-kind-cannot-answer",
+        _mission_edit("exit: [{time_in_mode_s: 5.0}]", "exit: [{guidance_finished: true}]"),
+        ["modes.0.exit.0.guidance_finished", "needs a guidance profile", "kind locked has none"],
+        "guidance_finished: true}]",
+    ),
+    ("empty-mode-list", _EMPTY, ["modes", "expected 1..32 items, got 0"], "modes: []"),
+    (
+        "duplicate-mode-name",
+        _mission_edit("  - name: RDM2", "  - name: rdm1"),
+        ["modes.4.name", "mode name 'rdm1' is used twice (also mode 2)"],
+        "name: rdm1",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("text", "words", "fragment"), [c[1:] for c in MISSION_CASES], ids=[c[0] for c in MISSION_CASES]
+)
+def test_bad_mode_program_is_refused_with_file_line_and_key_path(tmp_path, text, words, fragment):
+    path = tmp_path / "mission.yaml"
+    path.write_text(text)
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    assert f"{path}:{_mission_line(text, fragment)}:" in result.output, result.output
+    for word in words:
+        assert word in result.output, (word, result.output)
+
+
+def test_allocation_naming_a_missing_thruster_is_refused(tmp_path):
+    path = tmp_path / "vehicle.yaml"
+    text = VEHICLE_TEXT.replace('"+z": [6]', '"+z": [9]')
+    path.write_text(text)
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2
+    line = next(n for n, s in enumerate(text.splitlines(), 1) if '"+z": [9]' in s)
+    assert f"{path}:{line}:" in result.output
+    assert "flight_software.allocation.+z.0" in result.output and "expected a thruster id 1..8, got 9" in result.output

@@ -25,6 +25,9 @@ def _walk(node, path="root"):
         yield from _walk(node["items"], f"{path}[]")
     if isinstance(node.get("additionalProperties"), dict):
         yield from _walk(node["additionalProperties"], f"{path}.*")
+    for branch in node.get("allOf", []):  # keys that depend on a type: {if: type == X, then: keys}
+        if "then" in branch:
+            yield from _walk(branch["then"], f"{path}<{branch['if']['properties']['type']['const']}>")
 
 
 @pytest.mark.parametrize("name", ["VEHICLE", "MISSION", "CAMPAIGN"])
@@ -32,7 +35,10 @@ def test_every_key_is_documented_and_closed(name):
     for path, node in _walk(getattr(schema, name)):
         assert node.get("description"), f"{path} has no description"
         if node.get("type") == "object" and "properties" in node:
-            assert node.get("additionalProperties") is False, f"{path} accepts unknown keys"
+            closed = node.get("additionalProperties") is False or (
+                node.get("allOf") and all(b["then"].get("additionalProperties") is False for b in node["allOf"])
+            )
+            assert closed, f"{path} accepts unknown keys"
         if node.get("type") == "number" and not path.endswith("[]"):  # vector items: unit on the vector
             assert "[" in node["description"], f"{path}: description names no unit"
 
@@ -148,8 +154,10 @@ def test_pack_uses_every_field_of_the_layout():
     assert inputs.thrusters.shape == (8, L.THRUSTER_SIZE)
     assert inputs.mission.shape == (L.MISSION_SIZE,)
     # physical constants and thresholds are all non-zero in the reference mission
-    for name in ("earth_radius_m", "ssm_exit_altitude_m", "geem_handover_qbar_pa", "integrator_max_step_s"):
+    for name in ("earth_radius_m", "handover_max_angle_rad", "max_flight_time_s", "integrator_max_step_s"):
         assert inputs.mission[L.MISSION.slices[name][0]] > 0.0
+    assert inputs.modes.shape == (7, L.MODE_SIZE)
+    assert inputs.exits.shape == (11, L.EXIT_SIZE)  # one row per predicate of refex-exo.yaml
     assert np.allclose(np.linalg.norm(inputs.mission[L.M_SUN_DIRECTION : L.M_SUN_DIRECTION + 3]), 1.0)
     # time constants in seconds (000 Table 2, low thrust on-delay 19.1 ms)
     assert inputs.thrusters[0, L.T_ON_DELAY_LOW] == pytest.approx(0.0191)
@@ -168,7 +176,9 @@ def test_requirement_columns_are_the_numeric_columns_of_a_runs_row():
     numeric = [k for k, v in row.items() if k not in NOT_METRIC_COLUMNS and isinstance(v, int | float)]
     numeric = [k for k in numeric if not isinstance(row[k], bool)]  # success is a flag, not a metric column
     parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, campaign["vehicle"])]
-    assert sorted(runs_metric_columns(len(campaign["vehicle"]["rcs"]["thrusters"]), parameters)) == sorted(numeric)
+    names = [mode["name"] for mode in campaign["mission"]["modes"]]
+    columns = runs_metric_columns(names, len(campaign["vehicle"]["rcs"]["thrusters"]), parameters)
+    assert sorted(columns) == sorted(numeric)
 
 
 # --- numbers YAML accepts but no physical quantity has, and keys YAML would silently drop --------

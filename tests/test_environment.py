@@ -269,13 +269,18 @@ def _vacuum_exit_pitch(mission, state, exit_altitude):
     return math.atan2(-y[3], y[2])
 
 
+def _eam_prediction_altitude(inputs):
+    """EAM (the sixth mode of refex-exo.yaml) aims at the velocity predicted at this altitude."""
+    return inputs.modes[5, L.MD_PREDICT_ALTITUDE]
+
+
 @pytest.mark.parametrize("t_now", [0.0, 60.0, 100.0, 150.0, 175.0, 200.0])
 def test_predicted_exit_velocity_is_the_two_body_conic(inputs, rk4_trajectory, t_now):
     """From any state of the nominal trajectory (ascending, at apogee, descending), the closed-form
     prediction equals DOP853 on the same drag-free equations to 1e-9 rad (the integrator's
     tolerance; the closed form itself is exact to rounding)."""
     state = rk4_trajectory[1][int(round(t_now / DT))]
-    exit_altitude = inputs.mission[L.M_EAM_EXIT_ALTITUDE]
+    exit_altitude = _eam_prediction_altitude(inputs)
     predicted = environment.predicted_velocity_pitch(inputs.mission, state, exit_altitude)
     assert predicted == pytest.approx(_vacuum_exit_pitch(inputs.mission, state, exit_altitude), abs=1e-9)
 
@@ -285,7 +290,7 @@ def test_predicted_exit_velocity_against_the_flown_trajectory(inputs, rk4_trajec
     has at 70 km (drag included) by 0.007 deg: drag barely turns the velocity up there. 0.05 deg
     bounds that plus the one control step (~0.01 deg of turn) that the first sample below 70 km may
     lie past the crossing; GEEM's first reference step may be 2 deg (reference-model sec. 4)."""
-    exit_altitude = inputs.mission[L.M_EAM_EXIT_ALTITUDE]
+    exit_altitude = _eam_prediction_altitude(inputs)
     states = rk4_trajectory[1]
     altitudes = np.array([environment.altitude(inputs.mission, s) for s in states])
     climbs = np.array([environment.climb_rate(inputs.mission, s) for s in states])

@@ -9,14 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from refexmc.campaign.execute import fly
 from refexmc.config.load import load_mission, load_vehicle
-from refexmc.config.pack import pack
+from refexmc.config.pack import mode_names, pack
 from refexmc.core import layout as L
+from refexmc.simulate import fly
 
 ROOT = Path(__file__).resolve().parents[1]
 HANDOVER_LIMIT_DEG = 5.0  # reference-model sec. 4: success needs < 5 deg at hand-over
-SAM = L.MODE_SAM
+MODES = ("NCM", "RDM1", "SAM", "SSM", "RDM2", "EAM", "GEEM")  # 000 sec. 2.2, in flight order
+NCM, RDM1, SAM, SSM, RDM2, EAM, GEEM = range(len(MODES))
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +27,13 @@ def vehicle():
 
 @pytest.fixture(scope="module")
 def mission():
-    return load_mission(ROOT / "configs/missions/refex-exo.yaml")
+    mission = load_mission(ROOT / "configs/missions/refex-exo.yaml")
+    assert tuple(mode_names(mission)) == MODES
+    return mission
+
+
+def mode_config(mission, name):
+    return next(mode for mode in mission["modes"] if mode["name"] == name)
 
 
 @pytest.fixture(scope="module")
@@ -38,24 +45,24 @@ def test_nominal_flight_succeeds_through_every_mode(nominal):
     assert nominal.success, nominal.failure_reason
     assert nominal.failure_reason is None
     # NCM..GEEM each left by its own exit condition: 7 transitions, the last one the hand-over
-    assert nominal.value("modes_completed") == L.N_MODES
+    assert nominal.value("modes_completed") == len(MODES)
     modes = nominal.column("mode")
     visited = [int(m) for m in modes[np.r_[True, np.diff(modes) != 0]]]
-    assert visited == list(range(L.N_MODES)), "modes must come in order NCM, RDM1, SAM, SSM, RDM2, EAM, GEEM"
+    assert visited == list(range(len(MODES))), "modes must come in order NCM, RDM1, SAM, SSM, RDM2, EAM, GEEM"
     assert np.all(nominal.value("t_mode_s") > 0.0)
 
 
 def test_nominal_mode_timing_matches_the_trajectory(nominal, mission):
     """Mode exits land where the trajectory puts them (reference-model sec. 5 scipy check)."""
     t_mode = nominal.value("t_mode_s")
-    ssm_end = t_mode[: L.MODE_RDM2].sum()
-    assert t_mode[L.MODE_NCM] == pytest.approx(mission["modes"]["ncm"]["duration_s"], abs=0.025)
-    assert t_mode[L.MODE_RDM2] == pytest.approx(mission["modes"]["rdm2"]["duration_s"], abs=0.025)
+    ssm_end = t_mode[:RDM2].sum()
+    assert t_mode[NCM] == pytest.approx(mode_config(mission, "NCM")["exit"][0]["time_in_mode_s"], abs=0.025)
+    assert t_mode[RDM2] == pytest.approx(mode_config(mission, "RDM2")["exit"][0]["time_in_mode_s"], abs=0.025)
     assert ssm_end == pytest.approx(168.0, abs=2.0)  # 110 km descending at t ~ 168 s
-    eam_end = t_mode[: L.MODE_GEEM].sum()
+    eam_end = t_mode[:GEEM].sum()
     assert eam_end == pytest.approx(215.0, abs=2.0)  # 70 km at t ~ 215 s
     assert nominal.value("t_end_s") == pytest.approx(230.0, abs=2.0)  # q = 1 kPa at ~53 km, t ~ 230 s
-    assert nominal.value("qbar_end_pa") >= mission["modes"]["geem"]["handover_qbar_pa"]
+    assert nominal.value("qbar_end_pa") >= mode_config(mission, "GEEM")["exit"][0]["dynamic_pressure_above_pa"]
 
 
 def test_nominal_handover_error_and_propellant(nominal, vehicle):
@@ -71,7 +78,7 @@ def _propellant_per_mode(result):
     mode's first sample)."""
     fuel = result.column("fuel_remaining")
     modes = result.column("mode")
-    starts = [int(np.flatnonzero(modes == m)[0]) for m in range(L.N_MODES)] + [len(fuel) - 1]
+    starts = [int(np.flatnonzero(modes == m)[0]) for m in range(len(MODES))] + [len(fuel) - 1]
     return np.array([fuel[a] - fuel[b] for a, b in zip(starts[:-1], starts[1:], strict=True)])
 
 
@@ -79,7 +86,7 @@ def test_nominal_sun_scanning_uses_less_than_the_manoeuvres(nominal):
     """000 sec. 6.1: sun scanning uses less propellant than rate damping, sun acquisition and
     entry attitude acquisition (the short GEEM: see the expected failure below)."""
     used = _propellant_per_mode(nominal)
-    assert used[L.MODE_SSM] < min(used[L.MODE_RDM1], used[L.MODE_SAM], used[L.MODE_EAM])
+    assert used[SSM] < min(used[RDM1], used[SAM], used[EAM])
 
 
 @pytest.mark.xfail(
@@ -91,8 +98,8 @@ def test_nominal_sun_scanning_uses_less_than_the_manoeuvres(nominal):
 def test_nominal_propellant_goes_mostly_to_eam_and_geem(nominal):
     """000 sec. 6.1: most propellant is used in EAM and GEEM (high thrust), the least in SSM."""
     used = _propellant_per_mode(nominal)
-    assert used[L.MODE_EAM] + used[L.MODE_GEEM] > 0.5 * used.sum()
-    assert used[L.MODE_SSM] < used[L.MODE_GEEM]
+    assert used[EAM] + used[GEEM] > 0.5 * used.sum()
+    assert used[SSM] < used[GEEM]
 
 
 def test_geem_starts_without_a_step_in_its_reference(nominal):
@@ -101,8 +108,8 @@ def test_geem_starts_without_a_step_in_its_reference(nominal):
     the sum of the true attitude's angles to both (the last EAM and first GEEM samples, 40 Hz)."""
     modes = nominal.column("mode")
     theta = nominal.column("theta_t_deg")
-    first_geem = int(np.flatnonzero(modes == L.MODE_GEEM)[0])
-    assert modes[first_geem - 1] == L.MODE_EAM
+    first_geem = int(np.flatnonzero(modes == GEEM)[0])
+    assert modes[first_geem - 1] == EAM
     assert theta[first_geem - 1] + theta[first_geem] < 2.0
 
 
@@ -152,12 +159,12 @@ def test_failed_thrusters_1_and_8_are_compensated(vehicle, mission, nominal):
 
     def rdm1_use(result):
         fuel = result.column("fuel_remaining")
-        rdm1 = np.flatnonzero(result.column("mode") == L.MODE_RDM1)
+        rdm1 = np.flatnonzero(result.column("mode") == RDM1)
         return fuel[rdm1[0]] - fuel[rdm1[-1] + 1]
 
     assert rdm1_use(failed) > rdm1_use(nominal)
     # slower rate damping with less authority (000 sec. 6.3)
-    assert failed.value("t_mode_s")[L.MODE_RDM1] >= nominal.value("t_mode_s")[L.MODE_RDM1]
+    assert failed.value("t_mode_s")[RDM1] >= nominal.value("t_mode_s")[RDM1]
 
 
 def test_failed_thrusters_1_and_8_cost_propellant(vehicle, mission, nominal):
@@ -180,7 +187,7 @@ def test_failed_thrusters_1_and_8_cost_propellant(vehicle, mission, nominal):
 
 def test_failed_yaw_thruster_5_loses_the_flight(vehicle, mission):
     """Thrusters 5/6 are the only yaw thrusters: losing 5 cannot be compensated (000 sec. 5)."""
-    result = fly(pack(vehicle, mission, (5,)))
+    result = fly(pack(vehicle, mission, (5,)), mode_names=MODES)
     assert not result.success
     assert result.failure_reason == "rdm1_timeout"  # positive yaw rate cannot be damped
     assert result.pulse_counts[4] > 0

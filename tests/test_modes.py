@@ -1,16 +1,22 @@
-"""Mode exit predicates (reference-model sec. 4) just either side of their thresholds.
+"""The mode program (core.modes): exit conditions, packing, and ReFEx's seven modes.
 
-Thresholds come from configs/missions/refex-exo.yaml via the packed mission array; ``NUDGE``
-is a relative step far above float64 rounding (1e-16) and far below any physical margin.
+Exit conditions are checked against the slow twin ``naive.exit_holds``, which reads them straight
+from the mission file in its units; the kernel sees them packed in SI units, grouped and sorted.
+``NUDGE`` is a relative step far above float64 rounding (1e-16) and far below any margin.
 """
 
 import math
 
+import naive
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
+from refexmc.config.pack import mode_names, pack_modes, target_quaternion
 from refexmc.core import layout as L
-from refexmc.core import modes, rcs
+from refexmc.core import modes, quaternion, rcs
 
 NUDGE = 1e-9  # relative; see module docstring
 
@@ -23,93 +29,159 @@ def above(x):
     return x * (1 + NUDGE) if x > 0 else x + NUDGE
 
 
-def test_thresholds_are_the_configured_ones(inputs, mission_config):
-    m = inputs.mission
-    cfg = mission_config["modes"]
-    assert m[L.M_NCM_DURATION] == cfg["ncm"]["duration_s"] == 5.0  # 000 sec. 2.2
-    assert m[L.M_RDM2_DURATION] == cfg["rdm2"]["duration_s"] == 8.0  # 000 sec. 2.2
-    assert m[L.M_RDM1_RATE] == pytest.approx(math.radians(cfg["rdm1"]["rate_threshold_deg_s"]), rel=1e-15)
-    assert m[L.M_SAM_ANGLE] == pytest.approx(math.radians(cfg["sam"]["angle_threshold_deg"]), rel=1e-15)
-    assert m[L.M_SAM_RATE] == pytest.approx(math.radians(cfg["sam"]["rate_threshold_deg_s"]), rel=1e-15)
-    assert m[L.M_SSM_EXIT_ALTITUDE] == cfg["ssm"]["exit_altitude_m"]
-    assert m[L.M_EAM_EXIT_ALTITUDE] == cfg["eam"]["exit_altitude_m"]
-    assert m[L.M_GEEM_QBAR] == cfg["geem"]["handover_qbar_pa"]
-    assert m[L.M_GEEM_EXIT_ALTITUDE] == cfg["geem"]["exit_altitude_m"]
+def _kernel_exit(table, exits, m, time_in_mode, t1, rates_deg_s, rate_error_deg_s, angle_deg, altitude, climb, qbar):
+    """core.modes.exit_reached on states built to have the given errors (deg, deg/s)."""
+    now = np.zeros(modes.NOW_SIZE)
+    now[modes.NOW_TIME_IN_MODE] = time_in_mode
+    now[modes.NOW_ALTITUDE] = altitude
+    now[modes.NOW_CLIMB] = climb
+    now[modes.NOW_QBAR] = qbar
+    rate_meas = np.radians(np.asarray(rates_deg_s, dtype=float))
+    rate_ref = rate_meas.copy()
+    rate_ref[0] -= math.radians(rate_error_deg_s)  # |meas - ref| = the rate error
+    q_target = np.array([0.0, 0.0, 0.0, 1.0])
+    q_meas = Rotation.from_rotvec([0.0, 0.0, math.radians(angle_deg)]).as_quat()
+    return modes.exit_reached(table[m], exits, now, t1, rate_meas, rate_ref, q_meas, q_target)
 
 
-def test_ncm_ends_at_its_duration(inputs):
-    d = inputs.mission[L.M_NCM_DURATION]
-    assert not modes.ncm_done(inputs.mission, below(d))
-    assert modes.ncm_done(inputs.mission, d)
-    assert modes.ncm_done(inputs.mission, above(d))
+def test_refex_mission_is_seven_modes_in_the_order_of_000(mission_config):
+    """000 sec. 2.2: NCM -> RDM1 -> SAM -> SSM -> RDM2 -> EAM -> GEEM."""
+    assert mode_names(mission_config) == ["NCM", "RDM1", "SAM", "SSM", "RDM2", "EAM", "GEEM"]
 
 
-def test_rdm2_ends_at_its_duration(inputs):
-    d = inputs.mission[L.M_RDM2_DURATION]
-    assert not modes.rdm2_done(inputs.mission, below(d))
-    assert modes.rdm2_done(inputs.mission, d)
+def test_thrust_level_per_mode(mission_config):
+    """Low thrust for precision NCM..RDM2, high thrust in EAM and GEEM (000 sec. 2.2)."""
+    table, _ = pack_modes(mission_config)
+    high = {"EAM", "GEEM"}
+    for name, row in zip(mode_names(mission_config), table, strict=True):
+        assert row[L.MD_LEVEL] == (rcs.LEVEL_HIGH if name in high else rcs.LEVEL_LOW), name
 
 
-def test_rdm1_needs_profile_finished_and_every_rate_below_threshold(inputs):
-    m = inputs.mission
-    limit = m[L.M_RDM1_RATE]
+def test_packed_thresholds_are_the_configured_ones_in_si(mission_config):
+    table, exits = pack_modes(mission_config)
+    for m, mode in enumerate(mission_config["modes"]):
+        first, count = int(table[m, L.MD_EXIT_FIRST]), int(table[m, L.MD_EXIT_ROWS])
+        rows = exits[first : first + count]
+        assert count == sum(len(group) for group in mode["exit"])
+        by_id = {v: k for k, v in modes.PREDICATES.items()}
+        for row in rows:
+            group = mode["exit"][int(row[L.E_GROUP])]
+            name = by_id[int(row[L.E_PREDICATE])]
+            configured = group[name]
+            expected = math.radians(configured) if name.endswith(("_deg", "_deg_s")) else float(configured)
+            assert row[L.E_VALUE] == pytest.approx(expected, rel=1e-15), (mode["name"], name)
+        assert np.all(np.diff(rows[:, L.E_GROUP]) >= 0), "a group's rows are contiguous"
+
+
+def test_cheap_predicates_come_first_within_a_group(mission_config):
+    """SAM tests its rate error before its angle error (an acos), as ReFEx's loop always did."""
+    table, exits = pack_modes(mission_config)
+    sam = mode_names(mission_config).index("SAM")
+    first = int(table[sam, L.MD_EXIT_FIRST])
+    ids = exits[first : first + 2, L.E_PREDICATE].tolist()
+    assert ids == [modes.PREDICATE_RATE_ERROR_BELOW, modes.PREDICATE_ANGLE_ERROR_BELOW]
+
+
+def test_each_predicate_switches_exactly_at_its_threshold(mission_config):
+    """Every ReFEx exit predicate just either side of its threshold, with the others satisfied."""
+    table, exits = pack_modes(mission_config)
+    names = mode_names(mission_config)
+    ok = dict(time_in_mode=1e6, t1=0.0, rates=[0.0, 0.0, 0.0], rate_error=0.0, angle=0.0, altitude=0.0, climb=-1.0)
+    cases = {
+        "NCM": [("time_in_mode", 5.0, "ge")],
+        "RDM1": [("rates", 0.3, "lt")],
+        "SAM": [("angle", 1.0, "lt"), ("rate_error", 0.1, "lt")],
+        "SSM": [("altitude", 110000.0, "lt"), ("climb", 0.0, "lt")],
+        "RDM2": [("time_in_mode", 8.0, "ge")],
+        "EAM": [("altitude", 70000.0, "lt")],
+    }
+    for name, checks in cases.items():
+        m = names.index(name)
+        for key, threshold, op in checks:
+            cases_at = [(below(threshold), op == "lt"), (threshold, op == "ge"), (above(threshold), op == "ge")]
+            if key in ("angle", "rate_error"):  # rebuilt through rotations: 1e-7 relative, no equality case
+                cases_at = [(threshold * (1 - 1e-7), True), (threshold * (1 + 1e-7), False)]
+            for value, expected in cases_at:
+                state = dict(ok, qbar=0.0)
+                if key == "rates":
+                    state["rates"] = [0.0, -value, 0.0]  # any axis, either sign
+                else:
+                    state[key] = value
+                got = _kernel_exit(
+                    table,
+                    exits,
+                    m,
+                    state["time_in_mode"],
+                    state["t1"],
+                    state["rates"],
+                    state["rate_error"],
+                    state["angle"],
+                    state["altitude"],
+                    state["climb"],
+                    state["qbar"],
+                )
+                assert got == expected, (name, key, value)
+
+
+def test_rate_damping_needs_its_profile_finished(mission_config):
+    table, exits = pack_modes(mission_config)
+    m = mode_names(mission_config).index("RDM1")
     t1 = 12.0
-    small = np.full(3, below(limit))
-    assert modes.rdm1_done(m, above(t1), t1, small)
-    assert not modes.rdm1_done(m, t1, t1, small), "t > t1 is required"
-    assert not modes.rdm1_done(m, below(t1), t1, small)
-    for axis in range(3):
-        for sign in (1.0, -1.0):
-            rates = small.copy()
-            rates[axis] = sign * above(limit)
-            assert not modes.rdm1_done(m, above(t1), t1, rates), f"axis {axis}, sign {sign}"
-            rates[axis] = sign * limit
-            assert not modes.rdm1_done(m, above(t1), t1, rates), "strictly below the threshold"
-            rates[axis] = sign * below(limit)
-            assert modes.rdm1_done(m, above(t1), t1, rates)
+    args = ([0.0, 0.0, 0.0], 0.0, 0.0, 0.0, -1.0, 0.0)
+    assert _kernel_exit(table, exits, m, above(t1), t1, *args)
+    assert not _kernel_exit(table, exits, m, t1, t1, *args), "t > t1 is required"
 
 
-def test_sam_needs_both_angle_and_rate_below_thresholds(inputs):
-    m = inputs.mission
-    angle, rate = m[L.M_SAM_ANGLE], m[L.M_SAM_RATE]
-    assert modes.sam_done(m, below(angle), below(rate))
-    assert not modes.sam_done(m, above(angle), below(rate))
-    assert not modes.sam_done(m, below(angle), above(rate))
-    assert not modes.sam_done(m, angle, below(rate))
-    assert not modes.sam_done(m, below(angle), rate)
+def test_geem_hands_over_at_qbar_or_floor_altitude(mission_config):
+    """GEEM's two exit groups: q-bar >= 1 kPa OR below 50 km (an OR of groups)."""
+    table, exits = pack_modes(mission_config)
+    m = mode_names(mission_config).index("GEEM")
+    args = dict(time_in_mode=1.0, t1=0.0, rates_deg_s=[0, 0, 0], rate_error_deg_s=0.0, angle_deg=0.0, climb=-1.0)
+    assert _kernel_exit(table, exits, m, altitude=above(50000.0), qbar=1000.0, **args)
+    assert not _kernel_exit(table, exits, m, altitude=above(50000.0), qbar=below(1000.0), **args)
+    assert _kernel_exit(table, exits, m, altitude=below(50000.0), qbar=below(1000.0), **args)
+    assert not _kernel_exit(table, exits, m, altitude=50000.0, qbar=below(1000.0), **args)
 
 
-def test_ssm_ends_below_its_altitude_only_when_descending(inputs):
-    m = inputs.mission
-    h = m[L.M_SSM_EXIT_ALTITUDE]
-    assert modes.ssm_done(m, below(h), -1.0)
-    assert not modes.ssm_done(m, above(h), -1.0)
-    assert not modes.ssm_done(m, h, -1.0)
-    assert not modes.ssm_done(m, below(h), +1.0), "the ascending crossing must not end SSM"
-    assert not modes.ssm_done(m, below(h), 0.0)
+@settings(max_examples=300, deadline=None)
+@given(
+    m=st.integers(0, 6),
+    time_in_mode=st.floats(0.0, 200.0),
+    t1=st.floats(0.0, 100.0),
+    rates=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
+    rate_error=st.floats(0.0, 0.3),
+    angle=st.floats(0.0, 3.0),
+    altitude=st.floats(30000.0, 150000.0),
+    climb=st.floats(-100.0, 100.0),
+    qbar=st.floats(0.0, 3000.0),
+)
+def test_exit_conditions_equal_the_mission_file_read_naively(
+    mission_config, m, time_in_mode, t1, rates, rate_error, angle, altitude, climb, qbar
+):
+    """Packing (units, groups, order) and the kernel agree with the file's words (naive twin).
+
+    The angle and rate errors are rebuilt from rotations and vectors, so values within 1e-9 of a
+    threshold could round either way; those draws are skipped."""
+    mode = mission_config["modes"][m]
+    for group in mode["exit"]:
+        for name, v in group.items():
+            if isinstance(v, bool):
+                continue
+            value = {"angle_error_below_deg": angle, "rate_error_below_deg_s": rate_error}.get(name)
+            if value is not None and abs(value - v) < 1e-9:
+                return
+    table, exits = pack_modes(mission_config)
+    expected = naive.exit_holds(mode, time_in_mode, t1, rates, rate_error, angle, altitude, climb, qbar)
+    got = _kernel_exit(table, exits, m, time_in_mode, t1, rates, rate_error, angle, altitude, climb, qbar)
+    assert got == expected
 
 
-def test_eam_ends_below_its_altitude(inputs):
-    m = inputs.mission
-    h = m[L.M_EAM_EXIT_ALTITUDE]
-    assert modes.eam_done(m, below(h))
-    assert not modes.eam_done(m, h)
-    assert not modes.eam_done(m, above(h))
-
-
-def test_geem_hands_over_at_qbar_or_floor_altitude(inputs):
-    m = inputs.mission
-    q, floor = m[L.M_GEEM_QBAR], m[L.M_GEEM_EXIT_ALTITUDE]
-    high = above(floor)
-    assert modes.geem_done(m, high, q), "q-bar >= threshold hands over"
-    assert modes.geem_done(m, high, above(q))
-    assert not modes.geem_done(m, high, below(q))
-    assert modes.geem_done(m, below(floor), below(q)), "floor altitude hands over"
-    assert not modes.geem_done(m, floor, below(q))
-
-
-@pytest.mark.parametrize("mode", range(L.N_MODES))
-def test_thrust_level_per_mode(mode):
-    """Low thrust NCM..RDM2, high thrust in EAM and GEEM (000 sec. 2.2)."""
-    expected = rcs.LEVEL_HIGH if mode in (L.MODE_EAM, L.MODE_GEEM) else rcs.LEVEL_LOW
-    assert modes.thrust_level(mode) == expected
+def test_inertial_targets_from_euler_angles_equal_scipy():
+    """An inertial target given as Euler angles is scipy's quaternion (scalar last)."""
+    target = {"type": "inertial", "euler_deg": [60.0, -20.0, 5.0], "sequence": "ZYX"}
+    q = target_quaternion(target)
+    expected = Rotation.from_euler("ZYX", [60.0, -20.0, 5.0], degrees=True).as_quat()
+    assert np.allclose(q, expected, atol=1e-15)
+    q2 = target_quaternion({"type": "inertial", "quaternion": [0.0, 0.0, 2.0, 2.0]})
+    assert np.allclose(q2, [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-15)
+    assert quaternion.angle_between(q, expected) < 1e-7

@@ -11,12 +11,12 @@ from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from refexmc.campaign.chunk import RunPlan, fly_chunk
-from refexmc.campaign.execute import fly
 from refexmc.campaign.sampling import Sampler, truncated_normal_ppf
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem
 from refexmc.config.load import failure_sets, load_campaign
 from refexmc.core import layout as L
+from refexmc.simulate import fly
 
 ROOT = Path(__file__).resolve().parents[1]
 NOMINAL = ROOT / "campaigns/nominal.yaml"

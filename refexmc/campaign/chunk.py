@@ -7,30 +7,12 @@ parameter path) alone (``refexmc.campaign.sampling``).
 
 import contextlib
 
-import numpy as np
-
+from refexmc import simulate
 from refexmc.campaign import storage
-from refexmc.campaign.execute import fly
 from refexmc.campaign.sampling import Sampler
 from refexmc.campaign.seeding import run_seed
-from refexmc.config import dispersions
-from refexmc.config.pack import pack
-from refexmc.core import layout as L
-
-# history columns that are finite in every mode (angle errors are NaN before a reference exists)
-_FINITE_HISTORY = [L.HISTORY.slices[name][0] for name in ("t_s", "omega_m_deg_s", "fuel_remaining", "altitude_m")]
-
-
-def non_finite_reason(result):
-    """Why a flight result is not usable (a non-finite state), or None."""
-    for name in ("fuel_remaining", "fuel_used_kg", "t_end_s"):
-        if not np.isfinite(result.value(name)):
-            return f"non-finite {name} in the summary"
-    history = result.history[:, _FINITE_HISTORY]
-    if not np.isfinite(history).all():
-        row = int(np.argmax(~np.isfinite(history).all(axis=1)))
-        return f"non-finite state at t = {result.history[row, L.HISTORY.slices['t_s'][0]]:.3f} s"
-    return None
+from refexmc.config import dispersions, requirements
+from refexmc.config.pack import mode_names, pack
 
 
 class RunPlan:
@@ -41,6 +23,8 @@ class RunPlan:
         self.sampler = Sampler(campaign)
         self.nominal_inputs = pack(campaign["vehicle"], campaign["mission"])
         self.n_thrusters = self.nominal_inputs.thrusters.shape[0]
+        self.mode_names = mode_names(campaign["mission"])
+        self.value_columns = requirements.run_value_columns(self.mode_names)
         self._warm_up()
 
     def _warm_up(self):
@@ -70,7 +54,7 @@ class RunPlan:
             seed, failed, params, _ = self.prepare(run_id)
         except Exception:  # noqa: BLE001 - the row is still recorded, without its parameters
             seed, failed, params = run_seed(self.campaign["seed"], run_id), (), {}
-        row = storage.runs_row(run_id, seed, failed, None, self.n_thrusters, error=reason)
+        row = storage.runs_row(run_id, seed, failed, None, self.value_columns, self.n_thrusters, error=reason)
         row.update(params or dict.fromkeys(self.param_columns(), float("nan")))
         return row
 
@@ -78,15 +62,15 @@ class RunPlan:
         """(runs row, history table, FlightResult); an error gives an error row and no history/result."""
         try:
             seed, failed, params, inputs = self.prepare(run_id)
-            result = fly(inputs, nav_seed=seed, history_rate_hz=history_rate_hz)
-            reason = non_finite_reason(result)
+            result = simulate.fly(inputs, nav_seed=seed, history_rate_hz=history_rate_hz, mode_names=self.mode_names)
+            reason = result.non_finite_reason()
         except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
             reason = f"{type(exc).__name__}: {exc}"
         if reason is not None:
             return self.error_row(run_id, reason), None, None
-        row = storage.runs_row(run_id, seed, failed, result, self.n_thrusters)
+        row = storage.runs_row(run_id, seed, failed, result, self.value_columns, self.n_thrusters)
         row.update(params)
-        return row, storage.history_table(run_id, result.history), result
+        return row, storage.history_table(run_id, result), result
 
     def param_columns(self):
         return [c for path in self.sampler.specs for c in dispersions.columns(path, self.campaign["vehicle"])]

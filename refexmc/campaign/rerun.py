@@ -14,7 +14,7 @@ from refexmc.campaign import storage
 from refexmc.campaign.chunk import RunPlan
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_campaign
-from refexmc.core import layout as L
+from refexmc.simulate import control_period
 
 
 def _same(a, b):
@@ -48,7 +48,7 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
         raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", path=("RUN_ID",))
     plan = RunPlan(campaign)
     if history_rate_hz is None:
-        history_rate_hz = 1.0 / plan.nominal_inputs.fsw[L.F_CONTROL_PERIOD]
+        history_rate_hz = 1.0 / control_period(plan.nominal_inputs)
     if not history_rate_hz > 0:
         raise ConfigError(f"expected a history rate > 0, got {history_rate_hz}", path=("--history-rate",))
     row, history, _ = plan.fly(run_id, history_rate_hz)

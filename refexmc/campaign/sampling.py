@@ -19,7 +19,6 @@ import numpy as np
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem
 from refexmc.config.load import failure_sets
-from refexmc.core import layout as L
 
 _TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
 _DESIGN_TAG = {"lhs": 1, "sobol": 2}
@@ -208,10 +207,7 @@ class Sampler:
         )
         for path, value in values.items():
             dispersions.apply(inputs, path, value, nominal_inputs.atmosphere)
-        failed_column = L.THRUSTER.slices["failed"][0]
-        inputs.thrusters[:, failed_column] = 0.0
-        for tid in failed:
-            inputs.thrusters[tid - 1, failed_column] = 1.0
+        dispersions.set_failed(inputs, failed)
         return inputs
 
     def columns(self, values):

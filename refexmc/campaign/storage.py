@@ -18,11 +18,6 @@ import yaml
 
 import refexmc
 from refexmc.config.errors import ConfigError
-from refexmc.config.requirements import MODE_TIME_COLUMNS, RUN_VALUE_COLUMNS
-from refexmc.core import layout as L
-
-MODE_COLUMNS = list(MODE_TIME_COLUMNS)
-AXES = "xyz"
 
 
 def now():
@@ -80,8 +75,12 @@ def part_name(chunk_index):
     return f"part-{chunk_index:05d}.parquet"
 
 
-def runs_row(run_id, seed, failed, result, n_thrusters, error=None):
-    """One row of the ``runs`` table (interface.md) as a dict."""
+def runs_row(run_id, seed, failed, result, value_columns, n_thrusters, error=None):
+    """One row of the ``runs`` table (interface.md) as a dict.
+
+    ``result`` is a ``refexmc.simulate.FlightResult`` (None for an errored run, whose
+    ``value_columns``, from ``config.requirements.run_value_columns``, are NaN).
+    """
     row = {
         "run_id": run_id,
         "seed": seed,
@@ -91,7 +90,7 @@ def runs_row(run_id, seed, failed, result, n_thrusters, error=None):
         "failed_thrusters": ",".join(str(t) for t in sorted(failed)),
     }
     if result is None:
-        for name in RUN_VALUE_COLUMNS:
+        for name in value_columns:
             row[name] = float("nan")
         row["modes_completed"] = 0
         for i in range(n_thrusters):
@@ -99,15 +98,7 @@ def runs_row(run_id, seed, failed, result, n_thrusters, error=None):
         return row
     row["success"] = result.success
     row["failure_reason"] = result.failure_reason
-    row["fuel_remaining"] = float(result.value("fuel_remaining"))
-    row["fuel_used_kg"] = float(result.value("fuel_used_kg"))
-    row["t_end_s"] = float(result.value("t_end_s"))
-    for name, value in zip(MODE_COLUMNS, result.value("t_mode_s"), strict=True):
-        row[name] = float(value)
-    row["theta_t_handover_deg"] = float(result.value("theta_t_handover_deg"))
-    row["modes_completed"] = int(result.value("modes_completed"))
-    for i, count in enumerate(result.pulse_counts):
-        row[f"pulses_{i + 1}"] = int(count)
+    row.update(result.runs_values())
     return row
 
 
@@ -129,44 +120,25 @@ def runs_table(rows):
     return pa.table({name: column(name) for name in rows[0]})
 
 
-def history_table(run_id, history):
-    """Long history table for one run (interface.md ``histories`` columns).
-
-    Time is float64; the sampled signals are stored as float32 (7 significant digits: far below
-    any sensor or model accuracy; half the bytes and the parent's compression time of float64).
-    """
-    n = history.shape[0]
-
-    def col(name, k=0):
-        return history[:, L.HISTORY.slices[name][0] + k]
-
-    def signal(name, k=0):
-        return pa.array(col(name, k).astype(np.float32))
-
-    mode_index = col("mode").astype(np.int32)
-    columns = {
-        "run_id": pa.array(np.full(n, run_id, dtype=np.int64)),
-        "t_s": pa.array(col("t_s")),
-        "mode": pa.DictionaryArray.from_arrays(pa.array(mode_index), pa.array(list(L.MODE_NAMES))),
-        "theta_t_deg": signal("theta_t_deg"),
-        "omega_m_deg_s": signal("omega_m_deg_s"),
-    }
-    for k, axis in enumerate(AXES):
-        columns[f"theta_e_{axis}_deg"] = signal("theta_e_deg", k)
-    for k, axis in enumerate(AXES):
-        columns[f"omega_e_{axis}_deg_s"] = signal("omega_e_deg_s", k)
-    columns["fuel_remaining"] = signal("fuel_remaining")
-    columns["valves_open"] = pa.array(col("valves_open").astype(np.int32))
-    for k, axis in enumerate(AXES):
-        columns[f"pulse_{axis}"] = pa.array(col("pulse_command", k).astype(np.int8))
-    columns["altitude_m"] = signal("altitude_m")
-    columns["qbar_pa"] = signal("qbar_pa")
+def history_table(run_id, result):
+    """Long history table of one run (interface.md ``histories`` columns) from its
+    ``refexmc.simulate.FlightResult``; ``mode`` is a dictionary column of the mission's mode names."""
+    signals = result.history_columns()
+    n = len(signals["t_s"])
+    columns = {"run_id": pa.array(np.full(n, run_id, dtype=np.int64))}
+    for name, values in signals.items():
+        if name == "mode":
+            columns[name] = pa.DictionaryArray.from_arrays(pa.array(values), pa.array(result.mode_names))
+        else:
+            columns[name] = pa.array(values)
     return pa.table(columns)
 
 
 def empty_history_table():
     """A history table with no rows (the histories part of a chunk whose runs all errored)."""
-    return history_table(0, np.zeros((0, L.HISTORY_SIZE)))
+    from refexmc.simulate import empty_result  # the core's kernels: only when a chunk has no history
+
+    return history_table(0, empty_result([], 0))
 
 
 # libyaml when PyYAML has it (the same documents, ~8x faster than the pure-Python emitter and parser)

@@ -103,9 +103,9 @@ def _kernels_compiled():
     """True once the flight kernel is compiled or loaded from the cache (or JIT is disabled)."""
     global _kernels_ready
     if not _kernels_ready:
-        from refexmc.core.flight import run_flight
+        from refexmc.simulate import kernels_loaded
 
-        _kernels_ready = bool(getattr(run_flight, "signatures", True))
+        _kernels_ready = kernels_loaded()
     return _kernels_ready
 
 

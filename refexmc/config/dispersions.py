@@ -159,6 +159,14 @@ def size(path, vehicle):
     return max(1, len(components(path, vehicle)))
 
 
+def set_failed(inputs, failed):
+    """Mark thrusters ``failed`` (1-based ids) failed and every other one working."""
+    failed_column = L.THRUSTER.slices["failed"][0]
+    inputs.thrusters[:, failed_column] = 0.0
+    for tid in failed:
+        inputs.thrusters[tid - 1, failed_column] = 1.0
+
+
 def columns(path, vehicle):
     """``p.<path>`` column names of the runs table."""
     comps = components(path, vehicle)

@@ -215,8 +215,75 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         fail(message, "inertia_kg_m2")
 
 
+# exit predicates that need the mode's guidance: a profile with t1, an attitude reference, a rate reference
+_NEEDS_PROFILE = ("guidance_finished",)
+_NEEDS_ATTITUDE = ("angle_error_below_deg",)
+_NEEDS_RATE_REFERENCE = ("rate_error_below_deg_s",)
+_PROFILE_KINDS = ("rate_damping", "slew", "spin_up")
+_RATE_REFERENCE_KINDS = ("rate_damping", "slew", "spin_up", "hold", "track")
+
+
+def check_modes(modes, fail):
+    """The mode program: unique names, targets the kinds can use, predicates the kinds can answer."""
+    seen = {}
+    for m, mode in enumerate(modes):
+        name, kind = mode["name"], mode["kind"]
+        key = name.lower()
+        if key == "end":
+            fail("'end' is not a mode name (its time column would be t_end_s, the flight's end)", "modes", m, "name")
+        if key in seen:
+            fail(f"mode name '{name}' is used twice (also mode {seen[key] + 1})", "modes", m, "name")
+        seen[key] = m
+        allowed = schema.KIND_TARGETS[kind]
+        target = mode.get("target")
+        if allowed is None and target is not None:
+            fail(f"kind {kind} takes no target", "modes", m, "target")
+        if allowed is not None and target is None:
+            fail(f"kind {kind} needs a target ({', '.join(allowed)})", "modes", m)
+        if target is not None and target["type"] not in allowed:
+            fail(
+                f"kind {kind} cannot use target {target['type']}; expected one of {', '.join(allowed)}",
+                "modes",
+                m,
+                "target",
+                "type",
+            )
+        if target is not None and target["type"] == "inertial":
+            has_q, has_euler = "quaternion" in target, "euler_deg" in target or "sequence" in target
+            if has_q == has_euler or (has_euler and not ("euler_deg" in target and "sequence" in target)):
+                fail("expected either 'quaternion' or both 'euler_deg' and 'sequence'", "modes", m, "target")
+            if has_q and np.linalg.norm(target["quaternion"]) == 0.0:
+                fail("expected a non-zero quaternion", "modes", m, "target", "quaternion")
+        if (kind == "spin_up") != ("rate_deg_s" in mode):
+            fail(
+                "kind spin_up needs 'rate_deg_s'" if kind == "spin_up" else f"kind {kind} takes no 'rate_deg_s'",
+                "modes",
+                m,
+                *(() if kind == "spin_up" else ("rate_deg_s",)),
+            )
+        if "t1_design_s" in mode and kind != "slew":
+            fail(f"kind {kind} takes no 't1_design_s' (slew only)", "modes", m, "t1_design_s")
+        for g, group in enumerate(mode["exit"]):
+            for predicate in group:
+                if predicate in _NEEDS_PROFILE and kind not in _PROFILE_KINDS:
+                    needs = f"a guidance profile ({', '.join(_PROFILE_KINDS)})"
+                elif predicate in _NEEDS_ATTITUDE and schema.KIND_TARGETS[kind] is None and kind != "spin_up":
+                    needs = "an attitude reference (slew, spin_up, hold, track)"
+                elif predicate in _NEEDS_RATE_REFERENCE and kind not in _RATE_REFERENCE_KINDS:
+                    needs = f"a rate reference ({', '.join(_RATE_REFERENCE_KINDS)})"
+                else:
+                    continue
+                fail(f"predicate {predicate} needs {needs}; kind {kind} has none", "modes", m, "exit", g, predicate)
+
+
 def check_mission(mission, file, lines, prefix=()):
-    """Checks the schema cannot express: ascending atmosphere, non-zero sun direction."""
+    """Checks the schema cannot express: the mode program, ascending atmosphere, non-zero sun direction."""
+
+    def fail(message, *path):
+        line = next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
+        raise ConfigError(message, file=file, line=line, path=prefix + path)
+
+    check_modes(mission["modes"], fail)
     bases = [row["base_altitude_km"] for row in mission["atmosphere"]]
     if any(b2 <= b1 for b1, b2 in zip(bases, bases[1:], strict=False)):
         raise ConfigError(
@@ -324,7 +391,8 @@ def load_campaign(path):
     _check_failures(campaign["failures"], n_thrusters, path, lines)
     dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
-    columns = requirements.runs_metric_columns(n_thrusters, parameter_columns)
+    mode_names = [mode["name"] for mode in mission["modes"]]
+    columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     if campaign["failures"]["mode"] == "enumerate":
         derived = len(failure_sets(campaign["failures"]["sizes"], n_thrusters)) + int(campaign["nominal_first"])

@@ -1,23 +1,16 @@
 """Validated config dicts -> the flat arrays of ``refexmc.core.layout``."""
 
-from typing import NamedTuple
+import math
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from refexmc.config import derived
+from refexmc.config import derived, schema
 from refexmc.core import layout as L
+from refexmc.core import modes as core_modes
+from refexmc.core.inputs import RunInputs
 
-
-class RunInputs(NamedTuple):
-    """The arrays ``refexmc.core.flight.run_flight`` takes."""
-
-    vehicle: np.ndarray
-    thrusters: np.ndarray
-    fsw: np.ndarray
-    mission: np.ndarray
-    nav: np.ndarray
-    atmosphere: np.ndarray
-    allocation: np.ndarray
+__all__ = ["RunInputs", "pack", "mode_names"]
 
 
 def _put(array, fields, name, value):
@@ -102,9 +95,9 @@ def pack_mission(mission):
     """Mission array (layout.MISSION)."""
     out = np.zeros(L.MISSION_SIZE)
     sep = mission["separation"]
-    modes = mission["modes"]
     sun = np.asarray(mission["sun_direction"], dtype=float)
     rad = np.radians
+    handover = mission.get("handover_max_angle_deg")
     values = {
         "separation_altitude_m": sep["altitude_m"],
         "separation_speed_m_s": sep["speed_m_s"],
@@ -114,23 +107,7 @@ def pack_mission(mission):
         "sun_direction": sun / np.linalg.norm(sun),
         "earth_radius_m": mission["earth"]["radius_m"],
         "earth_mu_m3_s2": mission["earth"]["mu_m3_s2"],
-        "ncm_duration_s": modes["ncm"]["duration_s"],
-        "rdm1_rate_threshold_rad_s": rad(modes["rdm1"]["rate_threshold_deg_s"]),
-        "rdm1_timeout_s": modes["rdm1"]["timeout_s"],
-        "sam_angle_threshold_rad": rad(modes["sam"]["angle_threshold_deg"]),
-        "sam_rate_threshold_rad_s": rad(modes["sam"]["rate_threshold_deg_s"]),
-        "sam_timeout_s": modes["sam"]["timeout_s"],
-        "ssm_roll_rate_rad_s": rad(modes["ssm"]["roll_rate_deg_s"]),
-        "ssm_exit_altitude_m": modes["ssm"]["exit_altitude_m"],
-        "rdm2_duration_s": modes["rdm2"]["duration_s"],
-        "eam_alpha_rad": rad(modes["eam"]["alpha_deg"]),
-        "eam_beta_rad": rad(modes["eam"]["beta_deg"]),
-        "eam_bank_rad": rad(modes["eam"]["bank_deg"]),
-        "eam_t1_design_s": modes["eam"]["t1_design_s"],
-        "eam_exit_altitude_m": modes["eam"]["exit_altitude_m"],
-        "geem_handover_qbar_pa": modes["geem"]["handover_qbar_pa"],
-        "geem_exit_altitude_m": modes["geem"]["exit_altitude_m"],
-        "handover_max_angle_rad": rad(mission["handover_max_angle_deg"]),
+        "handover_max_angle_rad": math.inf if handover is None else rad(handover),
         "max_flight_time_s": mission["max_flight_time_s"],
         "integrator_max_step_s": mission["integrator"]["max_step_s"],
         "trajectory_step_s": mission["integrator"]["trajectory_step_s"],
@@ -138,6 +115,62 @@ def pack_mission(mission):
     for name, value in values.items():
         _put(out, L.MISSION, name, value)
     return out
+
+
+def mode_names(mission):
+    """The mission's mode names in flight order."""
+    return [mode["name"] for mode in mission["modes"]]
+
+
+def target_quaternion(target):
+    """Inertial target quaternion (scalar last, unit) of an ``inertial`` target."""
+    if "quaternion" in target:
+        q = np.asarray(target["quaternion"], dtype=float)
+        return q / np.linalg.norm(q)
+    return Rotation.from_euler(target["sequence"], target["euler_deg"], degrees=True).as_quat()
+
+
+def _predicate_value(name, value):
+    """A threshold in SI units: degrees (``_deg``, ``_deg_s``) to radians; flags to 1."""
+    if value is True:
+        return 1.0
+    return math.radians(value) if name.endswith(("_deg", "_deg_s")) else float(value)
+
+
+def pack_modes(mission):
+    """Mode table (layout.MODE rows) and exit table (layout.EXIT rows) of the mode program."""
+    levels = {"low": 0, "high": 1}
+    program = mission["modes"]
+    table = np.zeros((len(program), L.MODE_SIZE))
+    exit_rows = []
+    for m, mode in enumerate(program):
+        row = table[m]
+        target = mode.get("target", {"type": "none"})
+        _put(row, L.MODE, "kind_id", core_modes.KINDS[mode["kind"]])
+        _put(row, L.MODE, "target_id", core_modes.TARGETS[target["type"]])
+        _put(row, L.MODE, "thrust_level", levels[mode.get("thrust", "low")])
+        _put(row, L.MODE, "navigation_calibration", 1.0 if mode.get("navigation_calibration") else 0.0)
+        _put(row, L.MODE, "timeout_s", mode.get("timeout_s", math.inf))
+        _put(row, L.MODE, "t1_design_s", mode.get("t1_design_s", 0.0))
+        angles = [target.get(k, 0.0) for k in ("alpha_deg", "beta_deg", "bank_deg")]
+        _put(row, L.MODE, "aerodynamic_angles_rad", np.radians(angles))
+        quaternion = target_quaternion(target) if target["type"] == "inertial" else [0.0, 0.0, 0.0, 1.0]
+        _put(row, L.MODE, "target_quaternion", quaternion)
+        _put(row, L.MODE, "rate_rad_s", np.radians(mode.get("rate_deg_s", [0.0, 0.0, 0.0])))
+        _put(row, L.MODE, "predicted_at_altitude_m", target.get("predicted_at_altitude_m", 0.0))
+        _put(row, L.MODE, "exit_first_row", len(exit_rows))
+        for group, predicates in enumerate(mode["exit"]):
+            ranked = sorted(predicates, key=lambda name: schema.EXIT_PREDICATES[name][1])
+            for name in ranked:
+                value = _predicate_value(name, predicates[name])
+                exit_rows.append([group, core_modes.PREDICATES[name], value])
+        _put(row, L.MODE, "exit_rows", len(exit_rows) - row[L.MD_EXIT_FIRST])
+    exits = np.zeros((len(exit_rows), L.EXIT_SIZE))
+    for k, (group, predicate, value) in enumerate(exit_rows):
+        exits[k, L.E_GROUP] = group
+        exits[k, L.E_PREDICATE] = predicate
+        exits[k, L.E_VALUE] = value
+    return table, exits
 
 
 def pack_navigation(mission):
@@ -161,11 +194,14 @@ def pack_atmosphere(mission):
 
 def pack(vehicle, mission, failed_thrusters=()):
     """All run inputs for the nominal (undispersed) vehicle and mission."""
+    mode_table, exit_table = pack_modes(mission)
     return RunInputs(
         vehicle=pack_vehicle(vehicle),
         thrusters=pack_thrusters(vehicle, failed_thrusters),
         fsw=pack_fsw(vehicle),
         mission=pack_mission(mission),
+        modes=mode_table,
+        exits=exit_table,
         nav=pack_navigation(mission),
         atmosphere=pack_atmosphere(mission),
         allocation=derived.allocation_table(vehicle),

@@ -31,7 +31,6 @@ import re
 from dataclasses import dataclass
 
 from refexmc.config.errors import ConfigError
-from refexmc.core.layout import MODE_NAMES
 
 CAMPAIGN_METRICS = {
     "runs": "runs in the runs table (ok and errored)",
@@ -153,15 +152,20 @@ def parse_percentile_stat(stat):
     return percent, bound
 
 
-MODE_TIME_COLUMNS = tuple(f"t_{name.lower()}_s" for name in MODE_NAMES)
-RUN_VALUE_COLUMNS = ("fuel_remaining", "fuel_used_kg", "t_end_s", *MODE_TIME_COLUMNS, "theta_t_handover_deg")
+def mode_time_columns(mode_names):
+    """Runs-table columns of the time spent in each mode of the mission: ``t_<name>_s``."""
+    return [f"t_{name.lower()}_s" for name in mode_names]
 
 
-def runs_metric_columns(n_thrusters, parameter_columns=()):
+def run_value_columns(mode_names):
+    """The float columns of a runs row, in table order (NaN in an errored run's row)."""
+    return ["fuel_remaining", "fuel_used_kg", "t_end_s", *mode_time_columns(mode_names), "theta_t_handover_deg"]
+
+
+def runs_metric_columns(mode_names, n_thrusters, parameter_columns=()):
     """The numeric columns of a campaign's runs table (``refexmc.campaign.storage.runs_row``)."""
-    return [*RUN_VALUE_COLUMNS, "modes_completed", *(f"pulses_{k + 1}" for k in range(n_thrusters))] + list(
-        parameter_columns
-    )
+    pulses = [f"pulses_{k + 1}" for k in range(n_thrusters)]
+    return [*run_value_columns(mode_names), "modes_completed", *pulses, *parameter_columns]
 
 
 def check_requirements(requirements, columns, file=None, lines=None):

@@ -168,7 +168,113 @@ VEHICLE = obj(
     },
 )
 
-_mode = obj  # readability below
+# --- the mode program (refexmc.core.modes): kinds, targets and exit predicates by name -------
+MODE_KINDS = {
+    "locked": "no reference, actuators off (000 sec. 2.2, NCM)",
+    "rate_damping": "cubic rate profile to zero from the measured rates (000 eq. 15-19)",
+    "slew": "SLERP paced by a quintic to the target, t1 from 000 eq. 13-14",
+    "spin_up": "quartic spin-up to a body rate from the last target attitude (000 eq. 20-27)",
+    "hold": "the target attitude at zero rate",
+    "track": "a moving target, recomputed every control period",
+}
+# kind -> targets it can use (None: it takes no target)
+KIND_TARGETS = {
+    "locked": None,
+    "rate_damping": None,
+    "slew": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial"),
+    "spin_up": None,
+    "hold": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial", "previous"),
+    "track": ("entry_velocity",),
+}
+_ENTRY_ANGLES = {
+    "alpha_deg": number("angle of attack [deg]", minimum=-90.0, maximum=90.0),
+    "beta_deg": number("sideslip [deg]", minimum=-90.0, maximum=90.0),
+    "bank_deg": number("bank angle [deg]", minimum=-180.0, maximum=180.0),
+}
+TARGET_TYPES = {
+    "sun_horizontal": obj("body +y at the sun, body x nearest the local horizontal", {}),
+    "entry_predicted": obj(
+        "alpha, beta, bank to the velocity predicted (two-body conic) at an altitude",
+        {**_ENTRY_ANGLES, "predicted_at_altitude_m": number("altitude of the prediction [m]", **POSITIVE)},
+    ),
+    "entry_velocity": obj("alpha, beta, bank to the current velocity", dict(_ENTRY_ANGLES)),
+    "inertial": obj(
+        "a fixed inertial attitude, as a quaternion or as Euler angles",
+        {
+            "quaternion": vector("body-to-inertial quaternion, scalar last (normalised on load) [-]", length=4),
+            "euler_deg": vector("Euler angles [deg]"),
+            "sequence": {
+                "type": "string",
+                "pattern": "^([XYZ]{3}|[xyz]{3})$",
+                "description": "Euler sequence, scipy Rotation convention: XYZ intrinsic, xyz extrinsic",
+            },
+        },
+        optional=("quaternion", "euler_deg", "sequence"),
+    ),
+    "previous": obj("the attitude the previous mode targeted (the measured one if none did)", {}),
+}
+_TARGET_TYPE = string("target type", enum=list(TARGET_TYPES))
+TARGET = {
+    "type": "object",
+    "description": "target attitude: {type: NAME, ...the keys of that type}",
+    "properties": {"type": _TARGET_TYPE},
+    "required": ["type"],
+    "allOf": [
+        {
+            "if": {"properties": {"type": {"const": name}}},
+            "then": {**spec, "properties": {"type": _TARGET_TYPE, **spec["properties"]}},
+        }
+        for name, spec in TARGET_TYPES.items()
+    ],
+}
+# predicate -> (schema of its value, cost rank: cheaper predicates are evaluated first)
+EXIT_PREDICATES = {
+    "time_in_mode_s": (number("time in mode at least [s]", minimum=0.0), 0),
+    "guidance_finished": ({"const": True, "description": "time in mode beyond the profile's t1"}, 1),
+    "descending": ({"const": True, "description": "navigated climb rate negative"}, 2),
+    "altitude_below_m": (number("navigated altitude below [m]"), 3),
+    "dynamic_pressure_above_pa": (number("dynamic pressure at least [Pa]", minimum=0.0), 4),
+    "rates_below_deg_s": (number("every measured body rate below [deg/s]", **POSITIVE), 5),
+    "rate_error_below_deg_s": (number("measured minus reference rate, norm below [deg/s]", **POSITIVE), 6),
+    "angle_error_below_deg": (number("angle measured attitude to target below [deg]", **POSITIVE), 7),
+}
+EXIT_GROUP = {
+    "type": "object",
+    "description": "predicates that must all hold",
+    "properties": {name: value for name, (value, _) in EXIT_PREDICATES.items()},
+    "additionalProperties": False,
+    "minProperties": 1,
+}
+MAX_MODES = 32
+MODE_NAME_PATTERN = "^[A-Za-z][A-Za-z0-9_]*$"
+MODE = obj(
+    "one mode of the program",
+    {
+        "name": {
+            "type": "string",
+            "pattern": MODE_NAME_PATTERN,
+            "description": "mode name (letters, digits, _); output columns t_<name>_s",
+        },
+        "kind": string("guidance kind", enum=list(MODE_KINDS)),
+        "target": TARGET,
+        "thrust": string("thrust level flown in the mode", enum=["low", "high"]),
+        "t1_design_s": number("shortest slew duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
+        "rate_deg_s": vector("spin-up: final body rate [deg/s]"),
+        "navigation_calibration": {
+            "type": "boolean",
+            "description": "the attitude bias decays while this mode runs (navigation.ssm_calibration_time_s)",
+        },
+        "exit": {
+            "type": "array",
+            "description": "the mode ends when one group holds (OR of ANDs)",
+            "items": EXIT_GROUP,
+            "minItems": 1,
+        },
+        "timeout_s": number("the run fails when the mode lasts longer [s]", **POSITIVE),
+    },
+    optional=("target", "thrust", "t1_design_s", "rate_deg_s", "navigation_calibration", "timeout_s"),
+)
+
 
 MISSION = obj(
     "mission: trajectory, environment, modes, navigation",
@@ -205,53 +311,16 @@ MISSION = obj(
                 },
             ),
         },
-        "modes": obj(
-            "mode exit conditions (the project's reference model, sec. 4)",
-            {
-                "ncm": _mode("no control mode", {"duration_s": number("duration [s]", minimum=0.0)}),
-                "rdm1": _mode(
-                    "first rate damping",
-                    {
-                        "rate_threshold_deg_s": number("every body rate below [deg/s]", **POSITIVE),
-                        "timeout_s": number("fails the run after [s]", **POSITIVE),
-                    },
-                ),
-                "sam": _mode(
-                    "sun acquisition",
-                    {
-                        "angle_threshold_deg": number("total angle error below [deg]", **POSITIVE),
-                        "rate_threshold_deg_s": number("rate error norm below [deg/s]", **POSITIVE),
-                        "timeout_s": number("fails the run after [s]", **POSITIVE),
-                    },
-                ),
-                "ssm": _mode(
-                    "sun scanning",
-                    {
-                        "roll_rate_deg_s": number("roll rate about body x [deg/s]"),
-                        "exit_altitude_m": number("ends below this on the descending branch [m]", **POSITIVE),
-                    },
-                ),
-                "rdm2": _mode("second rate damping", {"duration_s": number("duration [s]", minimum=0.0)}),
-                "eam": _mode(
-                    "entry attitude acquisition",
-                    {
-                        "alpha_deg": number("angle of attack [deg]", minimum=-90.0, maximum=90.0),
-                        "beta_deg": number("sideslip [deg]", minimum=-90.0, maximum=90.0),
-                        "bank_deg": number("bank angle [deg]", minimum=-180.0, maximum=180.0),
-                        "t1_design_s": number("design duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
-                        "exit_altitude_m": number("ends below this altitude [m]", **POSITIVE),
-                    },
-                ),
-                "geem": _mode(
-                    "guided entry",
-                    {
-                        "handover_qbar_pa": number("hand-over at this dynamic pressure [Pa]", **POSITIVE),
-                        "exit_altitude_m": number("or below this altitude [m]", **POSITIVE),
-                    },
-                ),
-            },
+        "modes": {
+            "type": "array",
+            "description": "the mode program, flown in order (docs/missions.md)",
+            "items": MODE,
+            "minItems": 1,
+            "maxItems": MAX_MODES,
+        },
+        "handover_max_angle_deg": number(
+            "success: total angle error when the last mode ends below [deg]; default: no check", **POSITIVE
         ),
-        "handover_max_angle_deg": number("success: total angle error at hand-over below [deg]", **POSITIVE),
         "max_flight_time_s": number("a run still flying then fails [s]", **POSITIVE),
         "navigation": obj(
             "navigation errors (the project's reference model, sec. 5)",
@@ -260,7 +329,9 @@ MISSION = obj(
                 "attitude_noise_deg": number("attitude white noise, 1 sigma per axis [deg]", minimum=0.0),
                 "rate_bias_deg_s": vector("rate bias [deg/s]"),
                 "rate_noise_deg_s": number("rate white noise, 1 sigma per axis [deg/s]", minimum=0.0),
-                "ssm_calibration_time_s": number("attitude-bias decay time constant in SSM; 0: none [s]", minimum=0.0),
+                "ssm_calibration_time_s": number(
+                    "attitude-bias decay time constant in modes with navigation_calibration; 0: none [s]", minimum=0.0
+                ),
             },
         ),
         "integrator": obj(
@@ -275,6 +346,7 @@ MISSION = obj(
             },
         ),
     },
+    optional=("handover_max_angle_deg",),
 )
 
 _reference = {

@@ -1,14 +1,17 @@
-"""The run loop: one exoatmospheric flight from separation to hand-over.
+"""The run loop: one flight through the mission's mode program.
 
-Every 25 ms control period (000 sec. 5): navigation -> mode logic -> guidance -> controller ->
-actuation (pulse modulation + allocation) -> per-thruster switching check -> valve commands;
-then the attitude is integrated over the period in segments that end on the thrust-profile
-breakpoints (each split into RK4 steps of at most ``integrator_max_step_s``), and the trajectory
-by one RK4 step. All inputs a campaign may disperse arrive as array values, so one compiled
-kernel serves every run. Outputs go to caller-owned arrays.
+Every control period (000 sec. 5) the loop takes five named steps: navigate (trajectory and
+measured state) -> advance mode (exit conditions of the mode program, ``core.modes``) ->
+reference (the mode's guidance) -> actuate (controller, pulse modulation + allocation,
+per-thruster switching check, valve commands) -> integrate (the attitude over the period in
+segments that end on the thrust-profile breakpoints, each split into RK4 steps of at most
+``integrator_max_step_s``). All inputs a campaign may disperse arrive as array values
+(``core.inputs.RunInputs``), so one compiled kernel serves every run. Outputs go to
+caller-owned arrays.
 """
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -39,11 +42,10 @@ from refexmc.core.layout import (
     F_MIN_OFF,
     F_MIN_ON,
     FAIL_HANDOVER_ANGLE,
+    FAIL_MODE_TIMEOUT,
     FAIL_NON_FINITE,
     FAIL_NONE,
     FAIL_PROPELLANT,
-    FAIL_RDM1_TIMEOUT,
-    FAIL_SAM_TIMEOUT,
     FAIL_TIME_LIMIT,
     H_ALTITUDE,
     H_FUEL,
@@ -56,497 +58,534 @@ from refexmc.core.layout import (
     H_THETA_E,
     H_THETA_T,
     H_VALVES,
-    M_EAM_ALPHA,
-    M_EAM_BANK,
-    M_EAM_BETA,
-    M_EAM_EXIT_ALTITUDE,
-    M_EAM_T1_DESIGN,
     M_HANDOVER_ANGLE,
     M_MAX_STEP,
     M_MAX_TIME,
-    M_RDM1_TIMEOUT,
-    M_SAM_RATE,
-    M_SAM_TIMEOUT,
     M_SEP_ATTITUDE,
     M_SEP_FLIGHT_PATH,
     M_SEP_RATES,
-    M_SSM_RATE,
-    M_SUN_DIRECTION,
     M_TRAJECTORY_STEP,
-    MODE_DONE,
-    MODE_EAM,
-    MODE_GEEM,
-    MODE_NCM,
-    MODE_RDM1,
-    MODE_RDM2,
-    MODE_SAM,
-    MODE_SSM,
-    N_MODES,
+    MD_CALIBRATION,
+    MD_KIND,
+    MD_LEVEL,
+    MD_TIMEOUT,
     S_ALTITUDE_END,
     S_FAILURE,
+    S_FAILURE_MODE,
     S_FUEL_REMAINING,
     S_FUEL_USED,
     S_HISTORY_ROWS,
     S_MODES_COMPLETED,
+    S_PER_MODE,
     S_QBAR_END,
     S_RK4_STEPS,
     S_SUCCESS,
-    S_T1_MODE,
     S_T_END,
-    S_T_MODE,
     S_THETA_HANDOVER,
     V_INERTIA,
     V_PROPELLANT,
 )
 
 _DEG = 180.0 / math.pi
+N_LEVELS = 2  # thrust levels (rcs.LEVEL_*)
+
+# --- flight status: the loop's scalars, one float64 array ------------------------------------
+ST_MODE = 0  # index of the mode flown; n_modes when the program is done
+ST_MODE_START = 1  # time the mode began (s)
+ST_FAILURE = 2  # layout.FAIL_*
+ST_FAILURE_MODE = 3
+ST_FUEL = 4  # propellant left (kg)
+ST_CALIBRATING = 5  # time spent in calibrating modes (s)
+ST_HAS_FINAL = 6  # 1: guidance has a target attitude (Guide.q_final)
+ST_MODES_COMPLETED = 7
+ST_RK4_STEPS = 8
+ST_NODE_INDEX = 9  # trajectory node a is at node_index * trajectory_step_s
+STATUS_SIZE = 10
+# --- thruster bit masks (bit i for thruster i), one int64 array --------------------------------
+MASK_OPEN = 0  # commanded open (switching.enforce)
+MASK_ACTIVE = 1  # not closed and settled (rcs.update)
 
 
-@jit_noalloc
-def _write_history(
-    history,
-    row,
-    t,
-    mode,
-    theta_t,
-    rate_meas,
-    q_error,
-    rate_error,
-    attitude_controlled,
-    fuel_fraction,
-    valves,
-    pulse,
-    altitude,
-    qbar,
-    rotvec,
-):
-    history[row, H_T] = t
-    history[row, H_MODE] = mode
-    history[row, H_THETA_T] = theta_t * _DEG
-    history[row, H_OMEGA_M] = math.sqrt(rate_meas[0] ** 2 + rate_meas[1] ** 2 + rate_meas[2] ** 2) * _DEG
-    if attitude_controlled:
-        quaternion.to_rotation_vector(q_error, rotvec)
-    for i in range(3):
-        history[row, H_THETA_E + i] = rotvec[i] * _DEG if attitude_controlled else math.nan
-        history[row, H_OMEGA_E + i] = rate_error[i] * _DEG
-        history[row, H_PULSE + i] = pulse[i]
-    history[row, H_FUEL] = fuel_fraction
-    history[row, H_VALVES] = valves
-    history[row, H_ALTITUDE] = altitude
-    history[row, H_QBAR] = qbar
+class Body(NamedTuple):
+    """The true attitude state and what integrating it needs."""
+
+    x: np.ndarray  # dynamics state [q, omega]
+    rk4: np.ndarray  # RK4 scratch
+    inertia: np.ndarray  # truth, 3x3
+    inertia_inv: np.ndarray
+    torques: np.ndarray  # rows: thrust at segment start and end, RK4 step start and end, aerodynamic
+
+
+class Trajectory(NamedTuple):
+    """Planar point-mass trajectory: RK4 nodes, Hermite-interpolated at the control rate."""
+
+    state: np.ndarray  # interpolated [x, z, vx, vz] now
+    nodes: np.ndarray  # (2, 4)
+    node_accels: np.ndarray  # (2, 2)
+    stage: np.ndarray  # RK4 stage scratch
+
+
+class Sensed(NamedTuple):
+    """What the flight software knows this control period."""
+
+    q_meas: np.ndarray
+    rate_meas: np.ndarray
+    now: np.ndarray  # modes.NOW_* (time in mode, altitude, climb rate, dynamic pressure)
+    rng_state: np.ndarray  # navigation noise generator
+    work4: np.ndarray
+
+
+class Guide(NamedTuple):
+    """Guidance state and its reference."""
+
+    state: np.ndarray  # guidance.G_*
+    q_ref: np.ndarray
+    rate_ref: np.ndarray
+    accel_ref: np.ndarray
+    q_final: np.ndarray  # the mode's target attitude
+    rotations: np.ndarray  # (3, 4) constant factors of an entry target
+    work: np.ndarray  # (6, 4) scratch
+    accels: np.ndarray  # (levels, 3) guidance acceleration limits (000 eq. 13)
+
+
+class Actuation(NamedTuple):
+    """Controller to valves: errors, commands, modulator, switching and valve states."""
+
+    q_error: np.ndarray
+    rate_error: np.ndarray
+    torque_cmd: np.ndarray
+    pulse: np.ndarray  # modulator output per axis
+    rotvec: np.ndarray  # history scratch
+    gains: np.ndarray  # (levels, 2, 3): kp, kd per axis
+    fsw_inertia: np.ndarray  # the inertia the flight software knows (000 eq. 30)
+    pwpf_state: np.ndarray
+    row_masks: np.ndarray  # allocation table rows as bit masks
+    switch_state: np.ndarray
+    valve_state: np.ndarray
+    arms: np.ndarray  # torque arms about the actual CoM
+
+
+class Work(NamedTuple):
+    body: Body
+    trajectory: Trajectory
+    sensed: Sensed
+    guide: Guide
+    actuation: Actuation
+    status: np.ndarray  # ST_*
+    masks: np.ndarray  # MASK_*, int64
 
 
 @jit
-def run_flight(
-    vehicle,
-    thrusters,
-    fsw,
-    mission,
-    nav,
-    atmosphere,
-    allocation_table,
-    nav_seed,
-    history_every,
-    summary,
-    pulse_counts,
-    history,
-):
-    """Fly one exoatmospheric phase; fill ``summary``, ``pulse_counts`` and ``history``.
+def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
+    """Fly ``inputs`` (``core.inputs.RunInputs``); fill ``summary``, ``pulse_counts`` and ``history``.
 
-    ``history`` has one row per ``history_every`` control steps (plus the final state) until
-    it is full; ``summary[S_HISTORY_ROWS]`` says how many rows were written.
+    ``summary`` has ``layout.summary_size(n_modes)`` slots; ``history`` one row per
+    ``history_every`` control steps (plus the final state) until it is full;
+    ``summary[S_HISTORY_ROWS]`` says how many rows were written.
     """
-    n_thr = thrusters.shape[0]
-    work = (
-        np.empty(dynamics.STATE_SIZE),  # x
-        np.empty((8, dynamics.STATE_SIZE)),  # RK4 scratch
-        np.empty((3, 3, 3)),  # inertia, its inverse, the flight software's inertia
-        np.empty((4, environment.TRAJECTORY_STATE_SIZE)),  # interpolated state, 2 RK4 nodes, stage
-        np.empty((2, 2)),  # trajectory node accelerations
-        np.zeros((n_thr, rcs.VALVE_STATE_SIZE)),
-        np.empty((n_thr, 3)),  # torque arms
-        np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
-        np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
-        np.empty(allocation_table.shape[0], dtype=np.int64),  # allocation table rows as bit masks
-        np.zeros(guidance.GUIDANCE_STATE_SIZE),
-        np.zeros((13, 3)),  # 3-vectors
-        np.zeros((5, 4)),  # quaternions
-        np.empty((5, 4)),  # entry attitude: its constant rotations, scratch
-        np.empty((3, 3)),
-        np.empty((3, 3)),  # horizontal, sun, spin rate
-        np.empty((2, 2, 3)),  # gains [level][kp, kd][axis]
-        np.empty((2, 3)),  # guidance accelerations, low and high thrust
-        np.empty(1, dtype=np.uint64),  # navigation noise generator
+    n_thr = inputs.thrusters.shape[0]
+    work = Work(
+        Body(
+            np.empty(dynamics.STATE_SIZE),
+            np.empty((8, dynamics.STATE_SIZE)),
+            np.empty((3, 3)),
+            np.empty((3, 3)),
+            np.zeros((5, 3)),
+        ),
+        Trajectory(
+            np.empty(environment.TRAJECTORY_STATE_SIZE),
+            np.empty((2, environment.TRAJECTORY_STATE_SIZE)),
+            np.empty((2, 2)),
+            np.empty(environment.TRAJECTORY_STATE_SIZE),
+        ),
+        Sensed(np.zeros(4), np.zeros(3), np.zeros(modes.NOW_SIZE), np.empty(1, dtype=np.uint64), np.zeros(4)),
+        Guide(
+            np.zeros(guidance.GUIDANCE_STATE_SIZE),
+            np.zeros(4),
+            np.zeros(3),
+            np.zeros(3),
+            np.zeros(4),
+            np.zeros((3, 4)),
+            np.zeros((6, 4)),
+            np.empty((N_LEVELS, 3)),
+        ),
+        Actuation(
+            np.zeros(4),
+            np.zeros(3),
+            np.zeros(3),
+            np.zeros(3),
+            np.zeros(3),
+            np.empty((N_LEVELS, 2, 3)),
+            np.empty((3, 3)),
+            np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
+            np.empty(inputs.allocation.shape[0], dtype=np.int64),
+            np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
+            np.zeros((n_thr, rcs.VALVE_STATE_SIZE)),
+            np.empty((n_thr, 3)),
+        ),
+        np.zeros(STATUS_SIZE),
+        np.zeros(2, dtype=np.int64),
     )
-    _fly(
-        vehicle,
-        thrusters,
-        fsw,
-        mission,
-        nav,
-        atmosphere,
-        allocation_table,
-        nav_seed,
-        history_every,
-        summary,
-        pulse_counts,
-        history,
-        work,
+    _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work)
+
+
+@jit_noalloc
+def _start(inputs, nav_seed, summary, pulse_counts, w):
+    """Initial state: body x along the velocity, wings level, then the separation error."""
+    vehicle, fsw, mission = inputs.vehicle, inputs.fsw, inputs.mission
+    body, traj, guide, act = w.body, w.trajectory, w.guide, w.actuation
+    for i in range(3):
+        for j in range(3):
+            body.inertia[i, j] = vehicle[V_INERTIA + 3 * i + j]
+            act.fsw_inertia[i, j] = fsw[F_INERTIA + 3 * i + j]
+    dynamics.invert_3x3(body.inertia, body.inertia_inv)
+    allocation.table_masks(inputs.allocation, act.row_masks)
+    margin = fsw[F_ACCEL_MARGIN]
+    for lv in range(N_LEVELS):
+        for i in range(3):
+            act.gains[lv, 0, i] = fsw[F_KP + 3 * lv + i]
+            act.gains[lv, 1, i] = fsw[F_KD + 3 * lv + i]
+            guide.accels[lv, i] = margin * fsw[F_ACCEL_MAX + 3 * lv + i]
+    w.sensed.rng_state[0] = np.uint64(nav_seed)
+
+    span = mission[M_TRAJECTORY_STEP]
+    environment.initial_state(mission, traj.nodes[1])
+    traj.node_accels[1, 0], traj.node_accels[1, 1] = environment.acceleration(
+        mission, vehicle, inputs.atmosphere, traj.nodes[1]
+    )
+    environment.advance_nodes(mission, vehicle, inputs.atmosphere, traj.nodes, traj.node_accels, span, traj.stage)
+    environment.interpolate(
+        traj.nodes[0], traj.node_accels[0], traj.nodes[1], traj.node_accels[1], span, 0.0, traj.state
+    )
+    tmp4, sep_q = w.sensed.work4, guide.q_ref  # q_ref is free until the first mode with a reference
+    quaternion.from_rotation_vector(0.0, mission[M_SEP_FLIGHT_PATH], 0.0, tmp4)
+    sep = mission[M_SEP_ATTITUDE : M_SEP_ATTITUDE + 3]
+    quaternion.from_rotation_vector(sep[0], sep[1], sep[2], sep_q)
+    quaternion.multiply(tmp4, sep_q, body.x[0:4])
+    for i in range(3):
+        body.x[4 + i] = mission[M_SEP_RATES + i]
+    rcs.reset(act.valve_state)
+    rcs.torque_arms(inputs.thrusters, vehicle, act.arms)
+    pulse_modulation.reset(act.pwpf_state)
+    switching.reset(act.switch_state)
+    for i in range(pulse_counts.shape[0]):
+        pulse_counts[i] = 0
+    for k in range(summary.shape[0]):
+        summary[k] = 0.0
+    for k in range(STATUS_SIZE):
+        w.status[k] = 0.0
+    w.masks[MASK_OPEN] = 0
+    w.masks[MASK_ACTIVE] = 0
+    w.status[ST_FUEL] = vehicle[V_PROPELLANT]
+
+
+@jit_noalloc
+def _navigate(inputs, w, t):
+    """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and rates."""
+    mission, vehicle, atmosphere = inputs.mission, inputs.vehicle, inputs.atmosphere
+    traj, status, sensed = w.trajectory, w.status, w.sensed
+    span = mission[M_TRAJECTORY_STEP]
+    node_index = status[ST_NODE_INDEX]
+    while t >= (node_index + 1) * span - 1e-9:
+        environment.advance_nodes(mission, vehicle, atmosphere, traj.nodes, traj.node_accels, span, traj.stage)
+        node_index += 1
+    status[ST_NODE_INDEX] = node_index
+    environment.interpolate(
+        traj.nodes[0], traj.node_accels[0], traj.nodes[1], traj.node_accels[1], span, t - node_index * span, traj.state
+    )
+    altitude, climb, qbar = environment.flight_conditions(mission, atmosphere, traj.state)
+    sensed.now[modes.NOW_TIME_IN_MODE] = t - status[ST_MODE_START]
+    sensed.now[modes.NOW_ALTITUDE] = altitude
+    sensed.now[modes.NOW_CLIMB] = climb
+    sensed.now[modes.NOW_QBAR] = qbar
+    navigation.measure(
+        w.body.x, inputs.nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4
     )
 
 
 @jit_noalloc
-def _fly(
-    vehicle,
-    thrusters,
-    fsw,
-    mission,
-    nav,
-    atmosphere,
-    allocation_table,
-    nav_seed,
-    history_every,
-    summary,
-    pulse_counts,
-    history,
-    work,
-):
-    """The run loop of :func:`run_flight` on the work arrays it allocated (no allocation, no
-    reference counting: see ``refexmc._jit.jit_noalloc``)."""
-    (
-        x,
-        rk4_work,
-        matrices,
-        trajectory,
-        node_accels,
-        valve_state,
-        arms,
-        pwpf_state,
-        switch_state,
-        row_masks,
-        guid,
-        vec,
-        quat,
-        quat_work,
-        work33,
-        side,
-        gains,
-        accels,
-        rng_state,
-    ) = work
-    n_thr = thrusters.shape[0]
-    dt = fsw[F_CONTROL_PERIOD]
-    max_step = mission[M_MAX_STEP]
-    inertia, inertia_inv, fsw_inertia = matrices[0], matrices[1], matrices[2]
-    for i in range(3):
-        for j in range(3):
-            inertia[i, j] = vehicle[V_INERTIA + 3 * i + j]
-            fsw_inertia[i, j] = fsw[F_INERTIA + 3 * i + j]
-    dynamics.invert_3x3(inertia, inertia_inv)
-    propellant0 = vehicle[V_PROPELLANT]
-    traj, nodes, stage = trajectory[0], trajectory[1:3], trajectory[3]
-    allocation.table_masks(allocation_table, row_masks)
-    rate_meas, rate_ref, accel_ref, rate_error = vec[0], vec[1], vec[2], vec[3]
-    torque_cmd, pulse, tau0, tau1, tau_a, tau_b, aero = vec[4], vec[5], vec[6], vec[7], vec[8], vec[9], vec[10]
-    rotvec = vec[11]
-    inertial_rate = vec[12]  # GEEM reference rate, inertial axes
-    q_meas, q_ref, q_error, q_final, tmp4 = quat[0], quat[1], quat[2], quat[3], quat[4]
-    for lv in range(2):
+def _reference(inputs, w, t, mode):
+    """Guidance reference of mode ``mode`` at ``t``: (attitude_controlled, has_attitude_reference)."""
+    guide = w.guide
+    return modes.reference(
+        inputs.modes[mode],
+        inputs.mission,
+        inputs.vehicle,
+        inputs.atmosphere,
+        w.trajectory.state,
+        t,
+        guide.state,
+        guide.q_final,
+        guide.rotations,
+        guide.q_ref,
+        guide.rate_ref,
+        guide.accel_ref,
+        guide.work,
+    )
+
+
+@jit_noalloc
+def _advance_mode(inputs, w, t, summary):
+    """Leave the mode whose exit conditions hold and start the next; fail a mode past its timeout.
+
+    The reference of the mode flown is computed first (exit conditions may compare against it)
+    and again for a mode that starts; when the program is done the last mode's guidance goes on.
+    Returns ``(attitude_controlled, has_attitude_reference)``.
+    """
+    status, sensed, guide = w.status, w.sensed, w.guide
+    n_modes = inputs.modes.shape[0]
+    mode = int(status[ST_MODE])
+    controlled, has_reference = _reference(inputs, w, t, min(mode, n_modes - 1))
+    if mode == n_modes:
+        return controlled, has_reference
+    row = inputs.modes[mode]
+    q_target = guide.q_final if int(row[MD_KIND]) == modes.KIND_SLEW else guide.q_ref
+    t1 = guide.state[guidance.G_T1]
+    if modes.exit_reached(row, inputs.exits, sensed.now, t1, sensed.rate_meas, guide.rate_ref, sensed.q_meas, q_target):
+        mode += 1
+        status[ST_MODE] = mode
+        status[ST_MODES_COMPLETED] += 1
+        status[ST_MODE_START] = t
+        if mode < n_modes:
+            row = inputs.modes[mode]
+            has_final = modes.start(
+                row,
+                inputs.mission,
+                w.trajectory.state,
+                t,
+                sensed.q_meas,
+                sensed.rate_meas,
+                guide.accels[int(row[MD_LEVEL])],
+                guide.state,
+                guide.q_final,
+                status[ST_HAS_FINAL] != 0.0,
+                guide.rotations,
+                guide.work,
+            )
+            status[ST_HAS_FINAL] = 1.0 if has_final else 0.0
+            if modes.has_profile(int(row[MD_KIND])):
+                summary[S_PER_MODE + n_modes + mode] = guide.state[guidance.G_T1]
+            controlled, has_reference = _reference(inputs, w, t, mode)
+    elif sensed.now[modes.NOW_TIME_IN_MODE] > row[MD_TIMEOUT]:
+        status[ST_FAILURE] = FAIL_MODE_TIMEOUT
+        status[ST_FAILURE_MODE] = mode
+    return controlled, has_reference
+
+
+@jit_noalloc
+def _total_angle_error(inputs, w, mode):
+    """Angle from the true attitude to the mode's final reference attitude (000 sec. 6.1)."""
+    kind = int(inputs.modes[min(mode, inputs.modes.shape[0] - 1), MD_KIND])
+    target = w.guide.q_final if kind == modes.KIND_SLEW else w.guide.q_ref
+    return quaternion.angle_between(w.body.x[0:4], target)
+
+
+@jit_noalloc
+def _actuate(inputs, w, t, level, active, controlled, has_reference, pulse_counts):
+    """Controller, actuation (pulse modulation + allocation), switching check and valve commands.
+
+    ``active``: False when the mode is locked, the program done or the run failed.
+    """
+    fsw, thrusters = inputs.fsw, inputs.thrusters
+    sensed, guide, act = w.sensed, w.guide, w.actuation
+    if has_reference:
+        control.control_errors(
+            sensed.q_meas, sensed.rate_meas, guide.q_ref, guide.rate_ref, act.q_error, act.rate_error
+        )
+    else:
+        for i in range(4):
+            act.q_error[i] = 0.0
+        act.q_error[3] = 1.0
         for i in range(3):
-            gains[lv, 0, i] = fsw[F_KP + 3 * lv + i]
-            gains[lv, 1, i] = fsw[F_KD + 3 * lv + i]
-    kp_low, kd_low, kp_high, kd_high = gains[0, 0], gains[0, 1], gains[1, 0], gains[1, 1]
-    accel_low, accel_high = accels[0], accels[1]
-    aero_rotations, work24 = quat_work[0:3], quat_work[3:5]
-    guidance.aerodynamic_rotations(mission[M_EAM_ALPHA], mission[M_EAM_BETA], mission[M_EAM_BANK], aero_rotations)
-    rng_state[0] = np.uint64(nav_seed)
+            act.rate_error[i] = sensed.rate_meas[i] - guide.rate_ref[i]
+    if not active:
+        desired = 0
+        for i in range(3):
+            act.pulse[i] = 0.0
+    else:
+        control.torque_command(
+            int(fsw[F_CONTROLLER]),
+            act.q_error,
+            act.rate_error,
+            sensed.rate_meas,
+            guide.accel_ref,
+            act.gains[level, 0],
+            act.gains[level, 1],
+            act.fsw_inertia,
+            controlled,
+            act.torque_cmd,
+        )
+        desired = allocation.thruster_commands(
+            int(fsw[F_ACTUATION]), fsw, level, act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
+        )
+    masks = w.masks
+    valves_open = masks[MASK_OPEN]
+    opened, closed = switching.enforce(act.switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
+    masks[MASK_OPEN] = (valves_open | opened) & ~closed
+    masks[MASK_ACTIVE] |= opened | closed
+    m = opened | closed
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
+        rcs.command(act.valve_state, thrusters, i, (opened >> i) & 1 != 0, t, level)
+        if (opened >> i) & 1:
+            pulse_counts[i] += 1
+
+
+@jit_noalloc
+def _record(inputs, w, history, row, t, mode, theta_t, controlled):
+    """One history row."""
+    sensed, act = w.sensed, w.actuation
+    rate_meas, rotvec = sensed.rate_meas, act.rotvec
+    history[row, H_T] = t
+    history[row, H_MODE] = min(mode, inputs.modes.shape[0] - 1)
+    history[row, H_THETA_T] = theta_t * _DEG
+    history[row, H_OMEGA_M] = math.sqrt(rate_meas[0] ** 2 + rate_meas[1] ** 2 + rate_meas[2] ** 2) * _DEG
+    if controlled:
+        quaternion.to_rotation_vector(act.q_error, rotvec)
+    for i in range(3):
+        history[row, H_THETA_E + i] = rotvec[i] * _DEG if controlled else math.nan
+        history[row, H_OMEGA_E + i] = act.rate_error[i] * _DEG
+        history[row, H_PULSE + i] = act.pulse[i]
+    history[row, H_FUEL] = w.status[ST_FUEL] / inputs.vehicle[V_PROPELLANT]
+    history[row, H_VALVES] = rcs.open_mask(act.valve_state, inputs.thrusters.shape[0], t)
+    history[row, H_ALTITUDE] = sensed.now[modes.NOW_ALTITUDE]
+    history[row, H_QBAR] = sensed.now[modes.NOW_QBAR]
+
+
+@jit_noalloc
+def _integrate(inputs, w, t, level):
+    """Integrate the attitude over one control period, segment by segment; returns True when
+    the propellant ran out in it."""
+    vehicle, thrusters = inputs.vehicle, inputs.thrusters
+    body, act, status = w.body, w.actuation, w.status
+    n_thr = thrusters.shape[0]
+    max_step = inputs.mission[M_MAX_STEP]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
     one_step_limit = max_step * (1.0 + 1e-10)
-    valves_active = 0  # bit mask of thrusters not closed and settled (rcs.update)
-    valves_open = 0  # bit mask of thrusters commanded open (switching.enforce)
-
-    margin = fsw[F_ACCEL_MARGIN]
-    for i in range(3):
-        accel_low[i] = margin * fsw[F_ACCEL_MAX + i]
-        accel_high[i] = margin * fsw[F_ACCEL_MAX + 3 + i]
-        side[1, i] = mission[M_SUN_DIRECTION + i]
-        side[2, i] = 0.0
-    side[2, 0] = mission[M_SSM_RATE]
-
-    # --- initial state: body x along the velocity, wings level, then the separation error -----
-    span = mission[M_TRAJECTORY_STEP]
-    environment.initial_state(mission, nodes[1])
-    node_accels[1, 0], node_accels[1, 1] = environment.acceleration(mission, vehicle, atmosphere, nodes[1])
-    environment.advance_nodes(mission, vehicle, atmosphere, nodes, node_accels, span, stage)
-    node_index = 0  # nodes[0] is at node_index * span
-    environment.interpolate(nodes[0], node_accels[0], nodes[1], node_accels[1], span, 0.0, traj)
-    quaternion.from_rotation_vector(0.0, mission[M_SEP_FLIGHT_PATH], 0.0, tmp4)
-    sep = mission[M_SEP_ATTITUDE : M_SEP_ATTITUDE + 3]
-    quaternion.from_rotation_vector(sep[0], sep[1], sep[2], q_ref)
-    quaternion.multiply(tmp4, q_ref, x[0:4])
-    for i in range(3):
-        x[4 + i] = mission[M_SEP_RATES + i]
-    rcs.reset(valve_state)
-    rcs.torque_arms(thrusters, vehicle, arms)
-    pulse_modulation.reset(pwpf_state)
-    switching.reset(switch_state)
-    for i in range(n_thr):
-        pulse_counts[i] = 0
-
-    for k in range(summary.shape[0]):
-        summary[k] = 0.0
-    fuel = propellant0
-    mode = MODE_NCM
-    t_mode_start = 0.0
-    time_in_ssm = 0.0
-    failure = FAIL_NONE
-    modes_completed = 0
-    theta_handover = math.nan
+    tau0, tau1, tau_a, tau_b, aero = body.torques[0], body.torques[1], body.torques[2], body.torques[3], body.torques[4]
+    environment.aerodynamic_torque(vehicle, w.sensed.now[modes.NOW_QBAR], aero)
+    fuel = status[ST_FUEL]
+    valves_active = w.masks[MASK_ACTIVE]
     rk4_steps = 0
+    t_seg = t
+    t_end = t + inputs.fsw[F_CONTROL_PERIOD]
+    exhausted = False
+    while t_seg < t_end - 1e-12:
+        valves_active = rcs.update(act.valve_state, thrusters, n_thr, t_seg, level, valves_active)
+        active = valves_active != 0
+        if active:
+            t_next = rcs.next_breakpoint(act.valve_state, n_thr, t_seg, t_end, valves_active)
+        else:  # coasting: the whole rest of the period is one thrust-free segment
+            t_next = t_end
+        if active and fuel > 0.0:
+            impulse = rcs.segment_thrust(
+                act.valve_state, thrusters, vehicle, act.arms, level, t_seg, t_next, tau0, tau1, valves_active
+            )
+        else:
+            impulse = 0.0
+            for i in range(3):
+                tau0[i] = 0.0
+                tau1[i] = 0.0
+        span_seg = t_next - t_seg
+        if span_seg <= one_step_limit:  # the general branch gives n_sub = 1, h = span_seg
+            n_sub = 1
+            h = span_seg
+        else:
+            n_sub = int(math.ceil(span_seg / max_step - 1e-9))
+            if n_sub < 1:
+                n_sub = 1
+            h = span_seg / n_sub
+        fb = 0.0
+        for j in range(n_sub):
+            fa = fb  # j / n_sub
+            fb = 1.0 if j + 1 == n_sub else (j + 1) / n_sub
+            for i in range(3):
+                tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
+                tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb
+            dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
+            rk4_steps += 1
+        fuel -= rcs.propellant_for_impulse(vehicle, impulse)
+        if fuel <= 0.0 and impulse > 0.0:
+            fuel = 0.0
+            exhausted = True
+        t_seg = t_next
+    status[ST_FUEL] = fuel
+    w.masks[MASK_ACTIVE] = valves_active
+    status[ST_RK4_STEPS] += rk4_steps
+    return exhausted
+
+
+@jit_noalloc
+def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
+    """The run loop of :func:`run_flight` on the work arrays it allocated (no allocation, no
+    reference counting: see ``refexmc._jit.jit_noalloc``)."""
+    _start(inputs, nav_seed, summary, pulse_counts, w)
+    mission, program, status = inputs.mission, inputs.modes, w.status
+    n_modes = program.shape[0]
+    dt = inputs.fsw[F_CONTROL_PERIOD]
+    theta_handover = math.nan
     rows = 0
     step = 0
     t = 0.0
-    altitude = environment.altitude(mission, traj)
-    qbar = 0.0
-
     while True:
         t = step * dt
-        while t >= (node_index + 1) * span - 1e-9:
-            environment.advance_nodes(mission, vehicle, atmosphere, nodes, node_accels, span, stage)
-            node_index += 1
-        environment.interpolate(nodes[0], node_accels[0], nodes[1], node_accels[1], span, t - node_index * span, traj)
-        altitude, climb, qbar = environment.flight_conditions(mission, atmosphere, traj)
-        navigation.measure(x, nav, time_in_ssm, rng_state, q_meas, rate_meas, tmp4)
+        _navigate(inputs, w, t)
+        controlled, has_reference = _advance_mode(inputs, w, t, summary)
+        mode = int(status[ST_MODE])
+        done = mode == n_modes
+        if status[ST_FAILURE] == FAIL_NONE and not done and t >= mission[M_MAX_TIME]:
+            status[ST_FAILURE] = FAIL_TIME_LIMIT
 
-        # --- mode logic: each mode left by its own exit condition ---------------------------
-        time_in_mode = t - t_mode_start
-        previous_mode = mode
-        if mode == MODE_NCM:
-            if modes.ncm_done(mission, time_in_mode):
-                mode = MODE_RDM1
-                guidance.start_rate_damping(guid, t, rate_meas, accel_low)
-        elif mode == MODE_RDM1:
-            if modes.rdm1_done(mission, time_in_mode, guid[guidance.G_T1], rate_meas):
-                mode = MODE_SAM
-                environment.local_horizontal(mission, traj, side[0])
-                guidance.sun_attitude(side[1], side[0], q_final, work33)
-                guidance.start_slerp(guid, t, q_meas, q_final, accel_low, 0.0, tmp4)
-            elif time_in_mode > mission[M_RDM1_TIMEOUT]:
-                failure = FAIL_RDM1_TIMEOUT
-        elif mode == MODE_SAM:
-            guidance.slerp_reference(guid, t, q_ref, rate_ref, accel_ref)
-            rate_error_norm = math.sqrt(
-                (rate_meas[0] - rate_ref[0]) ** 2
-                + (rate_meas[1] - rate_ref[1]) ** 2
-                + (rate_meas[2] - rate_ref[2]) ** 2
-            )
-            # both errors must be below their thresholds: the angle (an acos) is only needed
-            # once the rate error is (about one SAM step in ten in the nominal flight)
-            if rate_error_norm < mission[M_SAM_RATE] and modes.sam_done(
-                mission, quaternion.angle_between(q_meas, q_final), rate_error_norm
-            ):
-                mode = MODE_SSM
-                guidance.start_spin_up(guid, t, q_final, side[2], accel_low)
-            elif time_in_mode > mission[M_SAM_TIMEOUT]:
-                failure = FAIL_SAM_TIMEOUT
-        elif mode == MODE_SSM:
-            if modes.ssm_done(mission, altitude, climb):
-                mode = MODE_RDM2
-                guidance.start_rate_damping(guid, t, rate_meas, accel_low)
-        elif mode == MODE_RDM2:
-            if modes.rdm2_done(mission, time_in_mode):
-                mode = MODE_EAM
-                # the entry attitude to the velocity predicted at the EAM exit, held inertially
-                # (reference-model sec. 4); GEEM then tracks the current velocity
-                exit_pitch = environment.predicted_velocity_pitch(mission, traj, mission[M_EAM_EXIT_ALTITUDE])
-                guidance.entry_attitude_from(exit_pitch, aero_rotations, q_final, work24)
-                guidance.start_slerp(guid, t, q_meas, q_final, accel_high, mission[M_EAM_T1_DESIGN], tmp4)
-        elif mode == MODE_EAM:
-            if modes.eam_done(mission, altitude):
-                mode = MODE_GEEM
-        elif mode == MODE_GEEM:
-            if modes.geem_done(mission, altitude, qbar):
-                mode = MODE_DONE
-        if mode != previous_mode:
-            modes_completed += 1
-            t_mode_start = t
-            if mode < N_MODES and mode != MODE_GEEM:
-                summary[S_T1_MODE + mode] = guid[guidance.G_T1]
-        if failure == FAIL_NONE and mode != MODE_DONE and t >= mission[M_MAX_TIME]:
-            failure = FAIL_TIME_LIMIT
-
-        # --- guidance reference ----------------------------------------------------------------
-        attitude_controlled = True
-        has_attitude_reference = True
-        if mode == MODE_RDM1 or mode == MODE_RDM2:
-            guidance.rate_damping_reference(guid, t, rate_ref, accel_ref)
-            attitude_controlled = False
-            has_attitude_reference = False
-        elif mode == MODE_SAM or mode == MODE_EAM:
-            if mode != previous_mode or mode == MODE_EAM:  # SAM: already done for its exit test
-                guidance.slerp_reference(guid, t, q_ref, rate_ref, accel_ref)
-        elif mode == MODE_SSM:
-            guidance.spin_up_reference(guid, t, q_ref, rate_ref, accel_ref, tmp4)
-        elif mode == MODE_GEEM or mode == MODE_DONE:
-            guidance.entry_attitude_from(environment.velocity_pitch(traj), aero_rotations, q_ref, work24)
-            pitch_rate = environment.velocity_pitch_rate(mission, vehicle, atmosphere, traj)
-            inertial_rate[1] = pitch_rate  # the velocity turns about inertial y
-            quaternion.rotate_inverse(q_ref, inertial_rate, rate_ref)
-            for i in range(3):
-                accel_ref[i] = 0.0
-        else:  # NCM: no reference, actuators locked
-            attitude_controlled = False
-            has_attitude_reference = False
-            for i in range(3):
-                rate_ref[i] = 0.0
-                accel_ref[i] = 0.0
-
-        # total angle error: true attitude to the mode's final reference attitude (000 sec. 6.1)
-        finished = mode == MODE_DONE or failure != FAIL_NONE
+        finished = done or status[ST_FAILURE] != FAIL_NONE
         record = (step % history_every == 0 or finished) and rows < history.shape[0]
         theta_t = math.nan
-        if record or mode == MODE_DONE:
-            if mode == MODE_SAM or mode == MODE_EAM:
-                theta_t = quaternion.angle_between(x[0:4], q_final)
-            elif has_attitude_reference:
-                theta_t = quaternion.angle_between(x[0:4], q_ref)
-        if mode == MODE_DONE:
+        if (record or done) and has_reference:
+            theta_t = _total_angle_error(inputs, w, mode)
+        if done:
             theta_handover = theta_t
             if theta_t > mission[M_HANDOVER_ANGLE]:
-                failure = FAIL_HANDOVER_ANGLE
+                status[ST_FAILURE] = FAIL_HANDOVER_ANGLE
 
-        # --- controller, actuation, switching check, valve commands --------------------------
-        level = modes.thrust_level(mode)
-        if has_attitude_reference:
-            control.control_errors(q_meas, rate_meas, q_ref, rate_ref, q_error, rate_error)
-        else:
-            for i in range(4):
-                q_error[i] = 0.0
-            q_error[3] = 1.0
-            for i in range(3):
-                rate_error[i] = rate_meas[i] - rate_ref[i]
-        if mode == MODE_NCM or mode == MODE_DONE or failure != FAIL_NONE:
-            desired = 0
-            for i in range(3):
-                pulse[i] = 0.0
-        else:
-            control.torque_command(
-                int(fsw[F_CONTROLLER]),
-                q_error,
-                rate_error,
-                rate_meas,
-                accel_ref,
-                kp_high if level == rcs.LEVEL_HIGH else kp_low,
-                kd_high if level == rcs.LEVEL_HIGH else kd_low,
-                fsw_inertia,
-                attitude_controlled,
-                torque_cmd,
-            )
-            desired = allocation.thruster_commands(
-                int(fsw[F_ACTUATION]), fsw, level, torque_cmd, pwpf_state, row_masks, t, pulse
-            )
-        opened, closed = switching.enforce(switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
-        valves_open = (valves_open | opened) & ~closed
-        valves_active |= opened | closed
-        m = opened | closed
-        while m != 0:
-            i = lowest_bit(m)
-            m &= m - 1
-            rcs.command(valve_state, thrusters, i, (opened >> i) & 1 != 0, t, level)
-            if (opened >> i) & 1:
-                pulse_counts[i] += 1
+        flown = min(mode, n_modes - 1)
+        level = int(program[flown, MD_LEVEL])
+        active = not done and status[ST_FAILURE] == FAIL_NONE and int(program[flown, MD_KIND]) != modes.KIND_LOCKED
+        _actuate(inputs, w, t, level, active, controlled, has_reference, pulse_counts)
 
-        # --- history ----------------------------------------------------------------------------
-        finished = mode == MODE_DONE or failure != FAIL_NONE
+        finished = done or status[ST_FAILURE] != FAIL_NONE
         if record:
-            _write_history(
-                history,
-                rows,
-                t,
-                min(mode, MODE_GEEM),
-                theta_t,
-                rate_meas,
-                q_error,
-                rate_error,
-                attitude_controlled,
-                fuel / propellant0,
-                rcs.open_mask(valve_state, n_thr, t),
-                pulse,
-                altitude,
-                qbar,
-                rotvec,
-            )
+            _record(inputs, w, history, rows, t, mode, theta_t, controlled)
             rows += 1
         if finished:
             break
 
-        # --- integrate attitude over the control period, segment by segment ------------------
-        environment.aerodynamic_torque(vehicle, qbar, aero)
-        t_seg = t
-        t_end = t + dt
-        exhausted = False
-        while t_seg < t_end - 1e-12:
-            valves_active = rcs.update(valve_state, thrusters, n_thr, t_seg, level, valves_active)
-            active = valves_active != 0
-            if active:
-                t_next = rcs.next_breakpoint(valve_state, n_thr, t_seg, t_end, valves_active)
-            else:  # coasting: the whole rest of the period is one thrust-free segment
-                t_next = t_end
-            if active and fuel > 0.0:
-                impulse = rcs.segment_thrust(
-                    valve_state, thrusters, vehicle, arms, level, t_seg, t_next, tau0, tau1, valves_active
-                )
-            else:
-                impulse = 0.0
-                for i in range(3):
-                    tau0[i] = 0.0
-                    tau1[i] = 0.0
-            span_seg = t_next - t_seg
-            if span_seg <= one_step_limit:  # the general branch gives n_sub = 1, h = span_seg
-                n_sub = 1
-                h = span_seg
-            else:
-                n_sub = int(math.ceil(span_seg / max_step - 1e-9))
-                if n_sub < 1:
-                    n_sub = 1
-                h = span_seg / n_sub
-            fb = 0.0
-            for j in range(n_sub):
-                fa = fb  # j / n_sub
-                fb = 1.0 if j + 1 == n_sub else (j + 1) / n_sub
-                for i in range(3):
-                    tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
-                    tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb
-                dynamics.rk4_step(x, h, tau_a, tau_b, inertia, inertia_inv, rk4_work)
-                rk4_steps += 1
-            fuel -= rcs.propellant_for_impulse(vehicle, impulse)
-            if fuel <= 0.0 and impulse > 0.0:
-                fuel = 0.0
-                exhausted = True
-            t_seg = t_next
-        if mode < N_MODES:
-            summary[S_T_MODE + mode] += dt
-        if mode == MODE_SSM:
-            time_in_ssm += dt
+        exhausted = _integrate(inputs, w, t, level)
+        summary[S_PER_MODE + mode] += dt
+        if program[mode, MD_CALIBRATION] != 0.0:
+            status[ST_CALIBRATING] += dt
         step += 1
         if exhausted:
-            failure = FAIL_PROPELLANT
+            status[ST_FAILURE] = FAIL_PROPELLANT
         finite = True
         for i in range(dynamics.STATE_SIZE):
-            if not math.isfinite(x[i]):
+            if not math.isfinite(w.body.x[i]):
                 finite = False
         if not finite:
-            failure = FAIL_NON_FINITE
+            status[ST_FAILURE] = FAIL_NON_FINITE
 
-    summary[S_SUCCESS] = 1.0 if failure == FAIL_NONE and mode == MODE_DONE else 0.0
+    propellant0 = inputs.vehicle[V_PROPELLANT]
+    fuel = status[ST_FUEL]
+    failure = status[ST_FAILURE]
+    summary[S_SUCCESS] = 1.0 if failure == FAIL_NONE and int(status[ST_MODE]) == n_modes else 0.0
     summary[S_FAILURE] = failure
+    summary[S_FAILURE_MODE] = status[ST_FAILURE_MODE]
     summary[S_FUEL_REMAINING] = fuel / propellant0
     summary[S_FUEL_USED] = propellant0 - fuel
     summary[S_T_END] = t
     summary[S_THETA_HANDOVER] = theta_handover * _DEG
-    summary[S_MODES_COMPLETED] = modes_completed
-    summary[S_ALTITUDE_END] = altitude
-    summary[S_QBAR_END] = qbar
-    summary[S_RK4_STEPS] = rk4_steps
+    summary[S_MODES_COMPLETED] = status[ST_MODES_COMPLETED]
+    summary[S_ALTITUDE_END] = w.sensed.now[modes.NOW_ALTITUDE]
+    summary[S_QBAR_END] = w.sensed.now[modes.NOW_QBAR]
+    summary[S_RK4_STEPS] = status[ST_RK4_STEPS]
     summary[S_HISTORY_ROWS] = rows

@@ -92,27 +92,36 @@ M_SEP_ATTITUDE = MISSION.add("separation_attitude_rotvec_rad", 3)  # from body x
 M_SUN_DIRECTION = MISSION.add("sun_direction", 3)  # unit vector, inertial frame
 M_EARTH_RADIUS = MISSION.add("earth_radius_m")
 M_EARTH_MU = MISSION.add("earth_mu_m3_s2")
-M_NCM_DURATION = MISSION.add("ncm_duration_s")
-M_RDM1_RATE = MISSION.add("rdm1_rate_threshold_rad_s")
-M_RDM1_TIMEOUT = MISSION.add("rdm1_timeout_s")
-M_SAM_ANGLE = MISSION.add("sam_angle_threshold_rad")
-M_SAM_RATE = MISSION.add("sam_rate_threshold_rad_s")
-M_SAM_TIMEOUT = MISSION.add("sam_timeout_s")
-M_SSM_RATE = MISSION.add("ssm_roll_rate_rad_s")
-M_SSM_EXIT_ALTITUDE = MISSION.add("ssm_exit_altitude_m")
-M_RDM2_DURATION = MISSION.add("rdm2_duration_s")
-M_EAM_ALPHA = MISSION.add("eam_alpha_rad")
-M_EAM_BETA = MISSION.add("eam_beta_rad")
-M_EAM_BANK = MISSION.add("eam_bank_rad")
-M_EAM_T1_DESIGN = MISSION.add("eam_t1_design_s")
-M_EAM_EXIT_ALTITUDE = MISSION.add("eam_exit_altitude_m")
-M_GEEM_QBAR = MISSION.add("geem_handover_qbar_pa")
-M_GEEM_EXIT_ALTITUDE = MISSION.add("geem_exit_altitude_m")
-M_HANDOVER_ANGLE = MISSION.add("handover_max_angle_rad")
+M_HANDOVER_ANGLE = MISSION.add("handover_max_angle_rad")  # after the last mode; inf: no check
 M_MAX_TIME = MISSION.add("max_flight_time_s")
 M_MAX_STEP = MISSION.add("integrator_max_step_s")
 M_TRAJECTORY_STEP = MISSION.add("trajectory_step_s")  # RK4 node spacing, Hermite in between
 MISSION_SIZE = MISSION.size
+
+# --- mode program: one row per mode, flown in order (refexmc.core.modes) ---------------------
+MODE = Fields()
+MD_KIND = MODE.add("kind_id")  # guidance kind (modes.KIND_*)
+MD_TARGET = MODE.add("target_id")  # target attitude (modes.TARGET_*)
+MD_LEVEL = MODE.add("thrust_level")  # index of the thrust level
+MD_CALIBRATION = MODE.add("navigation_calibration")  # 1: the attitude bias decays in this mode
+MD_TIMEOUT = MODE.add("timeout_s")  # the run fails when the mode lasts longer; inf: never
+MD_T1_DESIGN = MODE.add("t1_design_s")  # shortest transition t1,dsgn (000 eq. 14)
+MD_ANGLES = MODE.add("aerodynamic_angles_rad", 3)  # alpha, beta, bank of an entry target
+MD_QUATERNION = MODE.add("target_quaternion", 4)  # inertial target, scalar last
+MD_RATE = MODE.add("rate_rad_s", 3)  # spin-up body rate
+MD_PREDICT_ALTITUDE = MODE.add("predicted_at_altitude_m")  # entry target: velocity predicted there
+MD_EXIT_FIRST = MODE.add("exit_first_row")  # the mode's rows of the exit table
+MD_EXIT_ROWS = MODE.add("exit_rows")
+MODE_SIZE = MODE.size
+MAX_MODES = 32
+
+# --- exit conditions: one row per predicate; a mode ends when every predicate of one of its
+# groups holds (OR of ANDs); rows of a mode are contiguous, grouped, cheap predicates first
+EXIT = Fields()
+E_GROUP = EXIT.add("group")
+E_PREDICATE = EXIT.add("predicate_id")  # modes.PREDICATE_*
+E_VALUE = EXIT.add("value")  # threshold, SI units
+EXIT_SIZE = EXIT.size
 
 # --- navigation errors ------------------------------------------------------------------------
 NAV = Fields()
@@ -120,48 +129,46 @@ N_ATT_BIAS = NAV.add("attitude_bias_rad", 3)
 N_ATT_NOISE = NAV.add("attitude_noise_rad")
 N_RATE_BIAS = NAV.add("rate_bias_rad_s", 3)
 N_RATE_NOISE = NAV.add("rate_noise_rad_s")
-N_CALIBRATION_TIME = NAV.add("ssm_calibration_time_s")  # attitude bias decay in SSM
+N_CALIBRATION_TIME = NAV.add("ssm_calibration_time_s")  # attitude bias decay in calibrating modes
 NAV_SIZE = NAV.size
-
-# --- modes -----------------------------------------------------------------------------------
-MODE_NCM, MODE_RDM1, MODE_SAM, MODE_SSM, MODE_RDM2, MODE_EAM, MODE_GEEM, MODE_DONE = range(8)
-MODE_NAMES = ("NCM", "RDM1", "SAM", "SSM", "RDM2", "EAM", "GEEM")
-N_MODES = 7
 
 # --- why a run failed ------------------------------------------------------------------------
 FAIL_NONE = 0
-FAIL_RDM1_TIMEOUT = 1
-FAIL_SAM_TIMEOUT = 2
-FAIL_PROPELLANT = 3
-FAIL_HANDOVER_ANGLE = 4
-FAIL_TIME_LIMIT = 5
-FAIL_NON_FINITE = 6
+FAIL_MODE_TIMEOUT = 1  # the mode in summary[S_FAILURE_MODE] lasted longer than its timeout
+FAIL_PROPELLANT = 2
+FAIL_HANDOVER_ANGLE = 3
+FAIL_TIME_LIMIT = 4
+FAIL_NON_FINITE = 5
 FAILURE_NAMES = (
     None,
-    "rdm1_timeout",
-    "sam_timeout",
+    "{mode}_timeout",  # with the mode's name, lower case
     "propellant_exhausted",
     "handover_angle_error",
     "flight_time_limit",
     "non_finite_state",
 )
 
-# --- run summary -----------------------------------------------------------------------------
+# --- run summary: these fields, then per mode its time and its t1 ------------------------------
 SUMMARY = Fields()
 S_SUCCESS = SUMMARY.add("success")
 S_FAILURE = SUMMARY.add("failure_code")
+S_FAILURE_MODE = SUMMARY.add("failure_mode")  # index of the mode a timeout failed
 S_FUEL_REMAINING = SUMMARY.add("fuel_remaining")
 S_FUEL_USED = SUMMARY.add("fuel_used_kg")
 S_T_END = SUMMARY.add("t_end_s")
-S_T_MODE = SUMMARY.add("t_mode_s", N_MODES)
-S_T1_MODE = SUMMARY.add("t1_mode_s", N_MODES)  # guidance transition time t1 per mode (0: none)
 S_THETA_HANDOVER = SUMMARY.add("theta_t_handover_deg")
 S_MODES_COMPLETED = SUMMARY.add("modes_completed")
 S_ALTITUDE_END = SUMMARY.add("altitude_end_m")
 S_QBAR_END = SUMMARY.add("qbar_end_pa")
 S_RK4_STEPS = SUMMARY.add("rk4_steps")
 S_HISTORY_ROWS = SUMMARY.add("history_rows")
-SUMMARY_SIZE = SUMMARY.size
+S_PER_MODE = SUMMARY.size  # summary[S_PER_MODE + m]: time in mode m; + n_modes + m: its t1
+
+
+def summary_size(n_modes):
+    """Length of the summary array of a mission with ``n_modes`` modes."""
+    return S_PER_MODE + 2 * n_modes
+
 
 # --- history (one row per sample) ------------------------------------------------------------
 HISTORY = Fields()

@@ -1,8 +1,9 @@
 """Navigation errors: what the flight software measures (reference-model sec. 5).
 
 Measured attitude = truth (x) rotation(bias * calibration + noise); measured rate = truth +
-bias + noise. The attitude bias decays with the SSM calibration time constant while the sun
-scan runs and keeps its decayed value afterwards (000 sec. 2.2, 6.2).
+bias + noise. The attitude bias decays with the calibration time constant while a mode flagged
+``navigation_calibration`` runs (ReFEx: the sun scan, SSM) and keeps its decayed value
+afterwards (000 sec. 2.2, 6.2).
 """
 
 import math
@@ -13,19 +14,19 @@ from refexmc.core.layout import N_ATT_BIAS, N_ATT_NOISE, N_CALIBRATION_TIME, N_R
 
 
 @jit_noalloc
-def calibration_factor(nav, time_in_ssm):
-    """Fraction of the attitude bias left after ``time_in_ssm`` seconds of sun scanning."""
+def calibration_factor(nav, time_calibrating):
+    """Fraction of the attitude bias left after ``time_calibrating`` seconds in calibrating modes."""
     tau = nav[N_CALIBRATION_TIME]
-    if tau <= 0.0 or time_in_ssm <= 0.0:
+    if tau <= 0.0 or time_calibrating <= 0.0:
         return 1.0
-    return math.exp(-time_in_ssm / tau)
+    return math.exp(-time_calibrating / tau)
 
 
 @jit_inline
-def measure(x, nav, time_in_ssm, rng_state, q_out, rate_out, work4):
+def measure(x, nav, time_calibrating, rng_state, q_out, rate_out, work4):
     """Measured attitude quaternion and body rates from the true state ``x``."""
     no_bias = nav[N_ATT_BIAS] == 0.0 and nav[N_ATT_BIAS + 1] == 0.0 and nav[N_ATT_BIAS + 2] == 0.0
-    factor = 1.0 if no_bias else calibration_factor(nav, time_in_ssm)  # it only scales the bias
+    factor = 1.0 if no_bias else calibration_factor(nav, time_calibrating)  # it only scales the bias
     sigma_att = nav[N_ATT_NOISE]
     sigma_rate = nav[N_RATE_NOISE]
     ex = factor * nav[N_ATT_BIAS]

@@ -1,0 +1,153 @@
+"""Fly one run: allocate the caller-owned output arrays, call the core, name what it returns.
+
+The one place outside ``refexmc.config`` that knows the core's array layouts: the campaign and
+the report see named values only (runs-table values, history columns), named from the files.
+"""
+
+import math
+
+import numpy as np
+
+from refexmc.config.requirements import mode_time_columns
+from refexmc.core import layout as L
+from refexmc.core.flight import run_flight
+
+AXES = "xyz"
+
+
+def failure_name(code, mode_name=None):
+    """The failure reason of a ``layout.FAIL_*`` code (a timeout names its mode)."""
+    name = L.FAILURE_NAMES[int(code)]
+    return name.format(mode=(mode_name or "mode").lower()) if name else None
+
+
+class FlightResult:
+    """One flight's outputs, named."""
+
+    def __init__(self, summary, pulse_counts, history, mode_names):
+        self.summary = summary  # layout.SUMMARY then per-mode values
+        self.pulse_counts = pulse_counts  # valve open commands sent, per thruster
+        self.history = history  # rows x layout.HISTORY_SIZE
+        self.mode_names = list(mode_names)
+
+    def value(self, name):
+        """A summary value by name; ``t_mode_s`` and ``t1_mode_s`` give one value per mode."""
+        n = len(self.mode_names)
+        if name == "t_mode_s":
+            return self.summary[L.S_PER_MODE : L.S_PER_MODE + n]
+        if name == "t1_mode_s":
+            return self.summary[L.S_PER_MODE + n : L.S_PER_MODE + 2 * n]
+        offset, size = L.SUMMARY.slices[name]
+        return self.summary[offset] if size == 1 else self.summary[offset : offset + size]
+
+    @property
+    def success(self):
+        return bool(self.summary[L.S_SUCCESS])
+
+    @property
+    def failure_reason(self):
+        mode = int(self.summary[L.S_FAILURE_MODE])
+        return failure_name(self.summary[L.S_FAILURE], self.mode_names[mode] if mode < len(self.mode_names) else None)
+
+    def column(self, name):
+        """A history signal by its ``layout.HISTORY`` name (all rows)."""
+        offset, size = L.HISTORY.slices[name]
+        return self.history[:, offset] if size == 1 else self.history[:, offset : offset + size]
+
+    def runs_values(self):
+        """The flown run's values of the runs table, in column order (interface.md ``runs``)."""
+        row = {
+            "fuel_remaining": float(self.value("fuel_remaining")),
+            "fuel_used_kg": float(self.value("fuel_used_kg")),
+            "t_end_s": float(self.value("t_end_s")),
+        }
+        for name, value in zip(mode_time_columns(self.mode_names), self.value("t_mode_s"), strict=True):
+            row[name] = float(value)
+        row["theta_t_handover_deg"] = float(self.value("theta_t_handover_deg"))
+        row["modes_completed"] = int(self.value("modes_completed"))
+        for i, count in enumerate(self.pulse_counts):
+            row[f"pulses_{i + 1}"] = int(count)
+        return row
+
+    def non_finite_reason(self):
+        """Why the result is not usable (a non-finite state), or None."""
+        for name in ("fuel_remaining", "fuel_used_kg", "t_end_s"):
+            if not np.isfinite(self.value(name)):
+                return f"non-finite {name} in the summary"
+        finite = np.column_stack([self.column(n) for n in ("t_s", "omega_m_deg_s", "fuel_remaining", "altitude_m")])
+        if not np.isfinite(finite).all():
+            row = int(np.argmax(~np.isfinite(finite).all(axis=1)))
+            return f"non-finite state at t = {self.column('t_s')[row]:.3f} s"
+        return None
+
+    def history_columns(self):
+        """History signals by output column name (interface.md ``histories``, without run_id).
+
+        ``mode`` is the index into :attr:`mode_names`; time is float64, the sampled signals
+        float32 (7 significant digits: far below any sensor or model accuracy).
+        """
+        col = self.column
+
+        def signal(name, k=None):
+            values = col(name) if k is None else col(name)[:, k]
+            return values.astype(np.float32)
+
+        columns = {
+            "t_s": col("t_s").copy(),
+            "mode": col("mode").astype(np.int32),
+            "theta_t_deg": signal("theta_t_deg"),
+            "omega_m_deg_s": signal("omega_m_deg_s"),
+        }
+        for k, axis in enumerate(AXES):
+            columns[f"theta_e_{axis}_deg"] = signal("theta_e_deg", k)
+        for k, axis in enumerate(AXES):
+            columns[f"omega_e_{axis}_deg_s"] = signal("omega_e_deg_s", k)
+        columns["fuel_remaining"] = signal("fuel_remaining")
+        columns["valves_open"] = col("valves_open").astype(np.int32)
+        for k, axis in enumerate(AXES):
+            columns[f"pulse_{axis}"] = col("pulse_command")[:, k].astype(np.int8)
+        columns["altitude_m"] = signal("altitude_m")
+        columns["qbar_pa"] = signal("qbar_pa")
+        return columns
+
+
+def empty_result(mode_names, n_thrusters):
+    """A result with no history rows (the shape of an errored run's outputs)."""
+    n = len(mode_names)
+    return FlightResult(
+        np.zeros(L.summary_size(n)), np.zeros(n_thrusters, dtype=np.int64), np.zeros((0, L.HISTORY_SIZE)), mode_names
+    )
+
+
+def kernels_loaded():
+    """True once the flight kernel is compiled or loaded from the cache (or JIT is disabled)."""
+    return bool(getattr(run_flight, "signatures", True))
+
+
+def history_every(inputs, history_rate_hz):
+    """Control steps between history samples (at least 1)."""
+    period = inputs.fsw[L.F_CONTROL_PERIOD]
+    return max(1, int(round(1.0 / (history_rate_hz * period))))
+
+
+def control_period(inputs):
+    return float(inputs.fsw[L.F_CONTROL_PERIOD])
+
+
+def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
+    """Fly ``inputs`` (config.pack.RunInputs); history at ``history_rate_hz``.
+
+    ``mode_names`` (``config.pack.mode_names``) name the result's per-mode values and failures;
+    without them the modes are ``mode_1``, ``mode_2``, ...
+    """
+    if mode_names is None:
+        mode_names = [f"mode_{m + 1}" for m in range(inputs.modes.shape[0])]
+    every = history_every(inputs, history_rate_hz)
+    period = inputs.fsw[L.F_CONTROL_PERIOD]
+    max_rows = int(math.ceil(inputs.mission[L.M_MAX_TIME] / period / every)) + 3
+    summary = np.zeros(L.summary_size(inputs.modes.shape[0]))
+    pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
+    history = np.zeros((max_rows, L.HISTORY_SIZE))
+    run_flight(inputs, np.int64(nav_seed), np.int64(every), summary, pulses, history)
+    rows = int(summary[L.S_HISTORY_ROWS])
+    return FlightResult(summary, pulses, history[:rows], mode_names)
