@@ -182,8 +182,21 @@ def manifest(campaign_file, campaign, chunk_size, status, started, finished=None
         "started": started,
         "finished": finished,
         "counts": counts or {},
+        **output_names(campaign),
         **extra,
     }
+
+
+def output_names(campaign):
+    """The names the outputs take from the campaign's files: ``modes`` (display names in flight
+    order, the history's ``mode`` values) and ``columns`` (the runs table's numeric columns)."""
+    from refexmc.config import dispersions, requirements  # config: what the files declare
+
+    vehicle, mission = campaign["vehicle"], campaign["mission"]
+    modes = [mode["name"] for mode in mission["modes"]]
+    parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
+    columns = requirements.runs_metric_columns(modes, len(vehicle["rcs"]["thrusters"]), parameters)
+    return {"modes": modes, "columns": {"runs": columns}}
 
 
 def read_manifest(out):

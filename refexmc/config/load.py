@@ -12,7 +12,7 @@ import numpy as np
 import yaml
 
 from refexmc.config import requirements, schema
-from refexmc.config.derived import inertia_problem
+from refexmc.config.derived import allocation_table, inertia_problem
 from refexmc.config.errors import ConfigError
 
 
@@ -210,6 +210,10 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         for k, tid in enumerate(ids):
             if tid > len(thrusters):
                 fail(f"expected a thruster id 1..{len(thrusters)}, got {tid}", "flight_software", "allocation", key, k)
+    try:
+        allocation_table(vehicle)
+    except KeyError as missing:
+        fail(f"expected an entry for the axis command '{missing.args[0]}'", "flight_software", "allocation")
     message = inertia_problem(vehicle["inertia_kg_m2"])
     if message:
         fail(message, "inertia_kg_m2")
@@ -279,12 +283,8 @@ def check_modes(modes, fail):
 def check_mission(mission, file, lines, prefix=()):
     """Checks the schema cannot express: the mode program, ascending atmosphere, non-zero sun direction."""
 
-    def fail(message, *path):
-        line = next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
-        raise ConfigError(message, file=file, line=line, path=prefix + path)
-
-    check_modes(mission["modes"], fail)
-    bases = [row["base_altitude_km"] for row in mission["atmosphere"]]
+    check_modes(mission["modes"], _failing_at(file, lines, prefix))
+    bases = [row["base_altitude_km"] for row in mission.get("atmosphere", [])]
     if any(b2 <= b1 for b1, b2 in zip(bases, bases[1:], strict=False)):
         raise ConfigError(
             "expected strictly ascending base altitudes",
@@ -292,13 +292,49 @@ def check_mission(mission, file, lines, prefix=()):
             line=lines.get(("atmosphere",)),
             path=prefix + ("atmosphere",),
         )
-    if np.linalg.norm(mission["sun_direction"]) == 0.0:
+    if "sun_direction" in mission and np.linalg.norm(mission["sun_direction"]) == 0.0:
         raise ConfigError(
             "expected a non-zero vector",
             file=file,
             line=lines.get(("sun_direction",)),
             path=prefix + ("sun_direction",),
         )
+
+
+_NEEDS_TRAJECTORY = ("altitude_below_m", "descending", "dynamic_pressure_above_pa")
+_TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
+
+
+def check_flight(vehicle, mission, fail_mission, fail_vehicle):
+    """What a vehicle and a mission need of each other: a trajectory model and its inputs, given
+    gains for the pd controller. ``fail_*(message, *key_path)`` raise in the file concerned."""
+    if vehicle["flight_software"]["controller"] == "pd" and "gains" not in vehicle["flight_software"]:
+        fail_vehicle("controller pd needs given gains (flight_software.gains)", "flight_software", "controller")
+    if vehicle.get("trajectory", "planar_drag") == "planar_drag":
+        if "aerodynamics" not in vehicle:
+            fail_vehicle("the planar_drag trajectory needs 'aerodynamics' (drag area, reference area and length)")
+        for key in ("earth", "atmosphere"):
+            if key not in mission:
+                fail_mission(f"the vehicle's planar_drag trajectory needs '{key}'")
+        for key in ("altitude_m", "speed_m_s", "flight_path_angle_deg"):
+            if key not in mission["separation"]:
+                fail_mission(f"the vehicle's planar_drag trajectory needs separation '{key}'", "separation")
+        return
+    for m, mode in enumerate(mission["modes"]):
+        target = mode.get("target", {}).get("type")
+        if target in _TRAJECTORY_TARGETS:
+            fail_mission(f"target {target} needs a trajectory; the vehicle has none", "modes", m, "target", "type")
+        for g, group in enumerate(mode["exit"]):
+            for predicate in group:
+                if predicate in _NEEDS_TRAJECTORY:
+                    fail_mission(
+                        f"predicate {predicate} needs a trajectory; the vehicle has none",
+                        "modes",
+                        m,
+                        "exit",
+                        g,
+                        predicate,
+                    )
 
 
 def load_vehicle(path):
@@ -316,16 +352,26 @@ def load_mission(path):
 
 
 def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
+    """(validated data, a function raising ConfigError at a key path of it)."""
     ref = campaign[key]
     if isinstance(ref, dict):
-        validate(ref, part_schema, campaign_file, {k[1:]: v for k, v in lines.items() if k[:1] == (key,)}, (key,))
-        checker(ref, campaign_file, {k[1:]: v for k, v in lines.items() if k[:1] == (key,)}, (key,))
-        return ref, None
+        part_lines = {k[1:]: v for k, v in lines.items() if k[:1] == (key,)}
+        validate(ref, part_schema, campaign_file, part_lines, (key,))
+        checker(ref, campaign_file, part_lines, (key,))
+        return ref, _failing_at(campaign_file, part_lines, (key,))
     path = (Path(campaign_file).parent / ref).resolve()
     data, part_lines = read_yaml(path)
     validate(data, part_schema, path, part_lines)
     checker(data, path, part_lines)
-    return data, path
+    return data, _failing_at(path, part_lines, ())
+
+
+def _failing_at(file, lines, prefix):
+    def fail(message, *path):
+        line = next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
+        raise ConfigError(message, file=file, line=line, path=prefix + path)
+
+    return fail
 
 
 FAILURE_KEYS = {"none": (), "fixed": ("thrusters",), "random": ("count_probabilities",), "enumerate": ("sizes",)}
@@ -371,8 +417,9 @@ def load_campaign(path):
     path = Path(path)
     data, lines = read_yaml(path)
     validate(data, schema.CAMPAIGN, path, lines)
-    vehicle, vehicle_path = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, check_vehicle)
-    mission, mission_path = _resolve_part(data, "mission", path, lines, schema.MISSION, check_mission)
+    vehicle, fail_vehicle = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, check_vehicle)
+    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, check_mission)
+    check_flight(vehicle, mission, fail_mission, fail_vehicle)
     campaign = {
         "name": data["name"],
         "runs": data.get("runs"),

@@ -21,11 +21,25 @@ def _put(array, fields, name, value):
     array[offset : offset + size] = value
 
 
+NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0, "drag_area_m2": 0.0, "mistrim_cm": [0.0] * 3}
+TRAJECTORY_MODELS = {"none": L.TRAJECTORY_NONE, "planar_drag": L.TRAJECTORY_PLANAR_DRAG}
+
+
+def gains(vehicle):
+    """(kp, kd), each low x, y, z then high x, y, z: given in the vehicle file, else 000 eq. 38 and 34."""
+    given = vehicle["flight_software"].get("gains")
+    if given is not None:
+        return [np.concatenate([given[k]["low"], given[k]["high"]]) for k in ("kp", "kd")]
+    kp_low, kd_low = derived.gains(vehicle, "low")
+    kp_high, kd_high = derived.gains(vehicle, "high")
+    return np.concatenate([kp_low, kp_high]), np.concatenate([kd_low, kd_high])
+
+
 def pack_vehicle(vehicle):
     """Truth vehicle array (layout.VEHICLE)."""
     out = np.zeros(L.VEHICLE_SIZE)
     rcs = vehicle["rcs"]
-    aero = vehicle["aerodynamics"]
+    aero = vehicle.get("aerodynamics", NO_AERODYNAMICS)
     derating = list(rcs["derating"])
     derating += [derating[-1]] * (L.DERATING_MAX_VALVES - len(derating))
     _put(out, L.VEHICLE, "inertia_kg_m2", vehicle["inertia_kg_m2"])
@@ -69,12 +83,11 @@ def pack_fsw(vehicle):
     fsw_cfg = vehicle["flight_software"]
     pwpf = fsw_cfg["pwpf"]
     out = np.zeros(L.FSW_SIZE)
-    kp_low, kd_low = derived.gains(vehicle, "low")
-    kp_high, kd_high = derived.gains(vehicle, "high")
+    kp, kd = gains(vehicle)
     _put(out, L.FSW, "control_period_s", 1.0 / fsw_cfg["control_rate_hz"])
     _put(out, L.FSW, "inertia_kg_m2", vehicle["inertia_kg_m2"])
-    _put(out, L.FSW, "kp", np.concatenate([kp_low, kp_high]))
-    _put(out, L.FSW, "kd", np.concatenate([kd_low, kd_high]))
+    _put(out, L.FSW, "kp", kp)
+    _put(out, L.FSW, "kd", kd)
     _put(out, L.FSW, "torque_max_n_m", np.concatenate([derived.torque_max(vehicle, lv) for lv in derived.LEVELS]))
     _put(out, L.FSW, "accel_max_rad_s2", np.concatenate([derived.omega_dot_max(vehicle, lv) for lv in derived.LEVELS]))
     _put(out, L.FSW, "accel_margin", fsw_cfg["guidance_accel_margin"])
@@ -84,33 +97,35 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "pwpf_correction_s", pwpf["correction_ms"] / 1e3)
     _put(out, L.FSW, "min_on_s", vehicle["rcs"]["switching_limits_ms"]["min_on"] / 1e3)
     _put(out, L.FSW, "min_off_s", vehicle["rcs"]["switching_limits_ms"]["min_off"] / 1e3)
-    controllers = {"pd_feedback_linearisation": L.CONTROLLER_PD_FEEDBACK_LINEARISATION}
+    controllers = {"pd_feedback_linearisation": L.CONTROLLER_PD_FEEDBACK_LINEARISATION, "pd": L.CONTROLLER_PD}
     actuations = {"pwpf_table": L.ACTUATION_PWPF_TABLE}
     _put(out, L.FSW, "controller_id", controllers[fsw_cfg["controller"]])
     _put(out, L.FSW, "actuation_id", actuations[fsw_cfg["actuation"]])
     return out
 
 
-def pack_mission(mission):
-    """Mission array (layout.MISSION)."""
+def pack_mission(mission, trajectory="planar_drag"):
+    """Mission array (layout.MISSION); ``trajectory`` is the vehicle's trajectory model."""
     out = np.zeros(L.MISSION_SIZE)
     sep = mission["separation"]
-    sun = np.asarray(mission["sun_direction"], dtype=float)
+    sun = np.asarray(mission.get("sun_direction", [1.0, 0.0, 0.0]), dtype=float)
+    earth = mission.get("earth", {"radius_m": 0.0, "mu_m3_s2": 0.0})
     rad = np.radians
     handover = mission.get("handover_max_angle_deg")
     values = {
-        "separation_altitude_m": sep["altitude_m"],
-        "separation_speed_m_s": sep["speed_m_s"],
-        "separation_flight_path_angle_rad": rad(sep["flight_path_angle_deg"]),
+        "separation_altitude_m": sep.get("altitude_m", 0.0),
+        "separation_speed_m_s": sep.get("speed_m_s", 0.0),
+        "separation_flight_path_angle_rad": rad(sep.get("flight_path_angle_deg", 0.0)),
         "separation_rates_rad_s": rad(sep["rates_deg_s"]),
         "separation_attitude_rotvec_rad": rad(sep["attitude_error_deg"]),
         "sun_direction": sun / np.linalg.norm(sun),
-        "earth_radius_m": mission["earth"]["radius_m"],
-        "earth_mu_m3_s2": mission["earth"]["mu_m3_s2"],
+        "earth_radius_m": earth["radius_m"],
+        "earth_mu_m3_s2": earth["mu_m3_s2"],
         "handover_max_angle_rad": math.inf if handover is None else rad(handover),
         "max_flight_time_s": mission["max_flight_time_s"],
         "integrator_max_step_s": mission["integrator"]["max_step_s"],
         "trajectory_step_s": mission["integrator"]["trajectory_step_s"],
+        "trajectory_model_id": TRAJECTORY_MODELS[trajectory],
     }
     for name, value in values.items():
         _put(out, L.MISSION, name, value)
@@ -187,9 +202,11 @@ def pack_navigation(mission):
 
 def pack_atmosphere(mission):
     """Atmosphere table rows [base altitude m, density kg/m^3, scale height m]."""
-    return np.array(
-        [[r["base_altitude_km"] * 1e3, r["density_kg_m3"], r["scale_height_km"] * 1e3] for r in mission["atmosphere"]]
-    )
+    rows = [
+        [r["base_altitude_km"] * 1e3, r["density_kg_m3"], r["scale_height_km"] * 1e3]
+        for r in mission.get("atmosphere", [])
+    ]
+    return np.array(rows, dtype=float).reshape(-1, 3)
 
 
 def pack(vehicle, mission, failed_thrusters=()):
@@ -199,7 +216,7 @@ def pack(vehicle, mission, failed_thrusters=()):
         vehicle=pack_vehicle(vehicle),
         thrusters=pack_thrusters(vehicle, failed_thrusters),
         fsw=pack_fsw(vehicle),
-        mission=pack_mission(mission),
+        mission=pack_mission(mission, vehicle.get("trajectory", "planar_drag")),
         modes=mode_table,
         exits=exit_table,
         nav=pack_navigation(mission),

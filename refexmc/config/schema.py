@@ -74,6 +74,11 @@ VEHICLE = obj(
     "vehicle, RCS and flight-software design",
     {
         "name": string("vehicle name"),
+        "trajectory": string(
+            "trajectory model: planar_drag (point mass, gravity and drag; altitude and dynamic pressure) "
+            "or none (attitude only); default planar_drag",
+            enum=["planar_drag", "none"],
+        ),
         "mass_kg": number("vehicle mass [kg]", **POSITIVE),
         "length_m": number("vehicle length [m]", **POSITIVE),
         "span_m": number("wing span [m]", **POSITIVE),
@@ -136,7 +141,22 @@ VEHICLE = obj(
             "flight-software design parameters",
             {
                 "control_rate_hz": number("controller and modulator rate [Hz]", **POSITIVE),
-                "controller": string("control law", enum=["pd_feedback_linearisation"]),
+                "controller": string(
+                    "control law: pd_feedback_linearisation (000 eq. 30, 35) or pd (004 eq. 1)",
+                    enum=["pd_feedback_linearisation", "pd"],
+                ),
+                "gains": obj(
+                    "given gains per thrust level, body x, y, z (default: derived, 000 eq. 38 and 34). "
+                    "pd: kp [N m], kd [N m s/rad]; pd_feedback_linearisation: kp [1/s^2], kd [1/s]",
+                    {
+                        "kp": obj(
+                            "proportional gain", {"low": vector("[-]", minimum=0.0), "high": vector("[-]", minimum=0.0)}
+                        ),
+                        "kd": obj(
+                            "derivative gain", {"low": vector("[-]", minimum=0.0), "high": vector("[-]", minimum=0.0)}
+                        ),
+                    },
+                ),
                 "actuation": string("torque-to-thruster chain", enum=["pwpf_table"]),
                 "damping_ratio": number("zeta of 000 eq. 34 [-]", **POSITIVE),
                 "deadband_angle_deg": number("phi_e,db of 000 eq. 38 [deg]", exclusive_minimum=0.0, maximum=10.0),
@@ -164,8 +184,10 @@ VEHICLE = obj(
                     },
                 },
             },
+            optional=("gains",),
         ),
     },
+    optional=("trajectory", "aerodynamics"),
 )
 
 # --- the mode program (refexmc.core.modes): kinds, targets and exit predicates by name -------
@@ -290,12 +312,18 @@ MISSION = obj(
         "separation": obj(
             "state at separation (t = 0)",
             {
-                "altitude_m": number("altitude [m]", **POSITIVE),
-                "speed_m_s": number("inertial speed [m/s]", **POSITIVE),
-                "flight_path_angle_deg": number("flight-path angle [deg]", minimum=-90.0, maximum=90.0),
+                "altitude_m": number("altitude (planar_drag trajectory) [m]", **POSITIVE),
+                "speed_m_s": number("inertial speed (planar_drag trajectory) [m/s]", **POSITIVE),
+                "flight_path_angle_deg": number(
+                    "flight-path angle (planar_drag trajectory) [deg]", minimum=-90.0, maximum=90.0
+                ),
                 "rates_deg_s": vector("body rates [deg/s]", minimum=-90.0, maximum=90.0),
-                "attitude_error_deg": vector("rotation vector from body x along velocity, wings level [deg]"),
+                "attitude_error_deg": vector(
+                    "rotation vector from body x along velocity, wings level (no trajectory: from the "
+                    "inertial axes) [deg]"
+                ),
             },
+            optional=("altitude_m", "speed_m_s", "flight_path_angle_deg"),
         ),
         "sun_direction": vector("sun direction, inertial frame (normalised on load) [-]"),
         "atmosphere": {
@@ -346,7 +374,7 @@ MISSION = obj(
             },
         ),
     },
-    optional=("handover_max_angle_deg",),
+    optional=("handover_max_angle_deg", "earth", "sun_direction", "atmosphere"),
 )
 
 _reference = {

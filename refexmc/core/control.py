@@ -6,7 +6,7 @@ The controller is chosen by ``controller_id`` (layout.CONTROLLER_*); new laws ad
 
 from refexmc._jit import jit_inline
 from refexmc.core import quaternion
-from refexmc.core.layout import CONTROLLER_PD_FEEDBACK_LINEARISATION
+from refexmc.core.layout import CONTROLLER_PD, CONTROLLER_PD_FEEDBACK_LINEARISATION
 
 
 @jit_inline
@@ -43,10 +43,21 @@ def pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd,
 
 
 @jit_inline
+def pd(q_error, rate_error, kp, kd, attitude_controlled, out):
+    """M_i = -Kp,i q_e,i - Kd,i omega_e,i (004 eq. 1), gains in N m and N m s; rates only in rate damping."""
+    for i in range(3):
+        out[i] = -kd[i] * rate_error[i]
+        if attitude_controlled:
+            out[i] -= kp[i] * q_error[i]
+
+
+@jit_inline
 def torque_command(controller_id, q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out):
     """Commanded torque (N m, body axes) of the configured controller."""
     if controller_id == CONTROLLER_PD_FEEDBACK_LINEARISATION:
         pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out)
+    elif controller_id == CONTROLLER_PD:
+        pd(q_error, rate_error, kp, kd, attitude_controlled, out)
     else:
         for i in range(3):
             out[i] = 0.0

@@ -64,6 +64,7 @@ from refexmc.core.layout import (
     M_SEP_ATTITUDE,
     M_SEP_FLIGHT_PATH,
     M_SEP_RATES,
+    M_TRAJECTORY_MODEL,
     M_TRAJECTORY_STEP,
     MD_CALIBRATION,
     MD_KIND,
@@ -82,6 +83,7 @@ from refexmc.core.layout import (
     S_SUCCESS,
     S_T_END,
     S_THETA_HANDOVER,
+    TRAJECTORY_NONE,
     V_INERTIA,
     V_PROPELLANT,
 )
@@ -100,7 +102,8 @@ ST_HAS_FINAL = 6  # 1: guidance has a target attitude (Guide.q_final)
 ST_MODES_COMPLETED = 7
 ST_RK4_STEPS = 8
 ST_NODE_INDEX = 9  # trajectory node a is at node_index * trajectory_step_s
-STATUS_SIZE = 10
+ST_STARTED = 10  # 1 once the first mode has started
+STATUS_SIZE = 11
 # --- thruster bit masks (bit i for thruster i), one int64 array --------------------------------
 MASK_OPEN = 0  # commanded open (switching.enforce)
 MASK_ACTIVE = 1  # not closed and settled (rcs.update)
@@ -248,15 +251,19 @@ def _start(inputs, nav_seed, summary, pulse_counts, w):
             guide.accels[lv, i] = margin * fsw[F_ACCEL_MAX + 3 * lv + i]
     w.sensed.rng_state[0] = np.uint64(nav_seed)
 
-    span = mission[M_TRAJECTORY_STEP]
-    environment.initial_state(mission, traj.nodes[1])
-    traj.node_accels[1, 0], traj.node_accels[1, 1] = environment.acceleration(
-        mission, vehicle, inputs.atmosphere, traj.nodes[1]
-    )
-    environment.advance_nodes(mission, vehicle, inputs.atmosphere, traj.nodes, traj.node_accels, span, traj.stage)
-    environment.interpolate(
-        traj.nodes[0], traj.node_accels[0], traj.nodes[1], traj.node_accels[1], span, 0.0, traj.state
-    )
+    if int(mission[M_TRAJECTORY_MODEL]) != TRAJECTORY_NONE:
+        span = mission[M_TRAJECTORY_STEP]
+        environment.initial_state(mission, traj.nodes[1])
+        traj.node_accels[1, 0], traj.node_accels[1, 1] = environment.acceleration(
+            mission, vehicle, inputs.atmosphere, traj.nodes[1]
+        )
+        environment.advance_nodes(mission, vehicle, inputs.atmosphere, traj.nodes, traj.node_accels, span, traj.stage)
+        environment.interpolate(
+            traj.nodes[0], traj.node_accels[0], traj.nodes[1], traj.node_accels[1], span, 0.0, traj.state
+        )
+    else:
+        for k in range(traj.state.shape[0]):
+            traj.state[k] = 0.0
     tmp4, sep_q = w.sensed.work4, guide.q_ref  # q_ref is free until the first mode with a reference
     quaternion.from_rotation_vector(0.0, mission[M_SEP_FLIGHT_PATH], 0.0, tmp4)
     sep = mission[M_SEP_ATTITUDE : M_SEP_ATTITUDE + 3]
@@ -284,16 +291,24 @@ def _navigate(inputs, w, t):
     """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and rates."""
     mission, vehicle, atmosphere = inputs.mission, inputs.vehicle, inputs.atmosphere
     traj, status, sensed = w.trajectory, w.status, w.sensed
-    span = mission[M_TRAJECTORY_STEP]
-    node_index = status[ST_NODE_INDEX]
-    while t >= (node_index + 1) * span - 1e-9:
-        environment.advance_nodes(mission, vehicle, atmosphere, traj.nodes, traj.node_accels, span, traj.stage)
-        node_index += 1
-    status[ST_NODE_INDEX] = node_index
-    environment.interpolate(
-        traj.nodes[0], traj.node_accels[0], traj.nodes[1], traj.node_accels[1], span, t - node_index * span, traj.state
-    )
-    altitude, climb, qbar = environment.flight_conditions(mission, atmosphere, traj.state)
+    altitude, climb, qbar = 0.0, 0.0, 0.0
+    if int(mission[M_TRAJECTORY_MODEL]) != TRAJECTORY_NONE:
+        span = mission[M_TRAJECTORY_STEP]
+        node_index = status[ST_NODE_INDEX]
+        while t >= (node_index + 1) * span - 1e-9:
+            environment.advance_nodes(mission, vehicle, atmosphere, traj.nodes, traj.node_accels, span, traj.stage)
+            node_index += 1
+        status[ST_NODE_INDEX] = node_index
+        environment.interpolate(
+            traj.nodes[0],
+            traj.node_accels[0],
+            traj.nodes[1],
+            traj.node_accels[1],
+            span,
+            t - node_index * span,
+            traj.state,
+        )
+        altitude, climb, qbar = environment.flight_conditions(mission, atmosphere, traj.state)
     sensed.now[modes.NOW_TIME_IN_MODE] = t - status[ST_MODE_START]
     sensed.now[modes.NOW_ALTITUDE] = altitude
     sensed.now[modes.NOW_CLIMB] = climb
@@ -325,6 +340,30 @@ def _reference(inputs, w, t, mode):
 
 
 @jit_noalloc
+def _start_mode(inputs, w, t, summary, mode):
+    """Start the guidance of ``mode`` at ``t`` (core.modes.start); record its t1."""
+    status, sensed, guide = w.status, w.sensed, w.guide
+    row = inputs.modes[mode]
+    has_final = modes.start(
+        row,
+        inputs.mission,
+        w.trajectory.state,
+        t,
+        sensed.q_meas,
+        sensed.rate_meas,
+        guide.accels[int(row[MD_LEVEL])],
+        guide.state,
+        guide.q_final,
+        status[ST_HAS_FINAL] != 0.0,
+        guide.rotations,
+        guide.work,
+    )
+    status[ST_HAS_FINAL] = 1.0 if has_final else 0.0
+    if modes.has_profile(int(row[MD_KIND])):
+        summary[S_PER_MODE + inputs.modes.shape[0] + mode] = guide.state[guidance.G_T1]
+
+
+@jit_noalloc
 def _advance_mode(inputs, w, t, summary):
     """Leave the mode whose exit conditions hold and start the next; fail a mode past its timeout.
 
@@ -332,12 +371,16 @@ def _advance_mode(inputs, w, t, summary):
     and again for a mode that starts; when the program is done the last mode's guidance goes on.
     Returns ``(attitude_controlled, has_attitude_reference)``.
     """
-    status, sensed, guide = w.status, w.sensed, w.guide
+    status = w.status
     n_modes = inputs.modes.shape[0]
     mode = int(status[ST_MODE])
+    if status[ST_STARTED] == 0.0:  # the first mode starts at the first control step
+        status[ST_STARTED] = 1.0
+        _start_mode(inputs, w, t, summary, mode)
     controlled, has_reference = _reference(inputs, w, t, min(mode, n_modes - 1))
     if mode == n_modes:
         return controlled, has_reference
+    sensed, guide = w.sensed, w.guide
     row = inputs.modes[mode]
     q_target = guide.q_final if int(row[MD_KIND]) == modes.KIND_SLEW else guide.q_ref
     t1 = guide.state[guidance.G_T1]
@@ -347,24 +390,7 @@ def _advance_mode(inputs, w, t, summary):
         status[ST_MODES_COMPLETED] += 1
         status[ST_MODE_START] = t
         if mode < n_modes:
-            row = inputs.modes[mode]
-            has_final = modes.start(
-                row,
-                inputs.mission,
-                w.trajectory.state,
-                t,
-                sensed.q_meas,
-                sensed.rate_meas,
-                guide.accels[int(row[MD_LEVEL])],
-                guide.state,
-                guide.q_final,
-                status[ST_HAS_FINAL] != 0.0,
-                guide.rotations,
-                guide.work,
-            )
-            status[ST_HAS_FINAL] = 1.0 if has_final else 0.0
-            if modes.has_profile(int(row[MD_KIND])):
-                summary[S_PER_MODE + n_modes + mode] = guide.state[guidance.G_T1]
+            _start_mode(inputs, w, t, summary, mode)
             controlled, has_reference = _reference(inputs, w, t, mode)
     elif sensed.now[modes.NOW_TIME_IN_MODE] > row[MD_TIMEOUT]:
         status[ST_FAILURE] = FAIL_MODE_TIMEOUT

@@ -64,8 +64,8 @@ ON_DELAY, RISE, OFF_DELAY, FALL = 0, 1, 2, 3
 FSW = Fields()
 F_CONTROL_PERIOD = FSW.add("control_period_s")
 F_INERTIA = FSW.add("inertia_kg_m2", 9)  # the inertia the flight software knows (eq. 30)
-F_KP = FSW.add("kp", 6)  # low x,y,z then high x,y,z (000 eq. 38)
-F_KD = FSW.add("kd", 6)  # (000 eq. 34)
+F_KP = FSW.add("kp", 6)  # low x,y,z then high x,y,z (000 eq. 38, or given)
+F_KD = FSW.add("kd", 6)  # (000 eq. 34, or given)
 F_TORQUE_MAX = FSW.add("torque_max_n_m", 6)  # tau_max per axis, low then high (000 eq. 41)
 F_ACCEL_MAX = FSW.add("accel_max_rad_s2", 6)  # omega_dot_max, low then high (000 eq. 1-3)
 F_ACCEL_MARGIN = FSW.add("accel_margin")  # guidance uses this fraction of omega_dot_max (eq. 13)
@@ -80,6 +80,7 @@ F_ACTUATION = FSW.add("actuation_id")
 FSW_SIZE = FSW.size
 
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35
+CONTROLLER_PD = 1  # 004 eq. 1: torque gains, no feedforward
 ACTUATION_PWPF_TABLE = 0  # PWPF per axis (eq. 41-48) + allocation table (Table 3)
 
 # --- mission ----------------------------------------------------------------------------------
@@ -96,7 +97,11 @@ M_HANDOVER_ANGLE = MISSION.add("handover_max_angle_rad")  # after the last mode;
 M_MAX_TIME = MISSION.add("max_flight_time_s")
 M_MAX_STEP = MISSION.add("integrator_max_step_s")
 M_TRAJECTORY_STEP = MISSION.add("trajectory_step_s")  # RK4 node spacing, Hermite in between
+M_TRAJECTORY_MODEL = MISSION.add("trajectory_model_id")  # TRAJECTORY_*
 MISSION_SIZE = MISSION.size
+
+TRAJECTORY_NONE = 0  # attitude only: no altitude, no dynamic pressure, no aerodynamic torque
+TRAJECTORY_PLANAR_DRAG = 1  # point mass in the x-z plane, spherical gravity and drag (core.environment)
 
 # --- mode program: one row per mode, flown in order (refexmc.core.modes) ---------------------
 MODE = Fields()
