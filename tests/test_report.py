@@ -12,38 +12,47 @@ from scipy import stats as sps
 
 from refexmc.campaign import storage
 from refexmc.config.errors import ConfigError
-from refexmc.core.layout import MODE_NAMES
 from refexmc.report import make_report, stats
 from refexmc.report.requirements import parse_requirement
 
 ROOT = Path(__file__).resolve().parents[1]
-MODE_COLUMNS = [f"t_{name.lower()}_s" for name in MODE_NAMES]
-MODE_SECONDS = np.array([5.0, 10.0, 30.0, 120.0, 8.0, 40.0, 15.0])
+# the ReFEx modes and a typical time in each [s]; as in real flights NCM coasts (no control: no angle
+# error, no valve opens) and RDM1 and RDM2 damp the rates (valves open, no attitude reference: no angle error)
+REFEX_MODES = {"NCM": 5.0, "RDM1": 10.0, "SAM": 30.0, "SSM": 120.0, "RDM2": 8.0, "EAM": 40.0, "GEEM": 15.0}
+REFEX_WITHOUT_ANGLE_ERROR = ("NCM", "RDM1", "RDM2")
+REFEX_COASTING = ("NCM",)
+MODE_COLUMNS = [f"t_{name.lower()}_s" for name in REFEX_MODES]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def synthetic_runs(n=60, errored=(7, 23), failed=(3, 11, 40), sets=None, seed=1):
-    """Rows of a runs table: known columns, two p. parameters (one drives the propellant)."""
+def synthetic_runs(n=60, errored=(7, 23), failed=(3, 11, 40), sets=None, seed=1, modes=REFEX_MODES):
+    """Rows of a runs table: known columns, two p. parameters (one drives the propellant).
+
+    ``modes``: {mode name: typical seconds in it}, in flight order.
+    """
     rng = np.random.default_rng(seed)
+    mode_columns = [f"t_{name.lower()}_s" for name in modes]
+    mode_seconds = np.array(list(modes.values()))
+    failure = f"{list(modes)[min(2, len(modes) - 1)].lower()}_timeout"
     rows = []
     for i in range(n):
         drive = 1.0 if i == 0 else rng.normal(1.0, 0.1)
         noise = 0.5 if i == 0 else rng.uniform(0, 1)
         fuel = 0.5 - 0.3 * (drive - 1.0) + 0.01 * rng.normal()
-        times = MODE_SECONDS * (1.0 if i == 0 else rng.uniform(0.9, 1.1, len(MODE_SECONDS)))
+        times = mode_seconds * (1.0 if i == 0 else rng.uniform(0.9, 1.1, len(mode_seconds)))
         row = {
             "run_id": i,
             "seed": 1000 + i,
             "status": "ok",
             "success": i not in failed,
-            "failure_reason": "sam_timeout" if i in failed else None,
+            "failure_reason": failure if i in failed else None,
             "failed_thrusters": sets[i] if sets else "",
             "fuel_remaining": fuel,
             "fuel_used_kg": 1.96 * (1 - fuel),
             "t_end_s": float(times.sum()),
-            **{c: float(t) for c, t in zip(MODE_COLUMNS, times, strict=True)},
+            **{c: float(t) for c, t in zip(mode_columns, times, strict=True)},
             "theta_t_handover_deg": float(rng.uniform(0.05, 1.0)),
-            "modes_completed": 7,
+            "modes_completed": len(modes),
             **{f"pulses_{k}": int(rng.integers(50, 150)) for k in range(1, 9)},
             "p.rcs.isp_s": 70.0 * drive,
             "p.navigation.rate_noise_deg_s": 0.02 * noise,
@@ -55,27 +64,46 @@ def synthetic_runs(n=60, errored=(7, 23), failed=(3, 11, 40), sets=None, seed=1)
     return rows
 
 
-def synthetic_history(row, rate_hz=2.0):
-    """Samples of one run: theta_t = 100 exp(-tau) in every mode (tau: time since mode start)."""
-    times = np.array([row[c] for c in MODE_COLUMNS])
+def synthetic_history(
+    row, rate_hz=2.0, modes=REFEX_MODES, without_angle_error=REFEX_WITHOUT_ANGLE_ERROR, coasting=REFEX_COASTING
+):
+    """Samples of one run: theta_t = 100 exp(-tau) (tau: time since mode start), NaN in the modes
+    ``without_angle_error``; valves 1 and 2 open (mask 3) except in the ``coasting`` modes."""
+    names = list(modes)
+    times = np.array([row[f"t_{name.lower()}_s"] for name in names])
     starts = np.concatenate([[0.0], np.cumsum(times)[:-1]])
     t = np.arange(0.0, row["t_end_s"], 1.0 / rate_hz)
-    mode = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(MODE_NAMES) - 1)
+    mode = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(names) - 1)
     tau = t - starts[mode]
     n = len(t)
+    mode_name = np.array(names)[mode]
+    theta = np.where(np.isin(mode_name, without_angle_error), np.nan, 100.0 * np.exp(-tau))
+    valves = np.where(np.isin(mode_name, coasting), 0, 3).astype(np.int32)
     return pa.table(
         {
             "run_id": pa.array(np.full(n, row["run_id"], dtype=np.int64)),
             "t_s": pa.array(t),
-            "mode": pa.DictionaryArray.from_arrays(pa.array(mode.astype(np.int32)), pa.array(list(MODE_NAMES))),
-            "theta_t_deg": pa.array(100.0 * np.exp(-tau)),
+            "mode": pa.DictionaryArray.from_arrays(pa.array(mode.astype(np.int32)), pa.array(names)),
+            "theta_t_deg": pa.array(theta),
             "omega_m_deg_s": pa.array(np.full(n, 2.0)),
             "fuel_remaining": pa.array(1.0 - (1.0 - row["fuel_remaining"]) * t / row["t_end_s"]),
+            "valves_open": pa.array(valves),
         }
     )
 
 
-def write_out(out, rows, requirements=(), nominal_first=True, histories=True, parts=2):
+def write_out(
+    out,
+    rows,
+    requirements=(),
+    nominal_first=True,
+    histories=True,
+    parts=2,
+    modes=REFEX_MODES,
+    without_angle_error=REFEX_WITHOUT_ANGLE_ERROR,
+    coasting=REFEX_COASTING,
+    vehicle="refex",
+):
     """An OUT directory as `refexmc run` writes it (runs and histories in `parts` part files)."""
     storage.prepare_output(out)
     campaign = {
@@ -87,16 +115,17 @@ def write_out(out, rows, requirements=(), nominal_first=True, histories=True, pa
         "failures": {"mode": "none"},
         "output": {"history_rate_hz": 2.0},
         "requirements": list(requirements),
-        "vehicle": {"name": "refex"},
+        "vehicle": {"name": vehicle},
     }
     storage.write_resolved(out, campaign)
-    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "refexmc": "test"})
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "refexmc": "test", "modes": list(modes)})
     bounds = np.linspace(0, len(rows), parts + 1).astype(int)
     for k in range(parts):
         chunk = rows[bounds[k] : bounds[k + 1]]
         storage.write_table_atomic(storage.runs_table(chunk), out / "runs" / storage.part_name(k))
         if histories:
-            tables = [synthetic_history(r) for r in chunk if r["status"] == "ok"]
+            flown = [r for r in chunk if r["status"] == "ok"]
+            tables = [synthetic_history(r, 2.0, modes, without_angle_error, coasting) for r in flown]
             storage.write_table_atomic(pa.concat_tables(tables), out / "histories" / storage.part_name(k))
     return out
 
@@ -290,7 +319,7 @@ def test_mode_envelopes_align_runs_at_mode_start(synthetic):
     out, _, _ = synthetic
     result = aggregate.aggregate_histories(data.load(out))
     binned, q = result["modes"]["theta_t_deg"]
-    sam = MODE_NAMES.index("SAM")
+    sam = list(REFEX_MODES).index("SAM")
     # every run has theta = 100 exp(-tau): aligned at mode start, all percentiles coincide
     for b in range(0, 8):
         tau = (b + 0.5) * binned.dt
@@ -299,6 +328,104 @@ def test_mode_envelopes_align_runs_at_mode_start(synthetic):
         assert lo / ratio <= q[sam, b, 0] and q[sam, b, 4] <= hi * ratio
     assert result["nominal"] is not None and (np.diff(result["nominal"]["t_s"]) > 0).all()
     assert result["rows"] == sum(len(synthetic_history(r)) for r in synthetic[1] if r["status"] == "ok")
+    # the figure shows the controlled modes, RDM1 ... GEEM, as 000 Fig. 11: not NCM (no angle error, no valve)
+    assert result["mode_names"] == list(REFEX_MODES)
+    assert result["valve_samples"][0] == 0 and (result["valve_samples"][1:] > 0).all()
+    assert [result["mode_names"][m] for m in aggregate.plotted_modes(result)] == list(REFEX_MODES)[1:]
+
+
+OTHER_MODES = {"detumble": 20.0, "slew": 45.0, "hold": 90.0}  # another vehicle: names of its own, 3 modes
+REFEX_WORDS = re.compile(r"\b(" + "|".join([*REFEX_MODES, *MODE_COLUMNS]) + r")\b")
+
+
+def without_images(page):
+    return re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]*", "", page)
+
+
+def figure_titles(monkeypatch):
+    """Record the axes titles of every figure the report renders: {figure number: [titles]}."""
+    from refexmc.report import figures
+
+    titles = []
+    render = figures.png
+
+    def recording(figure):
+        titles.append([ax.get_title() for ax in figure.axes if ax.get_title()])
+        return render(figure)
+
+    monkeypatch.setattr(figures, "png", recording)
+    return titles
+
+
+def test_report_of_a_vehicle_with_three_modes_of_its_own_names(tmp_path, monkeypatch):
+    rows = synthetic_runs(n=30, errored=(4,), failed=(9,), modes=OTHER_MODES)
+    # detumble damps the rates: valves open, no angle error; slew and hold steer the attitude
+    out = write_out(tmp_path / "out", rows, modes=OTHER_MODES, without_angle_error=("detumble",), vehicle="cubesat")
+    titles = figure_titles(monkeypatch)
+    report = make_report(out, require=["t_slew_s.max <= 100", "t_hold_s.p50 <= 95"], html=True)
+    summary = report["summary"]
+    assert summary["modes"] == ["detumble", "slew", "hold"]
+    for name in OTHER_MODES:
+        column = summary["columns"][f"t_{name}_s"]
+        assert column["median"] == pytest.approx(np.median(successful_values(rows, f"t_{name}_s")))
+        assert column["tail"] == "upper"
+    assert [v["metric"] for v in report["requirements"]] == ["t_slew_s.max", "t_hold_s.p50"]
+    assert "time in mode [s], median/max: detumble " in report["text"]
+    assert ", slew " in report["text"] and ", hold " in report["text"]
+    page = without_images((out / "report" / "index.html").read_text())
+    assert "Modes: detumble → slew → hold." in page
+    assert (out / "report" / "figures" / "modes.png").read_bytes().startswith(PNG_MAGIC)
+    assert summary["figures"][0].startswith("Angle and rate errors per mode")
+    assert titles[0] == ["detumble", "slew", "hold"]  # the modes figure
+    written = (out / "report" / "summary.json").read_text()
+    for where, text in (("text", report["text"]), ("summary.json", written), ("index.html", page)):
+        assert not REFEX_WORDS.search(text), f"{where} names a ReFEx mode: {REFEX_WORDS.search(text).group()}"
+
+
+def test_output_without_modes_in_its_manifest_takes_them_from_the_runs_table(tmp_path, monkeypatch):
+    """An output written before manifest.json listed its modes: the t_<mode>_s columns, upper-cased;
+    the histories' lower-case names still find their mode. A mode that coasts is not plotted."""
+    rows = synthetic_runs(n=12, errored=(), failed=(), modes=OTHER_MODES)
+    coast = ("detumble",)
+    out = write_out(tmp_path / "out", rows, modes=OTHER_MODES, without_angle_error=coast, coasting=coast, parts=1)
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete"})
+    titles = figure_titles(monkeypatch)
+    report = make_report(out, html=True)
+    assert report["summary"]["modes"] == ["DETUMBLE", "SLEW", "HOLD"]
+    assert titles[0] == ["SLEW", "HOLD"]
+    assert "time in mode [s], median/max: DETUMBLE " in report["text"]
+
+
+def test_mode_names_from_the_manifest_or_the_runs_columns():
+    from refexmc.report import data
+
+    columns = ["run_id", "t_end_s", "t_ncm_s", "t_rdm1_s", "fuel_remaining", "t_geem_s", "pulses_1"]
+    assert data.mode_names({"modes": ["Detumble", "slew"]}, columns) == ["Detumble", "slew"]
+    assert data.mode_names({}, columns) == ["NCM", "RDM1", "GEEM"]  # table order, t_end_s is the flight
+    assert data.mode_names({"name": "old"}, ["t_end_s"]) == []
+    for bad in ([], "NCM", ["slew", "SLEW"], ["slew", ""], ["slew", 3], ["end"]):
+        with pytest.raises(ConfigError, match="modes"):
+            data.mode_names({"modes": bad}, columns, file="manifest.json")
+    assert data.load(ROOT / "baselines" / "smoke").modes == list(REFEX_MODES)  # written before "modes"
+
+
+def test_manifest_modes_without_their_time_columns_are_bad_input(tmp_path):
+    rows = synthetic_runs(n=6, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, histories=False, parts=1)
+    storage.write_manifest(out, {"name": "synthetic", "status": "complete", "modes": [*REFEX_MODES, "LAND"]})
+    with pytest.raises(ConfigError, match="lacks the time of modes listed in manifest.json: t_land_s") as info:
+        make_report(out)
+    assert info.value.file == out / "manifest.json"
+    assert not (out / "report").exists()
+
+
+def test_history_modes_match_by_name_without_regard_to_case():
+    from refexmc.report import data
+
+    names = pa.array(["hold", "SLEW", "coast", "Detumble", "hold"])
+    expected = [2, 1, -1, 0, 2]  # coast: not a mode of the campaign
+    assert data.mode_codes(names, ["DETUMBLE", "SLEW", "HOLD"]).tolist() == expected
+    assert data.mode_codes(names.dictionary_encode(), ["detumble", "slew", "hold"]).tolist() == expected
 
 
 def test_requirement_parser_good_and_bad():

@@ -254,3 +254,58 @@ def test_sorted_percentile_with_infinities():
     assert stats.sorted_percentile(np.array([1.0, 2.0, math.inf]), 75) == math.inf
     assert stats.sorted_percentile(np.array([-math.inf, -math.inf, 2.0]), 25) == -math.inf  # no inf - inf
     assert math.isnan(stats.sorted_percentile(np.array([]), 50))
+
+
+# --- two-sample comparisons (refexmc compare) ----------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("x1", "n1", "x2", "n2", "low", "high"),
+    [  # Newcombe, Statistics in Medicine 17 (1998) 873, Table II, method 10
+        (56, 70, 48, 80, 0.0524, 0.3339),
+        (9, 10, 3, 10, 0.1705, 0.8090),
+        (6, 7, 2, 7, 0.0582, 0.8062),
+        (5, 56, 0, 29, -0.0381, 0.1926),
+    ],
+)
+def test_newcombe_interval_matches_the_published_examples(x1, n1, x2, n2, low, high):
+    got = stats.newcombe_interval(x1, n1, x2, n2)
+    assert got == pytest.approx((low, high), abs=5e-5)
+
+
+@pytest.mark.parametrize(("x", "n"), [(0, 20), (20, 20), (17, 20), (1, 3), (55, 58)])
+def test_wilson_interval_matches_scipy(x, n):
+    expected = sps.binomtest(x, n).proportion_ci(confidence_level=0.95, method="wilson")
+    assert stats.wilson_interval(x, n) == pytest.approx((expected.low, expected.high), abs=1e-12)
+
+
+def test_median_interval_is_the_sign_test_interval():
+    values = np.random.default_rng(3).normal(size=20)
+    median, (low, high) = stats.median_interval(values)
+    # independent: the widest symmetric ranks (k, n + 1 - k) with P(Binomial(20, 1/2) < k) <= 2.5 %
+    k = max(k for k in range(1, 11) if sps.binom.cdf(k - 1, 20, 0.5) <= 0.025)
+    ordered = np.sort(values)
+    assert (low, high) == (ordered[k - 1], ordered[20 - k])
+    assert k == 6 and median == np.median(values)
+    assert math.isnan(stats.median_interval(values[:5])[1][0])  # 5 values cannot bound a median at 95 %
+
+
+def test_welch_interval_matches_scipy_and_degenerates_to_nan_or_a_point():
+    rng = np.random.default_rng(4)
+    baseline, current = rng.normal(0.5, 0.02, 25), rng.normal(0.48, 0.05, 18)
+    difference, (low, high) = stats.welch_interval(baseline, current)
+    expected = sps.ttest_ind(current, baseline, equal_var=False).confidence_interval(0.95)
+    assert difference == pytest.approx(current.mean() - baseline.mean(), abs=1e-15)
+    assert (low, high) == pytest.approx((expected.low, expected.high), abs=1e-12)
+    assert math.isnan(stats.welch_interval(baseline, current[:1])[1][0])  # one value has no variance
+    assert stats.welch_interval(np.full(5, 2.0), np.full(4, 3.0)) == (1.0, (1.0, 1.0))  # no spread: exact
+
+
+def test_wilcoxon_and_ks_p_values_match_scipy_with_their_edge_cases():
+    differences = np.random.default_rng(5).normal(0.3, 1.0, 30)
+    assert stats.wilcoxon_p(differences) == pytest.approx(sps.wilcoxon(differences).pvalue, rel=1e-12)
+    assert stats.wilcoxon_p(np.zeros(8)) == 1.0  # no change at all: scipy would refuse
+    assert math.isnan(stats.wilcoxon_p([]))
+    a, b = differences[:15], differences[15:] + 1.0
+    assert stats.ks_p(a, b) == pytest.approx(sps.ks_2samp(a, b).pvalue, rel=1e-12)
+    assert math.isnan(stats.ks_p(a, []))

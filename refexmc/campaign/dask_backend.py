@@ -38,7 +38,7 @@ from functools import partial
 from pathlib import Path
 
 from refexmc.campaign import worker as guarded
-from refexmc.campaign.backends import TASKS_PER_WORKER, ChunkAssembler, error_row
+from refexmc.campaign.assembly import TASKS_PER_WORKER, ChunkAssembler, Task, error_row
 from refexmc.config.errors import ConfigError
 
 EXTRA_MISSING = "the dask backend needs the optional extra: pip install 'refexmc[dask]'"
@@ -122,13 +122,6 @@ def connect(scheduler, jobs):
         cluster.close()
 
 
-class _Task:
-    def __init__(self, chunk, run_ids, isolated=False):
-        self.chunk = chunk
-        self.run_ids = list(run_ids)
-        self.isolated = isolated
-
-
 def _limit_reason(guard):
     return f"wall-time limit exceeded ({guard.time_limit_s:g} s)"
 
@@ -146,7 +139,7 @@ def dask_backend(campaign, chunks, jobs, guard, scheduler=None):
 def _fly_chunks(distributed, client, campaign, chunks, guard):
     assembler = ChunkAssembler(chunks)
     received = {}  # chunk -> run ids whose rows arrived (a result must not count twice)
-    queue = deque(_Task(chunk, run_ids) for chunk, run_ids in chunks)
+    queue = deque(Task(chunk, run_ids) for chunk, run_ids in chunks)
     isolate = deque()  # runs of a task Dask gave up: flown one at a time with nothing else in flight
     inflight = {}
     prefix = f"refexmc-{uuid.uuid4().hex[:12]}"
@@ -217,9 +210,9 @@ def _given_up(campaign, task, hung, guard, queue, isolate):
         errors += [error_row(campaign, run_id, DIED) for run_id in rest]
     elif errors:
         if rest:
-            queue.appendleft(_Task(task.chunk, rest))
+            queue.appendleft(Task(task.chunk, rest))
     else:
-        isolate.extend(_Task(task.chunk, [run_id], isolated=True) for run_id in rest)
+        isolate.extend(Task(task.chunk, [run_id], isolated=True) for run_id in rest)
     return errors
 
 

@@ -102,7 +102,8 @@ def render_figures(campaign, summary):
     result = []
     histories = aggregate.aggregate_histories(campaign)
     nominal = "nominal (run 0, black)" if campaign.nominal_run_id is not None else "no nominal run"
-    if histories is not None:
+    modes_png = figures.modes_figure(histories) if histories is not None else None
+    if modes_png is not None:
         result.append(
             (
                 "Angle and rate errors per mode (000 Fig. 11 analogue)",
@@ -110,7 +111,7 @@ def render_figures(campaign, summary):
                 "run aligned at the start of each mode (from the runs table's time per mode). Gray bands: min-max "
                 f"and 1-99 % of the ok runs at each time since mode start, line: median; {nominal}. Envelopes are "
                 f"read from per-bin histograms of {histories['rows']} history samples (80 bins per decade).",
-                figures.modes_figure(histories),
+                modes_png,
                 "modes",
             )
         )

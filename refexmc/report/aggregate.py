@@ -11,7 +11,6 @@ import math
 
 import numpy as np
 
-from refexmc.core.layout import MODE_NAMES
 from refexmc.report import data
 
 MAX_TIME_BINS = 600
@@ -64,9 +63,9 @@ def log_edges(low, high, per_decade=80):
     return np.geomspace(low, high, int(round(math.log10(high / low) * per_decade)) + 1)
 
 
-def mode_starts(runs):
+def mode_starts(runs, mode_time_columns):
     """[run, mode] start time of each mode [s] from the runs table's time per mode (modes are sequential)."""
-    times = runs[data.MODE_TIME_COLUMNS].to_numpy(dtype=float)
+    times = runs[mode_time_columns].to_numpy(dtype=float)
     times = np.nan_to_num(times, nan=0.0)
     return np.concatenate([np.zeros((len(runs), 1)), np.cumsum(times, axis=1)[:, :-1]], axis=1)
 
@@ -74,8 +73,10 @@ def mode_starts(runs):
 def aggregate_histories(campaign):
     """Envelopes of theta_t and |omega_m| per mode (aligned at mode start) and of propellant over time.
 
-    Returns a dict: ``modes`` {quantity: (BinnedQuantiles, percentiles)}, ``propellant``
+    Returns a dict: ``mode_names`` (the campaign's, in flight order: the groups of the envelopes),
+    ``modes`` {quantity: (BinnedQuantiles, percentiles)}, ``propellant``
     (BinnedQuantiles over absolute time, percentiles), ``mode_durations`` (max per mode),
+    ``valve_samples`` (per mode, samples with a valve open),
     ``nominal`` (the nominal run's samples as arrays, or None) and ``rows`` (samples read).
     Only runs with status ok contribute.
     """
@@ -83,21 +84,25 @@ def aggregate_histories(campaign):
     if not campaign.history_parts or ok.empty:
         return None
     run_ids = ok["run_id"].to_numpy(dtype=np.int64)
-    starts = mode_starts(ok)
-    durations = np.nan_to_num(ok[data.MODE_TIME_COLUMNS].to_numpy(dtype=float), nan=0.0).max(axis=0)
+    modes = campaign.modes
+    time_columns = campaign.mode_time_columns
+    starts = mode_starts(ok, time_columns)
+    durations = np.nan_to_num(ok[time_columns].to_numpy(dtype=float), nan=0.0).max(axis=0)
     t_end = float(np.nanmax(ok["t_end_s"].to_numpy(dtype=float))) if "t_end_s" in ok else 0.0
     sample_dt = 1.0 / campaign.history_rate_hz
-    mode_dt = max(sample_dt, float(durations.max()) / MAX_TIME_BINS)
-    mode_bins = int(durations.max() / mode_dt) + 2
+    longest_mode = float(durations.max(initial=0.0))
+    mode_dt = max(sample_dt, longest_mode / MAX_TIME_BINS)
+    mode_bins = int(longest_mode / mode_dt) + 2
     fuel_dt = max(sample_dt, t_end / MAX_TIME_BINS)
     fuel_bins = int(t_end / fuel_dt) + 2
-    angle = BinnedQuantiles(len(MODE_NAMES), mode_bins, mode_dt, log_edges(1e-4, 1e3), log=True)
-    rate = BinnedQuantiles(len(MODE_NAMES), mode_bins, mode_dt, log_edges(1e-5, 1e3), log=True)
+    angle = BinnedQuantiles(len(modes), mode_bins, mode_dt, log_edges(1e-4, 1e3), log=True)
+    rate = BinnedQuantiles(len(modes), mode_bins, mode_dt, log_edges(1e-5, 1e3), log=True)
     fuel = BinnedQuantiles(1, fuel_bins, fuel_dt, np.linspace(0.0, 1.0, 1001))
+    valve_samples = np.zeros(len(modes), dtype=np.int64)
     nominal_id = campaign.nominal_run_id
     nominal_parts = []
     rows = 0
-    columns = ["run_id", "t_s", "mode", "theta_t_deg", "omega_m_deg_s", "fuel_remaining"]
+    columns = ["run_id", "t_s", "mode", "theta_t_deg", "omega_m_deg_s", "fuel_remaining", "valves_open"]
     for batch in data.history_batches(campaign, columns):
         rows += batch.num_rows
         rid = batch.column("run_id").to_numpy(zero_copy_only=False)
@@ -108,11 +113,13 @@ def aggregate_histories(campaign):
             batch = batch.filter(position_ok)
             rid, position = rid[position_ok], position[position_ok]
         t = batch.column("t_s").to_numpy(zero_copy_only=False)
-        mode = data.mode_codes(batch.column("mode")).astype(np.int64)
+        mode = data.mode_codes(batch.column("mode"), modes).astype(np.int64)
         theta = batch.column("theta_t_deg").to_numpy(zero_copy_only=False)
         omega = np.abs(batch.column("omega_m_deg_s").to_numpy(zero_copy_only=False))
         propellant = batch.column("fuel_remaining").to_numpy(zero_copy_only=False)
         known = mode >= 0
+        valves = batch.column("valves_open").to_numpy(zero_copy_only=False)
+        valve_samples += np.bincount(mode[known & (valves != 0)], minlength=len(modes))
         tau = np.full(len(t), np.nan)
         tau[known] = t[known] - starts[position[known], mode[known]]
         angle.add(mode, tau, theta)
@@ -131,13 +138,25 @@ def aggregate_histories(campaign):
         )
         nominal = {key: value[order] for key, value in nominal.items()}
     return {
+        "mode_names": list(modes),
         "modes": {
             "theta_t_deg": (angle, angle.quantiles(ENVELOPE_PERCENTS)),
             "omega_m_deg_s": (rate, rate.quantiles(ENVELOPE_PERCENTS)),
         },
         "propellant": (fuel, fuel.quantiles(ENVELOPE_PERCENTS)),
         "mode_durations": durations,
+        "valve_samples": valve_samples,
         "percents": ENVELOPE_PERCENTS,
         "nominal": nominal,
         "rows": rows,
     }
+
+
+def plotted_modes(aggregate):
+    """Indices of the modes to plot, in flight order: those where the vehicle is controlled, that is
+    with a finite angle error or a valve open in some run. A coast (ReFEx's NCM) has neither; a rate
+    damping mode (RDM1) has valves but no angle error. When no mode is controlled, those with samples."""
+    angle, _ = aggregate["modes"]["theta_t_deg"]
+    rate, _ = aggregate["modes"]["omega_m_deg_s"]
+    controlled = np.flatnonzero(angle.sample_counts().sum(axis=1) + aggregate["valve_samples"])
+    return [int(m) for m in (controlled if len(controlled) else np.flatnonzero(rate.sample_counts().sum(axis=1)))]

@@ -57,6 +57,7 @@ from scipy import stats as sps
 
 from refexmc.config.errors import ConfigError
 from refexmc.report import data, stats
+from refexmc.report.stats import ks_p, median_interval, newcombe_interval, welch_interval, wilcoxon_p
 from refexmc.report.text import number
 
 ALPHA = 1.0 - stats.CONFIDENCE  # two-sided level of every test and interval: 5 %
@@ -143,81 +144,7 @@ class Comparison:
         return not self.regressions
 
 
-# --- statistics --------------------------------------------------------------------------------
-
-
-def wilson_interval(successes, n, confidence=stats.CONFIDENCE):
-    """Wilson score interval of a binomial proportion; (nan, nan) for n = 0."""
-    if n == 0:
-        return math.nan, math.nan
-    z = float(sps.norm.ppf(1.0 - (1.0 - confidence) / 2.0))
-    centre = (successes + z * z / 2.0) / (n + z * z)
-    half = z * math.sqrt(successes * (n - successes) / n + z * z / 4.0) / (n + z * z)
-    return max(0.0, centre - half), min(1.0, centre + half)
-
-
-def newcombe_interval(x1, n1, x2, n2, confidence=stats.CONFIDENCE):
-    """Newcombe's hybrid score interval of p1 - p2 (x1/n1 - x2/n2); (nan, nan) if either n is 0.
-
-    Newcombe, Statistics in Medicine 17 (1998) 873-890, method 10: with Wilson intervals
-    [l_i, u_i] of each rate, d - sqrt((p1 - l1)^2 + (u2 - p2)^2) ... d + sqrt((u1 - p1)^2 + (p2 - l2)^2).
-    """
-    if n1 == 0 or n2 == 0:
-        return math.nan, math.nan
-    p1, p2 = x1 / n1, x2 / n2
-    l1, u1 = wilson_interval(x1, n1, confidence)
-    l2, u2 = wilson_interval(x2, n2, confidence)
-    d = p1 - p2
-    return d - math.sqrt((p1 - l1) ** 2 + (u2 - p2) ** 2), d + math.sqrt((u1 - p1) ** 2 + (p2 - l2) ** 2)
-
-
-def welch_interval(baseline, current, confidence=stats.CONFIDENCE):
-    """mean(current) - mean(baseline) and its Welch (unequal variances) t interval; NaN below 2 values."""
-    baseline, current = np.asarray(baseline, float), np.asarray(current, float)
-    nb, nc = len(baseline), len(current)
-    if nb < 2 or nc < 2:
-        d = current.mean() - baseline.mean() if nb and nc else math.nan
-        return float(d), (math.nan, math.nan)
-    d = float(current.mean() - baseline.mean())
-    vb, vc = baseline.var(ddof=1) / nb, current.var(ddof=1) / nc
-    se = math.sqrt(vb + vc)
-    if se == 0.0:
-        return d, (d, d)
-    df = (vb + vc) ** 2 / (vb**2 / (nb - 1) + vc**2 / (nc - 1))
-    t = float(sps.t.ppf(1.0 - (1.0 - confidence) / 2.0, df))
-    return d, (d - t * se, d + t * se)
-
-
-def median_interval(values, confidence=stats.CONFIDENCE):
-    """Median and its distribution-free two-sided interval (order statistics, as the sign test).
-
-    Each side is a one-sided bound at (1 + confidence) / 2 from ``stats.percentile_bound``;
-    (nan, nan) with fewer than 6 values at 95 %.
-    """
-    values = np.sort(np.asarray(values, float))
-    if len(values) == 0:
-        return math.nan, (math.nan, math.nan)
-    side = 1.0 - (1.0 - confidence) / 2.0
-    low = stats.percentile_bound(values, 50.0, "lower", side)
-    high = stats.percentile_bound(values, 50.0, "upper", side)
-    return float(np.median(values)), (low, high)
-
-
-def wilcoxon_p(differences):
-    """Two-sided Wilcoxon signed-rank p-value of paired differences (zeros dropped); 1 when all are 0."""
-    differences = np.asarray(differences, float)
-    if len(differences) == 0:
-        return math.nan
-    if not np.any(differences != 0.0):
-        return 1.0
-    return float(sps.wilcoxon(differences).pvalue)
-
-
-def ks_p(baseline, current):
-    """Two-sided two-sample Kolmogorov-Smirnov p-value; NaN when a sample is empty."""
-    if len(baseline) == 0 or len(current) == 0:
-        return math.nan
-    return float(sps.ks_2samp(baseline, current).pvalue)
+# --- verdict -----------------------------------------------------------------------------------
 
 
 def verdict(better, difference, significant, tolerance):

@@ -6,6 +6,7 @@ figure needs, part file by part file, so memory stays bounded whatever the campa
 """
 
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,13 +16,40 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from refexmc.campaign import storage
-from refexmc.config import requirements
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import read_yaml
-from refexmc.core.layout import MODE_NAMES
 
-MODE_TIME_COLUMNS = list(requirements.MODE_TIME_COLUMNS)
 HISTORY_BATCH_ROWS = 1 << 18
+MODE_TIME_PATTERN = re.compile(r"^t_(.+)_s$")  # the runs table's time spent in each mode
+FLIGHT_TIME_COLUMN = "t_end_s"  # matches the pattern but is the whole flight
+
+
+def mode_time_column(name):
+    """The runs-table column of the time spent in mode ``name``: ``t_<name lower-cased>_s``."""
+    return f"t_{name.lower()}_s"
+
+
+def mode_names(manifest, runs_columns, file=None):
+    """The campaign's mode display names in flight order.
+
+    From ``manifest.json`` ``"modes"``; for an output written before that key existed, from the
+    runs table's ``t_<mode>_s`` columns (other than ``t_end_s``) in table order, upper-cased.
+    ConfigError (naming ``file``) when ``"modes"`` is not a list of distinct names.
+    """
+    listed = (manifest or {}).get("modes")
+    if listed is None:
+        return [
+            found.group(1).upper()
+            for column in runs_columns
+            if column != FLIGHT_TIME_COLUMN and (found := MODE_TIME_PATTERN.match(column))
+        ]
+    names = listed if isinstance(listed, list) else []
+    columns = [mode_time_column(name) for name in names if isinstance(name, str) and name.strip()]
+    if not names or len(columns) != len(names) or len(set(columns)) != len(columns):
+        raise ConfigError(f"expected a list of distinct mode names, got {listed!r}", file=file, path=("modes",))
+    if FLIGHT_TIME_COLUMN in columns:
+        raise ConfigError(f"no mode may be named 'end': {FLIGHT_TIME_COLUMN} is the flight", file=file, path=("modes",))
+    return list(names)
 
 
 @dataclass
@@ -75,6 +103,16 @@ class Campaign:
         return [c for c in self.runs.columns if c.startswith("p.")]
 
     @property
+    def modes(self):
+        """Mode display names in flight order (:func:`mode_names`)."""
+        return mode_names(self.manifest, self.runs.columns)
+
+    @property
+    def mode_time_columns(self):
+        """Runs columns of the time spent in each mode, in flight order."""
+        return [mode_time_column(name) for name in self.modes]
+
+    @property
     def history_rate_hz(self):
         return float((self.resolved.get("output") or {}).get("history_rate_hz", 2.0))
 
@@ -104,6 +142,14 @@ def load(out):
             runs[column] = runs[column].astype(object).where(runs[column].notna(), None)
     if "failed_thrusters" in runs:
         runs["failed_thrusters"] = runs["failed_thrusters"].fillna("")
+    names = mode_names(manifest, runs.columns, file=manifest_path)
+    missing = [mode_time_column(name) for name in names if mode_time_column(name) not in runs.columns]
+    if missing:
+        raise ConfigError(
+            f"the runs table lacks the time of modes listed in manifest.json: {', '.join(missing)}",
+            file=manifest_path,
+            path=("modes",),
+        )
     return Campaign(
         out=out,
         runs=runs,
@@ -180,14 +226,19 @@ def id_ranges(ids, limit=LISTED_IDS):
     return ", ".join(text) + (", ..." if len(ranges) > limit else "")
 
 
-def mode_codes(column):
-    """Mode of each history row as an index into MODE_NAMES (-1 for an unknown name)."""
+def mode_codes(column, modes):
+    """Mode of each history row as an index into ``modes`` (-1 for an unknown name).
+
+    Names match without regard to case, as their ``t_<mode>_s`` columns do (an output without
+    ``"modes"`` in its manifest knows them only upper-cased).
+    """
     if pa.types.is_dictionary(column.type):
+        index = {name.lower(): k for k, name in enumerate(modes)}
         names = column.dictionary.to_pylist()
-        lookup = np.array([MODE_NAMES.index(n) if n in MODE_NAMES else -1 for n in names], dtype=np.int16)
+        lookup = np.array([index.get(str(n).lower(), -1) for n in names], dtype=np.int16)
         indices = column.indices.to_numpy(zero_copy_only=False)
         return lookup[indices] if len(lookup) else np.full(len(indices), -1, np.int16)
-    return mode_codes(column.dictionary_encode())
+    return mode_codes(column.dictionary_encode(), modes)
 
 
 def history_batches(campaign, columns, batch_rows=HISTORY_BATCH_ROWS):

@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from refexmc.core.layout import MODE_NAMES
+from refexmc.report.aggregate import plotted_modes
 from refexmc.report.summary import PAPER_COMPENSABLE
 
 DPI = 100
@@ -48,8 +48,14 @@ def _envelope(ax, x, q, label_runs=True):
 
 
 def modes_figure(aggregate, nominal_label="nominal"):
-    """000 Fig. 11 analogue: per mode (RDM1 ... GEEM), runs aligned at the mode's start."""
-    modes = list(range(1, len(MODE_NAMES)))  # NCM has no control and no angle error
+    """000 Fig. 11 analogue: per controlled mode (``plotted_modes``), runs aligned at the mode's start.
+
+    None when no mode has a sample.
+    """
+    modes = plotted_modes(aggregate)
+    if not modes:
+        return None
+    names = aggregate["mode_names"]
     durations = np.asarray(aggregate["mode_durations"], dtype=float)
     widths = [max(durations[m], 0.08 * durations.max(), 1e-3) for m in modes]
     figure = Figure(figsize=(13, 6.5), layout="constrained")
@@ -77,12 +83,12 @@ def modes_figure(aggregate, nominal_label="nominal"):
             ax.set_xlim(0, max(durations[m], binned.dt))
             ax.grid(True, which="major", lw=0.3)
             if r == 0:
-                ax.set_title(MODE_NAMES[m])
+                ax.set_title(names[m])
             if r == 1:
                 ax.set_xlabel("s since mode start", fontsize=8)
             if c == 0:
                 ax.set_ylabel(ylabel)
-                if r == 0:
+                if r == 0 and ax.get_legend_handles_labels()[0]:
                     ax.legend(fontsize=7, loc="lower left")
             else:
                 ax.tick_params(labelleft=False)

@@ -4,7 +4,6 @@ import base64
 import html
 import math
 
-from refexmc.core.layout import MODE_NAMES
 from refexmc.report.requirements import requirement_label
 from refexmc.report.text import TABLE_STATS, TAIL_TITLES, number, percent
 
@@ -254,7 +253,9 @@ def page(summary, figures, sensitivity_labels):
                 f"<p>Dispersed runs using more propellant than the nominal run: {against['more_than_nominal']} "
                 f"of {against['of']} ({100 * against['share']:.1f} %).</p>"
             )
-    body.append(f"<p>Modes: {e(' → '.join(MODE_NAMES))}. Numbers: <code>summary.json</code> beside this page.</p>")
+    body.append(
+        f"<p>Modes: {e(' → '.join(summary['modes']))}. Numbers: <code>summary.json</code> beside this page.</p>"
+    )
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         f"<title>refexmc report: {e(c['name'])}</title><style>{STYLE}</style></head><body>\n"

@@ -5,7 +5,6 @@ import shlex
 
 import numpy as np
 
-from refexmc.core.layout import MODE_NAMES
 from refexmc.report import data, stats, tails
 from refexmc.report.requirements import campaign_metric_covers
 
@@ -88,7 +87,7 @@ def statistics_columns(campaign):
     """The runs columns of the statistics tables, in display order: those with a declared tail."""
     runs = campaign.runs
     columns = [c for c in KEY_COLUMNS if c in runs]
-    columns += [c for c in data.MODE_TIME_COLUMNS if c in runs]
+    columns += [c for c in campaign.mode_time_columns if c in runs]
     columns += [c for c in runs.columns if c.startswith("pulses_") and c[7:].isdigit()]
     return [c for c in columns if tails.worse_tail(c) is not None]
 
@@ -368,7 +367,7 @@ def build(campaign):
         "sensitivity": sensitivity(campaign) if campaign.parameter_columns and n_ok >= 3 else None,
         "convergence": convergence(campaign) if n_ok >= 2 else None,
         "worst_cases": worst_cases(campaign),
-        "modes": list(MODE_NAMES),
+        "modes": list(campaign.modes),
         "notes": notes,
     }
     return summary

@@ -2,7 +2,7 @@
 
 import math
 
-from refexmc.core.layout import MODE_NAMES
+from refexmc.report.data import mode_time_column
 from refexmc.report.requirements import requirement_label
 
 # the statistics tables: (stat key, header) per worse tail (refexmc.report.tails)
@@ -100,8 +100,8 @@ def format_summary(summary, report_dir=None):
     lines.append("")
     lines += statistics_lines(summary)
     modes = []
-    for name in MODE_NAMES:
-        values = summary["columns"].get(f"t_{name.lower()}_s")
+    for name in summary["modes"]:
+        values = summary["columns"].get(mode_time_column(name))
         if values:
             modes.append(f"{name} {number(values['median'], 3)}/{number(values['max'], 3)}")
     if modes:

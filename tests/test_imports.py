@@ -1,0 +1,70 @@
+"""The package's import graph has no cycle, counting the imports inside functions (lazy ones) too."""
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "refexmc"
+
+
+def module_files():
+    """{dotted module name: file} of every module of refexmc."""
+    modules = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        modules[name] = path
+    return modules
+
+
+def import_graph():
+    """{module: the refexmc modules it imports anywhere in its file}."""
+    modules = module_files()
+    graph = {}
+    for name, path in modules.items():
+        imported = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("refexmc"):
+                for alias in node.names:  # `from refexmc.x import y`: module refexmc.x.y if there is one
+                    submodule = f"{node.module}.{alias.name}"
+                    imported.add(submodule if submodule in modules else node.module)
+            elif isinstance(node, ast.Import):
+                imported.update(alias.name for alias in node.names if alias.name.startswith("refexmc"))
+        graph[name] = {module for module in imported if module in modules and module != name}
+    return graph
+
+
+def find_cycle(graph):
+    """One import cycle as a list of modules (first repeated last), or None."""
+    state = {}  # module -> "open" while on the path, "done" after
+
+    def visit(module, path):
+        state[module] = "open"
+        for imported in sorted(graph[module]):
+            if state.get(imported) == "open":
+                return [*path[path.index(imported) :], imported]
+            if imported not in state:
+                cycle = visit(imported, [*path, imported])
+                if cycle:
+                    return cycle
+        state[module] = "done"
+        return None
+
+    for module in sorted(graph):
+        if module not in state:
+            cycle = visit(module, [module])
+            if cycle:
+                return cycle
+    return None
+
+
+def test_find_cycle_finds_a_lazy_cycle_and_accepts_a_tree():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) is None
+
+
+def test_refexmc_has_no_import_cycle():
+    graph = import_graph()
+    assert "refexmc.campaign.assembly" in graph["refexmc.campaign.dask_backend"]  # the graph sees the imports
+    assert "refexmc.campaign.dask_backend" in graph["refexmc.campaign.backends"]  # lazy ones too
+    cycle = find_cycle(graph)
+    assert cycle is None, f"import cycle: {' -> '.join(cycle)}"
