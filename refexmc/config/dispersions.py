@@ -79,7 +79,9 @@ def _params():
         Parameter("navigation.attitude_noise_deg", "deg", "attitude white noise, 1 sigma per axis", "scalar"),
         Parameter("navigation.rate_bias_deg_s", "deg/s", "rate measurement bias", "vector"),
         Parameter("navigation.rate_noise_deg_s", "deg/s", "rate white noise, 1 sigma per axis", "scalar"),
-        Parameter("navigation.ssm_calibration_time_s", "s", "attitude-bias decay time constant in calibrating modes", "scalar"),
+        Parameter(
+            "navigation.ssm_calibration_time_s", "s", "attitude-bias decay time constant in calibrating modes", "scalar"
+        ),
         Parameter("atmosphere.density_scale", "-", "factor on every density of the atmosphere table", "scalar", 0.0),
     ]
     return {param.path: _with_schema_range(param) for param in p}
