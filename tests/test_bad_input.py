@@ -327,7 +327,7 @@ MISSION_CASES = [
     (
         "predicate-the-kind-cannot-answer",
         _mission_edit("exit: [{time_in_mode_s: 5.0}]", "exit: [{guidance_finished: true}]"),
-        ["modes.0.exit.0.guidance_finished", "needs a guidance profile", "kind locked has none"],
+        ["modes.0.exit.0.guidance_finished", "needs a profile (rate_damping, slew, spin_up)", "kind locked has none"],
         "guidance_finished: true}]",
     ),
     ("empty-mode-list", _EMPTY, ["modes", "expected 1..32 items, got 0"], "modes: []"),
@@ -363,3 +363,19 @@ def test_allocation_naming_a_missing_thruster_is_refused(tmp_path):
     line = next(n for n, s in enumerate(text.splitlines(), 1) if '"+z": [9]' in s)
     assert f"{path}:{line}:" in result.output
     assert "flight_software.allocation.+z.0" in result.output and "expected a thruster id 1..8, got 9" in result.output
+
+
+def test_a_mission_the_vehicle_cannot_fly_is_refused_in_the_mission_file(tmp_path):
+    """generic-12 has no trajectory: a mode that ends on altitude is refused at its line."""
+    mission = (ROOT / "configs/missions/generic-slew.yaml").read_text()
+    bad = mission.replace("exit: [{time_in_mode_s: 60.0}]", "exit: [{altitude_below_m: 1000.0}]")
+    (tmp_path / "mission.yaml").write_text(bad)
+    campaign = (ROOT / "campaigns/generic-slew.yaml").read_text()
+    campaign = campaign.replace("../configs/missions/generic-slew.yaml", str(tmp_path / "mission.yaml"))
+    campaign = campaign.replace("../configs/", f"{ROOT}/configs/")
+    (tmp_path / "campaign.yaml").write_text(campaign)
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "campaign.yaml")])
+    assert result.exit_code == 2
+    line = next(n for n, s in enumerate(bad.splitlines(), 1) if "altitude_below_m: 1000.0" in s)
+    assert f"{tmp_path / 'mission.yaml'}:{line}:" in result.output, result.output
+    assert "predicate altitude_below_m needs a trajectory; the vehicle has none" in result.output

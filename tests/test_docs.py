@@ -131,3 +131,13 @@ def test_every_exit_code_is_in_the_interface_table():
     codes = [int(code) for code in re.findall(r"^\| (\d+) \|", table, flags=re.M)]
     interrupted = [CampaignInterrupted(signum).exit_code for signum in (signal.SIGINT, signal.SIGTERM)]
     assert codes == [0, 1, 2, *interrupted] == [0, 1, 2, 130, 143]
+
+
+def test_missions_doc_names_every_kind_target_and_predicate():
+    """docs/missions.md documents the whole mode vocabulary the schema accepts."""
+    from refexmc.config import schema
+
+    text = (ROOT / "docs" / "missions.md").read_text()
+    names = [*schema.MODE_KINDS, *schema.TARGET_TYPES, *schema.EXIT_PREDICATES]
+    missing = [name for name in names if f"`{name}" not in text]
+    assert not missing, f"docs/missions.md does not describe: {missing}"

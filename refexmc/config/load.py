@@ -219,65 +219,49 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         fail(message, "inertia_kg_m2")
 
 
-# exit predicates that need the mode's guidance: a profile with t1, an attitude reference, a rate reference
-_NEEDS_PROFILE = ("guidance_finished",)
-_NEEDS_ATTITUDE = ("angle_error_below_deg",)
-_NEEDS_RATE_REFERENCE = ("rate_error_below_deg_s",)
-_PROFILE_KINDS = ("rate_damping", "slew", "spin_up")
-_RATE_REFERENCE_KINDS = ("rate_damping", "slew", "spin_up", "hold", "track")
-
-
 def check_modes(modes, fail):
-    """The mode program: unique names, targets the kinds can use, predicates the kinds can answer."""
+    """The mode program: unique names, the keys and targets each kind takes, the predicates it can
+    answer (schema.MODE_KINDS, schema.EXIT_PREDICATES)."""
+    kind_keys = {key for spec in schema.MODE_KINDS.values() for keys in spec["keys"] for key in keys}
     seen = {}
     for m, mode in enumerate(modes):
         name, kind = mode["name"], mode["kind"]
+        spec = schema.MODE_KINDS[kind]
         key = name.lower()
         if key == "end":
             fail("'end' is not a mode name (its time column would be t_end_s, the flight's end)", "modes", m, "name")
         if key in seen:
             fail(f"mode name '{name}' is used twice (also mode {seen[key] + 1})", "modes", m, "name")
         seen[key] = m
-        allowed = schema.KIND_TARGETS[kind]
-        target = mode.get("target")
+        required, optional = spec["keys"]
+        for k in required:
+            if k not in mode:
+                fail(f"kind {kind} needs '{k}'", "modes", m)
+        for k in sorted(kind_keys & set(mode) - set(required) - set(optional)):
+            fail(f"kind {kind} takes no '{k}'", "modes", m, k)
+        allowed, target = spec["targets"], mode.get("target")
         if allowed is None and target is not None:
             fail(f"kind {kind} takes no target", "modes", m, "target")
         if allowed is not None and target is None:
             fail(f"kind {kind} needs a target ({', '.join(allowed)})", "modes", m)
         if target is not None and target["type"] not in allowed:
-            fail(
-                f"kind {kind} cannot use target {target['type']}; expected one of {', '.join(allowed)}",
-                "modes",
-                m,
-                "target",
-                "type",
-            )
+            message = f"kind {kind} cannot use target {target['type']}; expected one of {', '.join(allowed)}"
+            fail(message, "modes", m, "target", "type")
         if target is not None and target["type"] == "inertial":
             has_q, has_euler = "quaternion" in target, "euler_deg" in target or "sequence" in target
             if has_q == has_euler or (has_euler and not ("euler_deg" in target and "sequence" in target)):
                 fail("expected either 'quaternion' or both 'euler_deg' and 'sequence'", "modes", m, "target")
             if has_q and np.linalg.norm(target["quaternion"]) == 0.0:
                 fail("expected a non-zero quaternion", "modes", m, "target", "quaternion")
-        if (kind == "spin_up") != ("rate_deg_s" in mode):
-            fail(
-                "kind spin_up needs 'rate_deg_s'" if kind == "spin_up" else f"kind {kind} takes no 'rate_deg_s'",
-                "modes",
-                m,
-                *(() if kind == "spin_up" else ("rate_deg_s",)),
-            )
-        if "t1_design_s" in mode and kind != "slew":
-            fail(f"kind {kind} takes no 't1_design_s' (slew only)", "modes", m, "t1_design_s")
         for g, group in enumerate(mode["exit"]):
             for predicate in group:
-                if predicate in _NEEDS_PROFILE and kind not in _PROFILE_KINDS:
-                    needs = f"a guidance profile ({', '.join(_PROFILE_KINDS)})"
-                elif predicate in _NEEDS_ATTITUDE and schema.KIND_TARGETS[kind] is None and kind != "spin_up":
-                    needs = "an attitude reference (slew, spin_up, hold, track)"
-                elif predicate in _NEEDS_RATE_REFERENCE and kind not in _RATE_REFERENCE_KINDS:
-                    needs = f"a rate reference ({', '.join(_RATE_REFERENCE_KINDS)})"
-                else:
+                needs = schema.EXIT_PREDICATES[predicate][2]
+                if needs in (None, "trajectory") or needs in spec["provides"]:
                     continue
-                fail(f"predicate {predicate} needs {needs}; kind {kind} has none", "modes", m, "exit", g, predicate)
+                kinds = [k for k, s in schema.MODE_KINDS.items() if needs in s["provides"]]
+                what = needs.replace("_", " ")
+                message = f"predicate {predicate} needs a {what} ({', '.join(kinds)}); kind {kind} has none"
+                fail(message, "modes", m, "exit", g, predicate)
 
 
 def check_mission(mission, file, lines, prefix=()):
@@ -301,10 +285,6 @@ def check_mission(mission, file, lines, prefix=()):
         )
 
 
-_NEEDS_TRAJECTORY = ("altitude_below_m", "descending", "dynamic_pressure_above_pa")
-_TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
-
-
 def check_flight(vehicle, mission, fail_mission, fail_vehicle):
     """What a vehicle and a mission need of each other: a trajectory model and its inputs, given
     gains for the pd controller. ``fail_*(message, *key_path)`` raise in the file concerned."""
@@ -322,11 +302,11 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
         return
     for m, mode in enumerate(mission["modes"]):
         target = mode.get("target", {}).get("type")
-        if target in _TRAJECTORY_TARGETS:
+        if target in schema.TRAJECTORY_TARGETS:
             fail_mission(f"target {target} needs a trajectory; the vehicle has none", "modes", m, "target", "type")
         for g, group in enumerate(mode["exit"]):
             for predicate in group:
-                if predicate in _NEEDS_TRAJECTORY:
+                if schema.EXIT_PREDICATES[predicate][2] == "trajectory":
                     fail_mission(
                         f"predicate {predicate} needs a trajectory; the vehicle has none",
                         "modes",

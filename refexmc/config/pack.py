@@ -3,7 +3,6 @@
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from refexmc.config import derived, schema
 from refexmc.core import layout as L
@@ -142,6 +141,8 @@ def target_quaternion(target):
     if "quaternion" in target:
         q = np.asarray(target["quaternion"], dtype=float)
         return q / np.linalg.norm(q)
+    from scipy.spatial.transform import Rotation  # only for Euler targets: scipy costs 0.4 s to import
+
     return Rotation.from_euler(target["sequence"], target["euler_deg"], degrees=True).as_quat()
 
 
@@ -175,7 +176,7 @@ def pack_modes(mission):
         _put(row, L.MODE, "predicted_at_altitude_m", target.get("predicted_at_altitude_m", 0.0))
         _put(row, L.MODE, "exit_first_row", len(exit_rows))
         for group, predicates in enumerate(mode["exit"]):
-            ranked = sorted(predicates, key=lambda name: schema.EXIT_PREDICATES[name][1])
+            ranked = sorted(predicates, key=lambda name: schema.EXIT_PREDICATES[name][1])  # cheap first
             for name in ranked:
                 value = _predicate_value(name, predicates[name])
                 exit_rows.append([group, core_modes.PREDICATES[name], value])

@@ -191,23 +191,50 @@ VEHICLE = obj(
 )
 
 # --- the mode program (refexmc.core.modes): kinds, targets and exit predicates by name -------
+# A kind: what it is, the targets it can use (None: it takes no target), the mode keys only it
+# takes (required, optional) and what its guidance provides to the exit predicates
+# ("profile": a transition time t1; "rate_reference"; "attitude_reference").
 MODE_KINDS = {
-    "locked": "no reference, actuators off (000 sec. 2.2, NCM)",
-    "rate_damping": "cubic rate profile to zero from the measured rates (000 eq. 15-19)",
-    "slew": "SLERP paced by a quintic to the target, t1 from 000 eq. 13-14",
-    "spin_up": "quartic spin-up to a body rate from the last target attitude (000 eq. 20-27)",
-    "hold": "the target attitude at zero rate",
-    "track": "a moving target, recomputed every control period",
+    "locked": {
+        "doc": "no reference, actuators off (000 sec. 2.2, NCM)",
+        "targets": None,
+        "keys": ((), ()),
+        "provides": (),
+    },
+    "rate_damping": {
+        "doc": "cubic rate profile to zero from the measured rates (000 eq. 15-19)",
+        "targets": None,
+        "keys": ((), ()),
+        "provides": ("profile", "rate_reference"),
+    },
+    "slew": {
+        "doc": "SLERP paced by a quintic to the target, t1 from 000 eq. 13-14",
+        "targets": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial"),
+        "keys": ((), ("t1_design_s",)),
+        "provides": ("profile", "rate_reference", "attitude_reference"),
+    },
+    "spin_up": {
+        "doc": "quartic spin-up to a body rate from the last target attitude (000 eq. 20-27)",
+        "targets": None,
+        "keys": (("rate_deg_s",), ()),
+        "provides": ("profile", "rate_reference", "attitude_reference"),
+    },
+    "hold": {
+        "doc": "the target attitude at zero rate",
+        "targets": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial", "previous"),
+        "keys": ((), ()),
+        "provides": ("rate_reference", "attitude_reference"),
+    },
+    "track": {
+        "doc": "a moving target, recomputed every control period",
+        "targets": ("entry_velocity",),
+        "keys": ((), ()),
+        "provides": ("rate_reference", "attitude_reference"),
+    },
 }
-# kind -> targets it can use (None: it takes no target)
-KIND_TARGETS = {
-    "locked": None,
-    "rate_damping": None,
-    "slew": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial"),
-    "spin_up": None,
-    "hold": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial", "previous"),
-    "track": ("entry_velocity",),
-}
+KIND_TARGETS = {kind: spec["targets"] for kind, spec in MODE_KINDS.items()}
+# targets computed from the trajectory (a vehicle without one cannot use them)
+TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
 _ENTRY_ANGLES = {
     "alpha_deg": number("angle of attack [deg]", minimum=-90.0, maximum=90.0),
     "beta_deg": number("sideslip [deg]", minimum=-90.0, maximum=90.0),
@@ -249,21 +276,30 @@ TARGET = {
         for name, spec in TARGET_TYPES.items()
     ],
 }
-# predicate -> (schema of its value, cost rank: cheaper predicates are evaluated first)
+# predicate -> (schema of its value, cost rank: cheaper predicates are evaluated first, what it
+# needs: None, "trajectory", or what the mode's kind must provide)
 EXIT_PREDICATES = {
-    "time_in_mode_s": (number("time in mode at least [s]", minimum=0.0), 0),
-    "guidance_finished": ({"const": True, "description": "time in mode beyond the profile's t1"}, 1),
-    "descending": ({"const": True, "description": "navigated climb rate negative"}, 2),
-    "altitude_below_m": (number("navigated altitude below [m]"), 3),
-    "dynamic_pressure_above_pa": (number("dynamic pressure at least [Pa]", minimum=0.0), 4),
-    "rates_below_deg_s": (number("every measured body rate below [deg/s]", **POSITIVE), 5),
-    "rate_error_below_deg_s": (number("measured minus reference rate, norm below [deg/s]", **POSITIVE), 6),
-    "angle_error_below_deg": (number("angle measured attitude to target below [deg]", **POSITIVE), 7),
+    "time_in_mode_s": (number("time in mode at least [s]", minimum=0.0), 0, None),
+    "guidance_finished": ({"const": True, "description": "time in mode beyond the profile's t1"}, 1, "profile"),
+    "descending": ({"const": True, "description": "navigated climb rate negative"}, 2, "trajectory"),
+    "altitude_below_m": (number("navigated altitude below [m]"), 3, "trajectory"),
+    "dynamic_pressure_above_pa": (number("dynamic pressure at least [Pa]", minimum=0.0), 4, "trajectory"),
+    "rates_below_deg_s": (number("every measured body rate below [deg/s]", **POSITIVE), 5, None),
+    "rate_error_below_deg_s": (
+        number("measured minus reference rate, norm below [deg/s]", **POSITIVE),
+        6,
+        "rate_reference",
+    ),
+    "angle_error_below_deg": (
+        number("angle measured attitude to target below [deg]", **POSITIVE),
+        7,
+        "attitude_reference",
+    ),
 }
 EXIT_GROUP = {
     "type": "object",
     "description": "predicates that must all hold",
-    "properties": {name: value for name, (value, _) in EXIT_PREDICATES.items()},
+    "properties": {name: value for name, (value, _, _) in EXIT_PREDICATES.items()},
     "additionalProperties": False,
     "minProperties": 1,
 }
@@ -277,7 +313,9 @@ MODE = obj(
             "pattern": MODE_NAME_PATTERN,
             "description": "mode name (letters, digits, _); output columns t_<name>_s",
         },
-        "kind": string("guidance kind", enum=list(MODE_KINDS)),
+        "kind": string(
+            "guidance kind: " + "; ".join(f"{k}: {v['doc']}" for k, v in MODE_KINDS.items()), enum=list(MODE_KINDS)
+        ),
         "target": TARGET,
         "thrust": string("thrust level flown in the mode", enum=["low", "high"]),
         "t1_design_s": number("shortest slew duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),

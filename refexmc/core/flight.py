@@ -233,10 +233,9 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
 
 
 @jit_noalloc
-def _start(inputs, nav_seed, summary, pulse_counts, w):
+def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks):
     """Initial state: body x along the velocity, wings level, then the separation error."""
     vehicle, fsw, mission = inputs.vehicle, inputs.fsw, inputs.mission
-    body, traj, guide, act = w.body, w.trajectory, w.guide, w.actuation
     for i in range(3):
         for j in range(3):
             body.inertia[i, j] = vehicle[V_INERTIA + 3 * i + j]
@@ -249,7 +248,7 @@ def _start(inputs, nav_seed, summary, pulse_counts, w):
             act.gains[lv, 0, i] = fsw[F_KP + 3 * lv + i]
             act.gains[lv, 1, i] = fsw[F_KD + 3 * lv + i]
             guide.accels[lv, i] = margin * fsw[F_ACCEL_MAX + 3 * lv + i]
-    w.sensed.rng_state[0] = np.uint64(nav_seed)
+    sensed.rng_state[0] = np.uint64(nav_seed)
 
     if int(mission[M_TRAJECTORY_MODEL]) != TRAJECTORY_NONE:
         span = mission[M_TRAJECTORY_STEP]
@@ -264,7 +263,7 @@ def _start(inputs, nav_seed, summary, pulse_counts, w):
     else:
         for k in range(traj.state.shape[0]):
             traj.state[k] = 0.0
-    tmp4, sep_q = w.sensed.work4, guide.q_ref  # q_ref is free until the first mode with a reference
+    tmp4, sep_q = sensed.work4, guide.q_ref  # q_ref is free until the first mode with a reference
     quaternion.from_rotation_vector(0.0, mission[M_SEP_FLIGHT_PATH], 0.0, tmp4)
     sep = mission[M_SEP_ATTITUDE : M_SEP_ATTITUDE + 3]
     quaternion.from_rotation_vector(sep[0], sep[1], sep[2], sep_q)
@@ -280,17 +279,15 @@ def _start(inputs, nav_seed, summary, pulse_counts, w):
     for k in range(summary.shape[0]):
         summary[k] = 0.0
     for k in range(STATUS_SIZE):
-        w.status[k] = 0.0
-    w.masks[MASK_OPEN] = 0
-    w.masks[MASK_ACTIVE] = 0
-    w.status[ST_FUEL] = vehicle[V_PROPELLANT]
+        status[k] = 0.0
+    masks[MASK_OPEN] = 0
+    masks[MASK_ACTIVE] = 0
+    status[ST_FUEL] = vehicle[V_PROPELLANT]
 
 
-@jit_noalloc
-def _navigate(inputs, w, t):
+@jit_noalloc(force_inline=True)
+def _navigate(mission, vehicle, atmosphere, nav, x, traj, sensed, status, t):
     """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and rates."""
-    mission, vehicle, atmosphere = inputs.mission, inputs.vehicle, inputs.atmosphere
-    traj, status, sensed = w.trajectory, w.status, w.sensed
     altitude, climb, qbar = 0.0, 0.0, 0.0
     if int(mission[M_TRAJECTORY_MODEL]) != TRAJECTORY_NONE:
         span = mission[M_TRAJECTORY_STEP]
@@ -313,41 +310,16 @@ def _navigate(inputs, w, t):
     sensed.now[modes.NOW_ALTITUDE] = altitude
     sensed.now[modes.NOW_CLIMB] = climb
     sensed.now[modes.NOW_QBAR] = qbar
-    navigation.measure(
-        w.body.x, inputs.nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4
-    )
+    navigation.measure(x, nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4)
 
 
 @jit_noalloc
-def _reference(inputs, w, t, mode):
-    """Guidance reference of mode ``mode`` at ``t``: (attitude_controlled, has_attitude_reference)."""
-    guide = w.guide
-    return modes.reference(
-        inputs.modes[mode],
-        inputs.mission,
-        inputs.vehicle,
-        inputs.atmosphere,
-        w.trajectory.state,
-        t,
-        guide.state,
-        guide.q_final,
-        guide.rotations,
-        guide.q_ref,
-        guide.rate_ref,
-        guide.accel_ref,
-        guide.work,
-    )
-
-
-@jit_noalloc
-def _start_mode(inputs, w, t, summary, mode):
-    """Start the guidance of ``mode`` at ``t`` (core.modes.start); record its t1."""
-    status, sensed, guide = w.status, w.sensed, w.guide
-    row = inputs.modes[mode]
+def _start_mode(row, mission, traj_state, sensed, guide, status, t):
+    """Start the guidance of the mode of table row ``row`` at ``t`` (core.modes.start); its t1, or 0."""
     has_final = modes.start(
         row,
-        inputs.mission,
-        w.trajectory.state,
+        mission,
+        traj_state,
         t,
         sensed.q_meas,
         sensed.rate_meas,
@@ -359,61 +331,78 @@ def _start_mode(inputs, w, t, summary, mode):
         guide.work,
     )
     status[ST_HAS_FINAL] = 1.0 if has_final else 0.0
-    if modes.has_profile(int(row[MD_KIND])):
-        summary[S_PER_MODE + inputs.modes.shape[0] + mode] = guide.state[guidance.G_T1]
+    return guide.state[guidance.G_T1] if modes.has_profile(int(row[MD_KIND])) else 0.0
 
 
-@jit_noalloc
-def _advance_mode(inputs, w, t, summary):
+@jit_noalloc(force_inline=True)
+def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sensed, guide, status, summary, t):
     """Leave the mode whose exit conditions hold and start the next; fail a mode past its timeout.
 
     The reference of the mode flown is computed first (exit conditions may compare against it)
     and again for a mode that starts; when the program is done the last mode's guidance goes on.
     Returns ``(attitude_controlled, has_attitude_reference)``.
     """
-    status = w.status
-    n_modes = inputs.modes.shape[0]
+    n_modes = program.shape[0]
     mode = int(status[ST_MODE])
     if status[ST_STARTED] == 0.0:  # the first mode starts at the first control step
         status[ST_STARTED] = 1.0
-        _start_mode(inputs, w, t, summary, mode)
-    controlled, has_reference = _reference(inputs, w, t, min(mode, n_modes - 1))
+        summary[S_PER_MODE + n_modes + mode] = _start_mode(program[mode], mission, traj_state, sensed, guide, status, t)
+    q_ref, rate_ref = guide.q_ref, guide.rate_ref
+    controlled, has_reference = modes.reference(
+        program[min(mode, n_modes - 1)],
+        mission,
+        vehicle,
+        atmosphere,
+        traj_state,
+        t,
+        guide.state,
+        guide.q_final,
+        guide.rotations,
+        q_ref,
+        rate_ref,
+        guide.accel_ref,
+        guide.work,
+    )
     if mode == n_modes:
         return controlled, has_reference
-    sensed, guide = w.sensed, w.guide
-    row = inputs.modes[mode]
-    q_target = guide.q_final if int(row[MD_KIND]) == modes.KIND_SLEW else guide.q_ref
+    row = program[mode]
+    q_target = guide.q_final if int(row[MD_KIND]) == modes.KIND_SLEW else q_ref
     t1 = guide.state[guidance.G_T1]
-    if modes.exit_reached(row, inputs.exits, sensed.now, t1, sensed.rate_meas, guide.rate_ref, sensed.q_meas, q_target):
+    if modes.exit_reached(row, exits, sensed.now, t1, sensed.rate_meas, rate_ref, sensed.q_meas, q_target):
         mode += 1
         status[ST_MODE] = mode
         status[ST_MODES_COMPLETED] += 1
         status[ST_MODE_START] = t
         if mode < n_modes:
-            _start_mode(inputs, w, t, summary, mode)
-            controlled, has_reference = _reference(inputs, w, t, mode)
+            row = program[mode]
+            summary[S_PER_MODE + n_modes + mode] = _start_mode(row, mission, traj_state, sensed, guide, status, t)
+            controlled, has_reference = modes.reference(
+                row,
+                mission,
+                vehicle,
+                atmosphere,
+                traj_state,
+                t,
+                guide.state,
+                guide.q_final,
+                guide.rotations,
+                q_ref,
+                rate_ref,
+                guide.accel_ref,
+                guide.work,
+            )
     elif sensed.now[modes.NOW_TIME_IN_MODE] > row[MD_TIMEOUT]:
         status[ST_FAILURE] = FAIL_MODE_TIMEOUT
         status[ST_FAILURE_MODE] = mode
     return controlled, has_reference
 
 
-@jit_noalloc
-def _total_angle_error(inputs, w, mode):
-    """Angle from the true attitude to the mode's final reference attitude (000 sec. 6.1)."""
-    kind = int(inputs.modes[min(mode, inputs.modes.shape[0] - 1), MD_KIND])
-    target = w.guide.q_final if kind == modes.KIND_SLEW else w.guide.q_ref
-    return quaternion.angle_between(w.body.x[0:4], target)
-
-
-@jit_noalloc
-def _actuate(inputs, w, t, level, active, controlled, has_reference, pulse_counts):
+@jit_noalloc(force_inline=True)
+def _actuate(fsw, thrusters, sensed, guide, act, masks, t, level, active, controlled, has_reference, pulse_counts):
     """Controller, actuation (pulse modulation + allocation), switching check and valve commands.
 
     ``active``: False when the mode is locked, the program done or the run failed.
     """
-    fsw, thrusters = inputs.fsw, inputs.thrusters
-    sensed, guide, act = w.sensed, w.guide, w.actuation
     if has_reference:
         control.control_errors(
             sensed.q_meas, sensed.rate_meas, guide.q_ref, guide.rate_ref, act.q_error, act.rate_error
@@ -444,7 +433,6 @@ def _actuate(inputs, w, t, level, active, controlled, has_reference, pulse_count
         desired = allocation.thruster_commands(
             int(fsw[F_ACTUATION]), fsw, level, act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
         )
-    masks = w.masks
     valves_open = masks[MASK_OPEN]
     opened, closed = switching.enforce(act.switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
     masks[MASK_OPEN] = (valves_open | opened) & ~closed
@@ -459,12 +447,11 @@ def _actuate(inputs, w, t, level, active, controlled, has_reference, pulse_count
 
 
 @jit_noalloc
-def _record(inputs, w, history, row, t, mode, theta_t, controlled):
-    """One history row."""
-    sensed, act = w.sensed, w.actuation
-    rate_meas, rotvec = sensed.rate_meas, act.rotvec
+def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, rate_meas, act, now):
+    """One history row (``mode``: the index of the mode flown)."""
+    rotvec = act.rotvec
     history[row, H_T] = t
-    history[row, H_MODE] = min(mode, inputs.modes.shape[0] - 1)
+    history[row, H_MODE] = mode
     history[row, H_THETA_T] = theta_t * _DEG
     history[row, H_OMEGA_M] = math.sqrt(rate_meas[0] ** 2 + rate_meas[1] ** 2 + rate_meas[2] ** 2) * _DEG
     if controlled:
@@ -473,30 +460,27 @@ def _record(inputs, w, history, row, t, mode, theta_t, controlled):
         history[row, H_THETA_E + i] = rotvec[i] * _DEG if controlled else math.nan
         history[row, H_OMEGA_E + i] = act.rate_error[i] * _DEG
         history[row, H_PULSE + i] = act.pulse[i]
-    history[row, H_FUEL] = w.status[ST_FUEL] / inputs.vehicle[V_PROPELLANT]
-    history[row, H_VALVES] = rcs.open_mask(act.valve_state, inputs.thrusters.shape[0], t)
-    history[row, H_ALTITUDE] = sensed.now[modes.NOW_ALTITUDE]
-    history[row, H_QBAR] = sensed.now[modes.NOW_QBAR]
+    history[row, H_FUEL] = fuel_fraction
+    history[row, H_VALVES] = valves
+    history[row, H_ALTITUDE] = now[modes.NOW_ALTITUDE]
+    history[row, H_QBAR] = now[modes.NOW_QBAR]
 
 
-@jit_noalloc
-def _integrate(inputs, w, t, level):
+@jit_noalloc(force_inline=True)
+def _integrate(vehicle, thrusters, max_step, dt, body, act, status, masks, qbar, t, level):
     """Integrate the attitude over one control period, segment by segment; returns True when
     the propellant ran out in it."""
-    vehicle, thrusters = inputs.vehicle, inputs.thrusters
-    body, act, status = w.body, w.actuation, w.status
     n_thr = thrusters.shape[0]
-    max_step = inputs.mission[M_MAX_STEP]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
     one_step_limit = max_step * (1.0 + 1e-10)
     tau0, tau1, tau_a, tau_b, aero = body.torques[0], body.torques[1], body.torques[2], body.torques[3], body.torques[4]
-    environment.aerodynamic_torque(vehicle, w.sensed.now[modes.NOW_QBAR], aero)
+    environment.aerodynamic_torque(vehicle, qbar, aero)
     fuel = status[ST_FUEL]
-    valves_active = w.masks[MASK_ACTIVE]
+    valves_active = masks[MASK_ACTIVE]
     rk4_steps = 0
     t_seg = t
-    t_end = t + inputs.fsw[F_CONTROL_PERIOD]
+    t_end = t + dt
     exhausted = False
     while t_seg < t_end - 1e-12:
         valves_active = rcs.update(act.valve_state, thrusters, n_thr, t_seg, level, valves_active)
@@ -538,7 +522,7 @@ def _integrate(inputs, w, t, level):
             exhausted = True
         t_seg = t_next
     status[ST_FUEL] = fuel
-    w.masks[MASK_ACTIVE] = valves_active
+    masks[MASK_ACTIVE] = valves_active
     status[ST_RK4_STEPS] += rk4_steps
     return exhausted
 
@@ -546,47 +530,68 @@ def _integrate(inputs, w, t, level):
 @jit_noalloc
 def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     """The run loop of :func:`run_flight` on the work arrays it allocated (no allocation, no
-    reference counting: see ``refexmc._jit.jit_noalloc``)."""
-    _start(inputs, nav_seed, summary, pulse_counts, w)
-    mission, program, status = inputs.mission, inputs.modes, w.status
+    reference counting: see ``refexmc._jit.jit_noalloc``). Each step gets the arrays it uses
+    only: every further array argument costs compile time (numba types each one)."""
+    body, traj, sensed, guide, act, status, masks = (
+        w.body,
+        w.trajectory,
+        w.sensed,
+        w.guide,
+        w.actuation,
+        w.status,
+        w.masks,
+    )
+    vehicle, thrusters, fsw, mission = inputs.vehicle, inputs.thrusters, inputs.fsw, inputs.mission
+    program, exits, atmosphere = inputs.modes, inputs.exits, inputs.atmosphere
+    _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks)
     n_modes = program.shape[0]
-    dt = inputs.fsw[F_CONTROL_PERIOD]
+    n_thr = thrusters.shape[0]
+    dt = fsw[F_CONTROL_PERIOD]
+    max_step = mission[M_MAX_STEP]
+    propellant0 = vehicle[V_PROPELLANT]
     theta_handover = math.nan
     rows = 0
     step = 0
     t = 0.0
     while True:
         t = step * dt
-        _navigate(inputs, w, t)
-        controlled, has_reference = _advance_mode(inputs, w, t, summary)
+        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj, sensed, status, t)
+        controlled, has_reference = _advance_mode(
+            program, exits, mission, vehicle, atmosphere, traj.state, sensed, guide, status, summary, t
+        )
         mode = int(status[ST_MODE])
         done = mode == n_modes
+        flown = min(mode, n_modes - 1)  # when done, the last mode's guidance goes on
         if status[ST_FAILURE] == FAIL_NONE and not done and t >= mission[M_MAX_TIME]:
             status[ST_FAILURE] = FAIL_TIME_LIMIT
 
+        # total angle error: true attitude to the mode's final reference attitude (000 sec. 6.1)
         finished = done or status[ST_FAILURE] != FAIL_NONE
         record = (step % history_every == 0 or finished) and rows < history.shape[0]
         theta_t = math.nan
         if (record or done) and has_reference:
-            theta_t = _total_angle_error(inputs, w, mode)
+            target = guide.q_final if int(program[flown, MD_KIND]) == modes.KIND_SLEW else guide.q_ref
+            theta_t = quaternion.angle_between(body.x[0:4], target)
         if done:
             theta_handover = theta_t
             if theta_t > mission[M_HANDOVER_ANGLE]:
                 status[ST_FAILURE] = FAIL_HANDOVER_ANGLE
 
-        flown = min(mode, n_modes - 1)
         level = int(program[flown, MD_LEVEL])
         active = not done and status[ST_FAILURE] == FAIL_NONE and int(program[flown, MD_KIND]) != modes.KIND_LOCKED
-        _actuate(inputs, w, t, level, active, controlled, has_reference, pulse_counts)
+        _actuate(fsw, thrusters, sensed, guide, act, masks, t, level, active, controlled, has_reference, pulse_counts)
 
         finished = done or status[ST_FAILURE] != FAIL_NONE
         if record:
-            _record(inputs, w, history, rows, t, mode, theta_t, controlled)
+            valves = rcs.open_mask(act.valve_state, n_thr, t)
+            fraction = status[ST_FUEL] / propellant0
+            _record(history, rows, t, flown, theta_t, controlled, fraction, valves, sensed.rate_meas, act, sensed.now)
             rows += 1
         if finished:
             break
 
-        exhausted = _integrate(inputs, w, t, level)
+        qbar = sensed.now[modes.NOW_QBAR]
+        exhausted = _integrate(vehicle, thrusters, max_step, dt, body, act, status, masks, qbar, t, level)
         summary[S_PER_MODE + mode] += dt
         if program[mode, MD_CALIBRATION] != 0.0:
             status[ST_CALIBRATING] += dt
@@ -595,12 +600,11 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
             status[ST_FAILURE] = FAIL_PROPELLANT
         finite = True
         for i in range(dynamics.STATE_SIZE):
-            if not math.isfinite(w.body.x[i]):
+            if not math.isfinite(body.x[i]):
                 finite = False
         if not finite:
             status[ST_FAILURE] = FAIL_NON_FINITE
 
-    propellant0 = inputs.vehicle[V_PROPELLANT]
     fuel = status[ST_FUEL]
     failure = status[ST_FAILURE]
     summary[S_SUCCESS] = 1.0 if failure == FAIL_NONE and int(status[ST_MODE]) == n_modes else 0.0
@@ -611,7 +615,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     summary[S_T_END] = t
     summary[S_THETA_HANDOVER] = theta_handover * _DEG
     summary[S_MODES_COMPLETED] = status[ST_MODES_COMPLETED]
-    summary[S_ALTITUDE_END] = w.sensed.now[modes.NOW_ALTITUDE]
-    summary[S_QBAR_END] = w.sensed.now[modes.NOW_QBAR]
+    summary[S_ALTITUDE_END] = sensed.now[modes.NOW_ALTITUDE]
+    summary[S_QBAR_END] = sensed.now[modes.NOW_QBAR]
     summary[S_RK4_STEPS] = status[ST_RK4_STEPS]
     summary[S_HISTORY_ROWS] = rows
