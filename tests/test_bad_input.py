@@ -379,3 +379,22 @@ def test_a_mission_the_vehicle_cannot_fly_is_refused_in_the_mission_file(tmp_pat
     line = next(n for n, s in enumerate(bad.splitlines(), 1) if "altitude_below_m: 1000.0" in s)
     assert f"{tmp_path / 'mission.yaml'}:{line}:" in result.output, result.output
     assert "predicate altitude_below_m needs a trajectory; the vehicle has none" in result.output
+
+
+@pytest.mark.parametrize(
+    ("path", "words"),
+    [
+        ("separation.altitude_m", "'separation.altitude_m': the mission file does not declare it"),
+        ("aerodynamics.mistrim_cm", "acts through the trajectory; vehicle generic-12 has none"),
+        ("atmosphere.density_scale", "needs an atmosphere; the mission has none"),
+    ],
+)
+def test_dispersing_what_the_vehicle_or_mission_does_not_have_is_refused(tmp_path, path, words):
+    """generic-slew has no trajectory, no aerodynamics and no atmosphere: nothing there to disperse."""
+    campaign = (ROOT / "campaigns/generic-slew.yaml").read_text().replace("../configs/", f"{ROOT}/configs/")
+    campaign = campaign.replace("dispersions:\n", f"dispersions:\n  {path}: {{dist: normal, sigma: 0.1}}\n", 1)
+    (tmp_path / "campaign.yaml").write_text(campaign)
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "campaign.yaml")])
+    assert result.exit_code == 2
+    line = next(n for n, s in enumerate(campaign.splitlines(), 1) if s.startswith(f"  {path}:"))
+    assert f":{line}: dispersions.{path}: " in result.output and words in result.output, result.output

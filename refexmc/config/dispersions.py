@@ -196,6 +196,22 @@ def nominal(path, vehicle, mission):
     return np.atleast_1d(np.asarray(value, dtype=float)).copy()
 
 
+def _undeclared(path, vehicle, mission):
+    """Why ``path`` cannot be dispersed for this vehicle and mission (a quantity they do not
+    have: no trajectory, no aerodynamics, no atmosphere), or None."""
+    trajectory = vehicle.get("trajectory", "planar_drag")
+    if path.startswith("atmosphere.") and "atmosphere" not in mission:
+        return f"'{path}' needs an atmosphere; the mission has none"
+    if path in ("mass_kg", "aerodynamics.drag_area_m2", "aerodynamics.mistrim_cm") and trajectory == "none":
+        return f"'{path}' acts through the trajectory; vehicle {vehicle['name']} has none (trajectory: none)"
+    try:
+        nominal(path, vehicle, mission)
+    except KeyError:
+        part = "mission" if path.split(".")[0] in ("separation", "navigation") else "vehicle"
+        return f"'{path}': the {part} file does not declare it"
+    return None
+
+
 def _put(array, fields, name, values):
     offset, count = fields.slices[name]
     values = np.asarray(values, dtype=float).ravel()
@@ -329,6 +345,9 @@ def check(dispersions, vehicle, mission, file, lines):
             hint = f"; did you mean '{guess[0]}'?" if guess else "; see docs/campaigns.md for the dispersible paths"
             fail(f"unknown parameter path '{path}'{hint}")
         param = PARAMETERS[path]
+        missing = _undeclared(path, vehicle, mission)
+        if missing:
+            fail(missing)
         if not isinstance(spec, dict):
             fail(f"expected a mapping with 'dist' and its parameters, got {spec!r}")
         if "dist" not in spec:
