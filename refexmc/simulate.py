@@ -103,7 +103,8 @@ class FlightResult:
         for k, axis in enumerate(AXES):
             columns[f"omega_e_{axis}_deg_s"] = signal("omega_e_deg_s", k)
         columns["fuel_remaining"] = signal("fuel_remaining")
-        columns["valves_open"] = col("valves_open").astype(np.int32)
+        halves = col("valves_open").astype(np.int64)  # bits 0-31 and 32-62 of the mask
+        columns["valves_open"] = halves[:, 0] | (halves[:, 1] << 32)
         for k, axis in enumerate(AXES):
             columns[f"pulse_{axis}"] = col("pulse_command")[:, k].astype(np.int8)
         columns["altitude_m"] = signal("altitude_m")

@@ -144,3 +144,29 @@ def test_given_gains_are_flown_and_derived_ones_are_000_eq_38():
         kd, rel=0
     )
     assert math.isfinite(kp.sum())
+
+
+def test_sixty_three_thrusters_and_their_64_bit_masks_end_to_end():
+    """Thruster 63 stands in for thruster 2 of generic-12: it fires, and its bit (62) reaches the
+    history's valves_open exactly (beyond float64's 53-bit integers)."""
+    import copy
+
+    from refexmc.campaign.storage import history_table
+
+    vehicle = copy.deepcopy(load_vehicle(GENERIC_VEHICLE))
+    thrusters = vehicle["rcs"]["thrusters"]
+    spare = {"position_m": [0.0, 0.0, -0.5], "direction": [1.0, 0.0, 0.0]}  # thruster 8's place: -y
+    for k in range(len(thrusters) + 1, 63):
+        thrusters.append({"id": k, **spare})
+    thrusters.append({"id": 63, **{key: thrusters[1][key] for key in ("position_m", "direction")}})
+    allocation = vehicle["flight_software"]["allocation"]
+    for key, ids in allocation.items():
+        allocation[key] = [63 if i == 2 else i for i in ids]
+    mission = load_mission(GENERIC_MISSION)
+    result = fly(pack(vehicle, mission), history_rate_hz=40.0, mode_names=mode_names(mission))
+    assert result.success, result.failure_reason
+    assert result.pulse_counts[1] == 0 and result.pulse_counts[62] > 0
+    valves = history_table(0, result).column("valves_open").to_numpy()
+    assert valves.dtype == np.int64
+    assert np.any(valves & (1 << 62)) and not np.any(valves & (1 << 1))
+    assert np.all(valves >= 0) and np.all(valves < 1 << 63)

@@ -133,7 +133,7 @@ VEHICLE = obj(
                     "description": "thruster geometry",
                     "items": THRUSTER,
                     "minItems": 1,
-                    "maxItems": 64,
+                    "maxItems": 63,
                 },
             },
         ),

@@ -461,7 +461,8 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
         history[row, H_OMEGA_E + i] = act.rate_error[i] * _DEG
         history[row, H_PULSE + i] = act.pulse[i]
     history[row, H_FUEL] = fuel_fraction
-    history[row, H_VALVES] = valves
+    history[row, H_VALVES] = valves & 0xFFFFFFFF  # two exact halves of the 63-bit mask
+    history[row, H_VALVES + 1] = (valves >> 32) & 0xFFFFFFFF
     history[row, H_ALTITUDE] = now[modes.NOW_ALTITUDE]
     history[row, H_QBAR] = now[modes.NOW_QBAR]
 
