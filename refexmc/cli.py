@@ -304,6 +304,7 @@ def format_design(name, info):
 
     lines = [f"vehicle {name}", f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}"]
     lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
+    lines.append(f"  controller {info['controller']}, gains {info['gains_source']}")
     for level in LEVELS:
         lines.append(f"  {level} thrust")
         lines.append(f"    omega_dot_max [rad/s^2]     {vec(info['omega_dot_max_rad_s2'][level], '8.4f')}")

@@ -170,3 +170,13 @@ def test_sixty_three_thrusters_and_their_64_bit_masks_end_to_end():
     assert valves.dtype == np.int64
     assert np.any(valves & (1 << 62)) and not np.any(valves & (1 << 1))
     assert np.all(valves >= 0) and np.all(valves < 1 << 63)
+
+
+def test_inspect_shows_the_gains_that_are_flown():
+    """A vehicle with given gains: inspect reports those, not the 000 eq. 38 design it does not fly."""
+    result = CliRunner().invoke(main, ["inspect", str(GENERIC_VEHICLE), "--json"])
+    assert result.exit_code == 0, result.output
+    info = json.loads(result.output)
+    given = load_vehicle(GENERIC_VEHICLE)["flight_software"]["gains"]
+    assert info["gains"]["low"] == {"kp": given["kp"]["low"], "kd": given["kd"]["low"]}
+    assert info["gains_source"] == "given" and info["controller"] == "pd"

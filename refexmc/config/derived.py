@@ -133,14 +133,17 @@ def design(vehicle):
         "omega_dot_max_rad_s2": {},
         "torque_max_n_m": {},
         "gains": {},
+        "gains_source": "given" if "gains" in vehicle["flight_software"] else "derived (000 eq. 38, 34)",
+        "controller": vehicle["flight_software"]["controller"],
         "pulse_equivalent_ms": {},
         "pulse_correction_matching_ms": {},
     }
     for level in LEVELS:
         out["omega_dot_max_rad_s2"][level] = omega_dot_max(vehicle, level).tolist()
         out["torque_max_n_m"][level] = torque_max(vehicle, level).tolist()
-        kp, kd = gains(vehicle, level)
-        out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
+        given = vehicle["flight_software"].get("gains")
+        kp, kd = (given["kp"][level], given["kd"][level]) if given else (g.tolist() for g in gains(vehicle, level))
+        out["gains"][level] = {"kp": list(kp), "kd": list(kd)}
         out["pulse_equivalent_ms"][level] = pulse_equivalent_ms(vehicle, level)
         out["pulse_correction_matching_ms"][level] = pulse_correction_matching_ms(vehicle, level)
     pwpf = vehicle["flight_software"]["pwpf"]
