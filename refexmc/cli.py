@@ -297,7 +297,7 @@ def inspect(file, as_json):
 
 
 def format_design(name, info):
-    from refexmc.config.derived import CORRECTION_WARNING_MS, LEVELS
+    from refexmc.config.derived import CORRECTION_WARNING_MS
 
     def vec(values, fmt):
         return "  ".join(format(v, fmt) for v in values)
@@ -305,7 +305,7 @@ def format_design(name, info):
     lines = [f"vehicle {name}", f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}"]
     lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
     lines.append(f"  controller {info['controller']}, gains {info['gains_source']}")
-    for level in LEVELS:
+    for level in info["levels"]:
         lines.append(f"  {level} thrust")
         lines.append(f"    omega_dot_max [rad/s^2]     {vec(info['omega_dot_max_rad_s2'][level], '8.4f')}")
         lines.append(f"    tau_max [N m]               {vec(info['torque_max_n_m'][level], '8.3f')}")
@@ -324,7 +324,7 @@ def format_design(name, info):
         f"  hardware switching limits: min pulse {info['hardware_min_on_ms']:g} ms, "
         f"min rest {info['hardware_min_off_ms']:g} ms"
     )
-    for level in LEVELS:
+    for level in info["levels"]:
         matching = info["pulse_correction_matching_ms"][level]
         if abs(info["pwpf_correction_ms"] - matching) > CORRECTION_WARNING_MS:
             lines.append(

@@ -151,7 +151,9 @@ def test_pack_uses_every_field_of_the_layout():
     """Each named field of each input array is written by the packer (no silent zeros)."""
     inputs = pack(load_vehicle(VEHICLE), load_mission(MISSION))
     assert inputs.vehicle.shape == (L.VEHICLE_SIZE,)
-    assert inputs.thrusters.shape == (8, L.THRUSTER_SIZE)
+    assert inputs.thrusters.shape == (8, L.thruster_size(2))  # two thrust levels, low and high
+    assert inputs.levels.shape == (2, L.LEVEL_SIZE)
+    assert inputs.levels[:, L.LV_THRUST].tolist() == [2.157, 8.92]
     assert inputs.mission.shape == (L.MISSION_SIZE,)
     # physical constants and thresholds are all non-zero in the reference mission
     for name in ("earth_radius_m", "handover_max_angle_rad", "max_flight_time_s", "integrator_max_step_s"):
@@ -160,7 +162,8 @@ def test_pack_uses_every_field_of_the_layout():
     assert inputs.exits.shape == (11, L.EXIT_SIZE)  # one row per predicate of refex-exo.yaml
     assert np.allclose(np.linalg.norm(inputs.mission[L.M_SUN_DIRECTION : L.M_SUN_DIRECTION + 3]), 1.0)
     # time constants in seconds (000 Table 2, low thrust on-delay 19.1 ms)
-    assert inputs.thrusters[0, L.T_ON_DELAY_LOW] == pytest.approx(0.0191)
+    assert inputs.thrusters[0, L.time_constant_column(0, L.ON_DELAY)] == pytest.approx(0.0191)
+    assert inputs.thrusters[0, L.time_constant_column(1, L.FALL)] == pytest.approx(0.045)
     assert inputs.fsw[L.F_CONTROL_PERIOD] == pytest.approx(0.025)
 
 

@@ -16,8 +16,10 @@ from naive import ValveTimes, thrust_impulse, valve_knots
 
 from refexmc.config import derived
 from refexmc.config.load import load_vehicle
-from refexmc.config.pack import pack_fsw
+from refexmc.config.pack import pack_fsw, pack_levels
 from refexmc.core import layout as L
+
+REFEX_LEVELS = ("low", "high")  # 000 sec. 2.1: the two thrust modes of configs/vehicles/refex.yaml
 
 EQ_2_LOW = (0.037, 0.019, 0.009)  # rad/s^2, 000 eq. 2
 EQ_3_HIGH = (0.152, 0.077, 0.038)  # rad/s^2, 000 eq. 3
@@ -100,15 +102,19 @@ def test_torque_max_is_inertia_times_acceleration(vehicle_config, level):
 
 def test_packed_flight_software_carries_the_derived_values(vehicle_config):
     fsw = pack_fsw(vehicle_config)
-    for k, level in enumerate(("low", "high")):
+    levels = pack_levels(vehicle_config)
+    assert derived.level_names(vehicle_config) == list(REFEX_LEVELS)
+    for k, level in enumerate(REFEX_LEVELS):
         kp, kd = derived.gains(vehicle_config, level)
-        np.testing.assert_array_equal(fsw[L.F_KP + 3 * k : L.F_KP + 3 * k + 3], kp)
-        np.testing.assert_array_equal(fsw[L.F_KD + 3 * k : L.F_KD + 3 * k + 3], kd)
+        row = levels[k]
+        assert row[L.LV_THRUST] == vehicle_config["rcs"]["thrust_n"][level]
+        np.testing.assert_array_equal(row[L.LV_KP : L.LV_KP + 3], kp)
+        np.testing.assert_array_equal(row[L.LV_KD : L.LV_KD + 3], kd)
         np.testing.assert_array_equal(
-            fsw[L.F_ACCEL_MAX + 3 * k : L.F_ACCEL_MAX + 3 * k + 3], derived.omega_dot_max(vehicle_config, level)
+            row[L.LV_ACCEL_MAX : L.LV_ACCEL_MAX + 3], derived.omega_dot_max(vehicle_config, level)
         )
         np.testing.assert_array_equal(
-            fsw[L.F_TORQUE_MAX + 3 * k : L.F_TORQUE_MAX + 3 * k + 3], derived.torque_max(vehicle_config, level)
+            row[L.LV_TORQUE_MAX : L.LV_TORQUE_MAX + 3], derived.torque_max(vehicle_config, level)
         )
     assert fsw[L.F_PWPF_ON] == 0.075 and fsw[L.F_PWPF_OFF] == 0.125 and fsw[L.F_PWPF_CORRECTION] == 0.050
     assert fsw[L.F_MIN_ON] == 0.025 and fsw[L.F_MIN_OFF] == 0.175
@@ -181,7 +187,7 @@ def _naive_equivalent_ms(vehicle, level, width_ms):
     return 1e3 * impulse
 
 
-@pytest.mark.parametrize("level", derived.LEVELS)
+@pytest.mark.parametrize("level", REFEX_LEVELS)
 def test_pulse_equivalent_and_matching_correction_are_the_integral_of_the_ramps(vehicle_config, level):
     """The 25 ms hardware pulse gives ~75 ms of full thrust and the impulse-matching correction is
     ~50 ms at both levels with the 45 ms fall (000 sec. 2.1, 5; reference-model sec. 2).
@@ -215,15 +221,15 @@ def test_table2_fall_variant_differs_only_in_the_fall(vehicle_config):
     """configs/vehicles/refex-table2-fall.yaml is refex.yaml with 000 Table 2's fall times, so a
     sensitivity study flies the same vehicle otherwise."""
     variant = load_vehicle(CONFIGS / "refex-table2-fall.yaml")
-    assert {lv: variant["rcs"]["valve_time_constants_ms"][lv]["fall"] for lv in derived.LEVELS} == {
+    assert {lv: variant["rcs"]["valve_time_constants_ms"][lv]["fall"] for lv in REFEX_LEVELS} == {
         "low": 145.7,
         "high": 139.0,
     }  # 000 Table 2
     same = copy.deepcopy(variant)
-    for lv in derived.LEVELS:
+    for lv in REFEX_LEVELS:
         reference = vehicle_config["rcs"]["valve_time_constants_ms"][lv]["fall"]
         same["rcs"]["valve_time_constants_ms"][lv]["fall"] = reference
     same["name"] = vehicle_config["name"]
     assert same == vehicle_config
-    for lv in derived.LEVELS:  # its matching correction is ~100 ms: far from the PWPF's 50 ms
+    for lv in REFEX_LEVELS:  # its matching correction is ~100 ms: far from the PWPF's 50 ms
         assert derived.pulse_correction_matching_ms(variant, lv) > 90.0

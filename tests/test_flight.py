@@ -240,7 +240,7 @@ def test_dispersible_inputs_reach_the_model_without_recompiling(vehicle, mission
         "derating": lambda p: p.vehicle.__setitem__(L.V_DERATING + 1, 0.8),
         "mistrim": lambda p: p.vehicle.__setitem__(L.V_MISTRIM + 1, 2e-3),
         "thrust_scale": lambda p: p.thrusters.__setitem__((6, L.T_SCALE), 0.9),
-        "off_delay": lambda p: p.thrusters.__setitem__((2, L.T_OFF_DELAY_LOW), 0.06),
+        "off_delay": lambda p: p.thrusters.__setitem__((2, L.time_constant_column(0, L.OFF_DELAY)), 0.06),
         "separation_rates": lambda p: p.mission.__setitem__(L.M_SEP_RATES, 0.06),
         "separation_attitude": lambda p: p.mission.__setitem__(L.M_SEP_ATTITUDE + 2, 0.1),
         "rate_bias": lambda p: p.nav.__setitem__(L.N_RATE_BIAS, 1e-4),

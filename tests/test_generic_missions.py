@@ -133,16 +133,15 @@ def test_given_gains_are_flown_and_derived_ones_are_000_eq_38():
     from refexmc.core import layout as L
 
     vehicle = load_vehicle(GENERIC_VEHICLE)
-    fsw = pack(vehicle, load_mission(GENERIC_MISSION)).fsw
+    levels = pack(vehicle, load_mission(GENERIC_MISSION)).levels
     gains = vehicle["flight_software"]["gains"]
-    assert fsw[L.F_KP : L.F_KP + 3].tolist() == gains["kp"]["low"]
-    assert fsw[L.F_KD + 3 : L.F_KD + 6].tolist() == gains["kd"]["high"]
+    assert levels[0, L.LV_KP : L.LV_KP + 3].tolist() == gains["kp"]["low"]
+    assert levels[1, L.LV_KD : L.LV_KD + 3].tolist() == gains["kd"]["high"]
     refex = load_vehicle(ROOT / "configs/vehicles/refex.yaml")
     kp, kd = derived.gains(refex, "low")
-    packed = pack(refex, load_mission(ROOT / "configs/missions/refex-exo.yaml")).fsw
-    assert packed[L.F_KP : L.F_KP + 3] == pytest.approx(kp, rel=0) and packed[L.F_KD : L.F_KD + 3] == pytest.approx(
-        kd, rel=0
-    )
+    packed = pack(refex, load_mission(ROOT / "configs/missions/refex-exo.yaml")).levels
+    assert packed[0, L.LV_KP : L.LV_KP + 3].tolist() == kp.tolist()
+    assert packed[0, L.LV_KD : L.LV_KD + 3].tolist() == kd.tolist()
     assert math.isfinite(kp.sum())
 
 
@@ -180,3 +179,86 @@ def test_inspect_shows_the_gains_that_are_flown():
     given = load_vehicle(GENERIC_VEHICLE)["flight_software"]["gains"]
     assert info["gains"]["low"] == {"kp": given["kp"]["low"], "kd": given["kd"]["low"]}
     assert info["gains_source"] == "given" and info["controller"] == "pd"
+
+
+def _three_level_vehicle():
+    """generic-12 with three thrust levels named its own way: fine 0.5 N, coarse 1 N, boost 4 N."""
+    import copy
+
+    vehicle = copy.deepcopy(load_vehicle(GENERIC_VEHICLE))
+    rcs = vehicle["rcs"]
+    rcs["thrust_n"] = {"fine": 0.5, "coarse": 1.0, "boost": 4.0}
+    times = rcs["valve_time_constants_ms"]["low"]
+    rcs["valve_time_constants_ms"] = {name: dict(times) for name in rcs["thrust_n"]}
+    gains = vehicle["flight_software"]["gains"]
+    for key in ("kp", "kd"):
+        gains[key] = {name: list(gains[key]["low"]) for name in rcs["thrust_n"]}
+    return vehicle
+
+
+def test_a_vehicle_with_three_named_thrust_levels_flies_each_mode_at_its_level(tmp_path):
+    """Levels are rows named by the vehicle; a mode names its level; the thrust is the level's."""
+    import yaml
+
+    vehicle = _three_level_vehicle()
+    mission = load_mission(GENERIC_MISSION)
+    mission["modes"][0]["thrust"] = "coarse"  # detumble
+    mission["modes"][1]["thrust"] = "coarse"  # slew
+    mission["modes"][2]["thrust"] = "fine"  # hold
+    inputs = pack(vehicle, mission)
+    from refexmc.core import layout as L
+
+    assert inputs.levels[:, L.LV_THRUST].tolist() == [0.5, 1.0, 4.0]
+    assert inputs.modes[:, L.MD_LEVEL].tolist() == [1, 1, 0]
+    result = fly(inputs, history_rate_hz=40.0, mode_names=mode_names(mission))
+    assert result.success, result.failure_reason
+    # the same mission at the vehicle file's 1 N gives the same detumble and slew (same thrust,
+    # same time constants, same gains): only the hold, at half the thrust, differs
+    reference = fly(pack(load_vehicle(GENERIC_VEHICLE), load_mission(GENERIC_MISSION)), history_rate_hz=40.0)
+    assert result.value("t_mode_s")[:2].tolist() == reference.value("t_mode_s")[:2].tolist()
+    assert result.value("fuel_used_kg") != reference.value("fuel_used_kg")
+    # a campaign disperses a level by its name
+    (tmp_path / "vehicle.yaml").write_text(yaml.safe_dump(vehicle))
+    (tmp_path / "mission.yaml").write_text(yaml.safe_dump(mission))
+    campaign = {
+        "name": "three-levels",
+        "vehicle": "vehicle.yaml",
+        "mission": "mission.yaml",
+        "runs": 3,
+        "seed": 1,
+        "dispersions": {"rcs.thrust_n.fine": {"dist": "normal", "sigma": 0.01}},
+    }
+    (tmp_path / "campaign.yaml").write_text(yaml.safe_dump(campaign))
+    rows, _ = fly_chunk(load_campaign(tmp_path / "campaign.yaml"), range(3))
+    assert [row["status"] for row in rows] == ["ok"] * 3
+    assert rows[0]["p.rcs.thrust_n.fine"] == 0.5 and rows[1]["p.rcs.thrust_n.fine"] != 0.5
+
+
+def test_a_mode_at_a_level_the_vehicle_lacks_is_refused(tmp_path):
+    import yaml
+
+    mission = (
+        (ROOT / "configs/missions/generic-slew.yaml")
+        .read_text()
+        .replace("    kind: hold\n", "    kind: hold\n    thrust: turbo\n")
+    )
+    (tmp_path / "mission.yaml").write_text(mission)
+    campaign = yaml.safe_load((ROOT / "campaigns/generic-slew.yaml").read_text())
+    campaign["vehicle"] = str(GENERIC_VEHICLE)
+    campaign["mission"] = "mission.yaml"
+    (tmp_path / "campaign.yaml").write_text(yaml.safe_dump(campaign))
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "campaign.yaml")])
+    assert result.exit_code == 2
+    line = next(n for n, s in enumerate(mission.splitlines(), 1) if "thrust: turbo" in s)
+    assert f"mission.yaml:{line}: modes.2.thrust: thrust level 'turbo' is not one of the vehicle's: low, high" in (
+        result.output
+    ), result.output
+
+
+def test_time_constants_must_name_the_thrust_levels(tmp_path):
+    text = GENERIC_VEHICLE.read_text().replace("    high: {on_delay: 5.0", "    boost: {on_delay: 5.0")
+    (tmp_path / "vehicle.yaml").write_text(text)
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "vehicle.yaml")])
+    assert result.exit_code == 2
+    expected = "expected the thrust levels of rcs.thrust_n in its order (low, high), got low, boost"
+    assert f"rcs.valve_time_constants_ms: {expected}" in result.output, result.output

@@ -17,7 +17,7 @@ from refexmc.core import guidance, layout, quaternion
 
 POLY = 1e-12  # see module docstring
 FD_STEP = 1e-4  # s
-ACCEL_LOW = slice(layout.F_ACCEL_MAX, layout.F_ACCEL_MAX + 3)  # omega_dot_max, low thrust (000 eq. 2)
+ACCEL_MAX = slice(layout.LV_ACCEL_MAX, layout.LV_ACCEL_MAX + 3)  # omega_dot_max of a level (000 eq. 2)
 MARGIN = 0.65  # guidance uses 65 % of omega_dot_max (000 eq. 13)
 
 
@@ -125,7 +125,7 @@ def peak(values):
 def test_slerp_duration_eq_13_peak_acceleration_is_the_margined_limit(inputs, theta):
     """t1 = max_i sqrt(20 |theta_i| / (sqrt(12) a_i)): on the limiting axis the peak of
     |theta_i h''(t)| equals a_i = 0.65 omega_dot_max,i (000 eq. 13); on the others it is lower."""
-    accel = MARGIN * inputs.fsw[ACCEL_LOW]  # low thrust, margined
+    accel = MARGIN * inputs.levels[0, ACCEL_MAX]  # low thrust, margined
     t1 = guidance.slerp_duration(theta, accel, 0.0)
     times = np.linspace(0.0, t1, 20001)
     h_ddot = np.array([guidance.quintic(t, t1)[2] for t in times])
@@ -140,7 +140,7 @@ def test_slerp_duration_eq_13_peak_acceleration_is_the_margined_limit(inputs, th
 
 @pytest.mark.parametrize("omega0", [np.radians([3.0, -2.0, 1.5]), np.array([0.0, 0.1, -0.02])])
 def test_rate_profile_duration_eq_19_peak_acceleration_is_the_limit(inputs, omega0):
-    accel = MARGIN * inputs.fsw[ACCEL_LOW]
+    accel = MARGIN * inputs.levels[0, ACCEL_MAX]
     t1 = guidance.rate_profile_duration(omega0, accel)
     times = np.linspace(0.0, t1, 20001)  # includes t1/2, where the cubic's acceleration peaks
     factor_dot = np.array([guidance.cubic_rate(t, t1)[1] for t in times[:-1]])
@@ -231,7 +231,7 @@ def test_spin_up_reference_attitude_and_rate(inputs):
     """SSM: q = q_start (x) rot(phi(t) omega_1 axis); body rate = omega_1 rate factor (eq. 22-27)."""
     q_start = Rotation.from_rotvec([0.2, 0.4, -0.1]).as_quat()
     omega1 = np.array([math.radians(5.0), 0.0, 0.0])
-    accel = MARGIN * inputs.fsw[ACCEL_LOW]
+    accel = MARGIN * inputs.levels[0, ACCEL_MAX]
     state = np.zeros(guidance.GUIDANCE_STATE_SIZE)
     guidance.start_spin_up(state, 20.0, q_start, omega1, accel)
     t1 = state[guidance.G_T1]

@@ -252,7 +252,8 @@ def test_switching_check_enforces_min_pulse_and_rest(inputs, segments, thrust_le
     back a change only while a limit forbids it."""
     fsw, table = inputs.fsw, inputs.allocation
     n = table.shape[1]
-    tau_max = fsw[layout.F_TORQUE_MAX + 3 * thrust_level : layout.F_TORQUE_MAX + 3 * thrust_level + 3]
+    level = inputs.levels[thrust_level]
+    tau_max = level[layout.LV_TORQUE_MAX : layout.LV_TORQUE_MAX + 3]
     min_on, min_off = fsw[layout.F_MIN_ON], fsw[layout.F_MIN_OFF]
     assert (min_on, min_off) == (HW_ON, HW_OFF)
     pwpf_state = new_state(3)
@@ -270,7 +271,7 @@ def test_switching_check_enforces_min_pulse_and_rest(inputs, segments, thrust_le
         for _ in range(hold):
             t = k * DT
             desired_mask = allocation.thruster_commands(
-                layout.ACTUATION_PWPF_TABLE, fsw, thrust_level, torque, pwpf_state, row_masks, t, pulse
+                layout.ACTUATION_PWPF_TABLE, fsw, level, torque, pwpf_state, row_masks, t, pulse
             )
             desired = table[allocation.table_row(*pulse)]
             assert desired_mask == sum(1 << i for i in range(n) if desired[i]), "mask = Table 3 row"
@@ -297,7 +298,7 @@ def test_zero_command_opens_nothing(inputs):
     allocation.table_masks(inputs.allocation, row_masks)
     pulse = np.ones(3)
     desired = allocation.thruster_commands(
-        layout.ACTUATION_PWPF_TABLE, inputs.fsw, 0, np.zeros(3), new_state(3), row_masks, 0.0, pulse
+        layout.ACTUATION_PWPF_TABLE, inputs.fsw, inputs.levels[0], np.zeros(3), new_state(3), row_masks, 0.0, pulse
     )
     assert desired == 0 and not pulse.any()
 

@@ -6,6 +6,7 @@ exact trapezoids on both sides, so they agree to rounding: ``REL = 1e-12``.
 """
 
 import copy
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from naive import ValveTimes, level, thrust_impulse, valve_knots
 
-from refexmc.config.pack import pack_thrusters, pack_vehicle
+from refexmc.config.load import load_vehicle
+from refexmc.config.pack import pack_levels, pack_thrusters, pack_vehicle
 from refexmc.core import layout, rcs
 
 REL = 1e-12  # both sides are exact piecewise-linear integrals; only rounding separates them
@@ -22,16 +24,21 @@ DERATING = (1.00, 0.91, 0.73, 0.65)  # 000 sec. 2.1
 # 000 Table 2, mean time constants in s, its fall included (the vehicle file's fall is 45 ms,
 # 000 sec. 2.1): tests set them on the thrusters explicitly (set_times), the longer falls make
 # more interrupted transients
+LEVEL_LOW, LEVEL_HIGH = 0, 1  # rows of configs/vehicles/refex.yaml's thrust levels (low, high)
 TABLE_2 = {
-    rcs.LEVEL_LOW: ValveTimes(0.0191, 0.0045, 0.0516, 0.1457),
-    rcs.LEVEL_HIGH: ValveTimes(0.0256, 0.0053, 0.0530, 0.1390),
+    LEVEL_LOW: ValveTimes(0.0191, 0.0045, 0.0516, 0.1457),
+    LEVEL_HIGH: ValveTimes(0.0256, 0.0053, 0.0530, 0.1390),
 }
+# nominal thrust of each level (N), the value segment_thrust takes
+THRUST = pack_levels(load_vehicle(Path(__file__).resolve().parents[1] / "configs/vehicles/refex.yaml"))[
+    :, layout.LV_THRUST
+]
 
 
 def set_times(thrusters, thrust_level, times, rows=None):
     """Overwrite the valve time constants of ``rows`` (all by default) at one thrust level."""
     out = thrusters.copy()
-    col = layout.T_ON_DELAY_LOW + layout.TIME_CONSTANTS_PER_LEVEL * thrust_level
+    col = layout.time_constant_column(thrust_level, layout.ON_DELAY)
     rows = range(out.shape[0]) if rows is None else rows
     for i in rows:
         out[i, col : col + 4] = [times.on_delay, times.rise, times.off_delay, times.fall]
@@ -60,7 +67,7 @@ def fly_valves(thrusters, vehicle, commands, t_end, thrust_level, dt=DT):
                 rcs.apply_reactions(valve_state, thrusters, i, t_seg, thrust_level)
             t_next = rcs.next_breakpoint(valve_state, n, t_seg, t + dt)
             impulse += rcs.segment_thrust(
-                valve_state, thrusters, vehicle, arms, thrust_level, t_seg, t_next, tau0, tau1
+                valve_state, thrusters, vehicle, arms, THRUST[thrust_level], t_seg, t_next, tau0, tau1
             )
             angular += 0.5 * (tau0 + tau1) * (t_next - t_seg)
             boundaries.append(t_next)
@@ -83,7 +90,7 @@ def thrusters(inputs):
 
 
 def nominal_thrust(vehicle, thrust_level):
-    return vehicle[layout.V_THRUST_HIGH if thrust_level == rcs.LEVEL_HIGH else layout.V_THRUST_LOW]
+    return THRUST[thrust_level]
 
 
 def arms_of(thrusters, vehicle):
@@ -95,7 +102,7 @@ def arms_of(thrusters, vehicle):
 # --- one valve: analytic impulse --------------------------------------------------------------
 
 
-@pytest.mark.parametrize("thrust_level", [rcs.LEVEL_LOW, rcs.LEVEL_HIGH])
+@pytest.mark.parametrize("thrust_level", [LEVEL_LOW, LEVEL_HIGH])
 @pytest.mark.parametrize("close_step", [1, 4, 9])
 def test_single_pulse_impulse_is_analytic(vehicle, thrusters, thrust_level, close_step):
     """Open at 0, close at t1 (000 Fig. 6): full thrust from lambda_on + delta_r / 2 to
@@ -117,7 +124,7 @@ def test_single_pulse_impulse_is_analytic(vehicle, thrusters, thrust_level, clos
 
 # --- sequences with transients interrupted: kernels against the naive profile ------------------
 
-LOW = rcs.LEVEL_LOW
+LOW = LEVEL_LOW
 SLOW_RISE = ValveTimes(on_delay=0.0191, rise=0.060, off_delay=0.010, fall=0.1457)  # synthetic
 
 SEQUENCES = {
@@ -135,7 +142,7 @@ SEQUENCES = {
         0.7,
     ),
     "high thrust pulse train": (
-        TABLE_2[rcs.LEVEL_HIGH],
+        TABLE_2[LEVEL_HIGH],
         {0: [(0, True)], 3: [(0, False)], 11: [(0, True)], 14: [(0, False)]},
         0.7,
     ),
@@ -145,7 +152,7 @@ SEQUENCES = {
 @pytest.mark.parametrize("name", SEQUENCES)
 def test_command_sequence_matches_naive_profile(vehicle, thrusters, name):
     times, commands, duration = SEQUENCES[name]
-    thrust_level = rcs.LEVEL_HIGH if times == TABLE_2[rcs.LEVEL_HIGH] else LOW
+    thrust_level = LEVEL_HIGH if times == TABLE_2[LEVEL_HIGH] else LOW
     thr = set_times(thrusters, thrust_level, times)
     impulse, angular, boundaries, _ = fly_valves(thr, vehicle, commands, duration, thrust_level)
     knots = valve_knots(naive_commands(commands, 0), times)
@@ -189,7 +196,7 @@ streams = st.lists(
 
 
 @settings(deadline=None, max_examples=40)
-@given(streams, st.sampled_from([rcs.LEVEL_LOW, rcs.LEVEL_HIGH]))
+@given(streams, st.sampled_from([LEVEL_LOW, LEVEL_HIGH]))
 def test_random_command_streams_match_naive(inputs, toggles, thrust_level):
     vehicle = inputs.vehicle
     thrusters = set_times(inputs.thrusters, thrust_level, TABLE_2[thrust_level])
@@ -211,7 +218,7 @@ def test_random_command_streams_match_naive(inputs, toggles, thrust_level):
 
 
 @settings(deadline=None, max_examples=40)
-@given(streams, st.sampled_from([rcs.LEVEL_LOW, rcs.LEVEL_HIGH]), st.sets(st.integers(0, 7), max_size=2))
+@given(streams, st.sampled_from([LEVEL_LOW, LEVEL_HIGH]), st.sets(st.integers(0, 7), max_size=2))
 def test_update_settles_ramps_and_skips_idle_valves_without_changing_a_bit(
     vehicle_config, inputs, toggles, thrust_level, failed
 ):
@@ -239,13 +246,15 @@ def test_update_settles_ramps_and_skips_idle_valves_without_changing_a_bit(
             for i in range(n):
                 rcs.apply_reactions(plain, thrusters, i, t_seg, thrust_level)
             t_next = rcs.next_breakpoint(plain, n, t_seg, t + DT)
-            impulse = rcs.segment_thrust(plain, thrusters, vehicle, arms, thrust_level, t_seg, t_next, tau[0], tau[1])
+            impulse = rcs.segment_thrust(
+                plain, thrusters, vehicle, arms, THRUST[thrust_level], t_seg, t_next, tau[0], tau[1]
+            )
             active = rcs.update(masked, thrusters, n, t_seg, thrust_level, active)
             if active:
                 assert rcs.next_breakpoint(masked, n, t_seg, t + DT, active) == t_next
                 assert (
                     rcs.segment_thrust(
-                        masked, thrusters, vehicle, arms, thrust_level, t_seg, t_next, tau[2], tau[3], active
+                        masked, thrusters, vehicle, arms, THRUST[thrust_level], t_seg, t_next, tau[2], tau[3], active
                     )
                     == impulse
                 )
@@ -289,7 +298,7 @@ IDEAL = ValveTimes(0.0, 0.0, 0.0, 0.0)
 
 
 @pytest.mark.parametrize("n_open", range(1, 9))
-@pytest.mark.parametrize("thrust_level", [rcs.LEVEL_LOW, rcs.LEVEL_HIGH])
+@pytest.mark.parametrize("thrust_level", [LEVEL_LOW, LEVEL_HIGH])
 def test_derating_by_number_of_open_valves(vehicle, thrusters, n_open, thrust_level):
     """Thrust per thruster F * derating[n]: 1.00 / 0.91 / 0.73 / 0.65, and 0.65 beyond four."""
     thr = set_times(thrusters, thrust_level, IDEAL)
@@ -381,7 +390,9 @@ def test_idle_valves_have_no_breakpoints_and_no_thrust(vehicle, thrusters):
     assert rcs.next_breakpoint(valve_state, 8, 0.0, 0.025) == 0.025
     tau0, tau1 = np.ones(3), np.ones(3)
     assert (
-        rcs.segment_thrust(valve_state, thrusters, vehicle, arms_of(thrusters, vehicle), LOW, 0.0, 0.025, tau0, tau1)
+        rcs.segment_thrust(
+            valve_state, thrusters, vehicle, arms_of(thrusters, vehicle), THRUST[LOW], 0.0, 0.025, tau0, tau1
+        )
         == 0.0
     )
     assert not tau0.any() and not tau1.any()

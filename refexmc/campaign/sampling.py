@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from refexmc.config import dispersions
-from refexmc.config.derived import inertia_problem
+from refexmc.config.derived import inertia_problem, level_names
 from refexmc.config.load import failure_sets
 
 _TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
@@ -147,6 +147,7 @@ class Sampler:
         self.offset = 1 if campaign["nominal_first"] else 0
         self.n_dispersed = campaign["runs"] - self.offset
         self.n_thrusters = len(self.vehicle["rcs"]["thrusters"])
+        self.levels = level_names(self.vehicle)
         self.specs = dispersions.check(campaign["dispersions"], self.vehicle, self.mission, None, {})
         self.nominal = {path: dispersions.nominal(path, self.vehicle, self.mission) for path in self.specs}
         failures = campaign["failures"]
@@ -201,12 +202,13 @@ class Sampler:
         inputs = nominal_inputs._replace(
             vehicle=nominal_inputs.vehicle.copy(),
             thrusters=nominal_inputs.thrusters.copy(),
+            levels=nominal_inputs.levels.copy(),
             mission=nominal_inputs.mission.copy(),
             nav=nominal_inputs.nav.copy(),
             atmosphere=nominal_inputs.atmosphere.copy(),
         )
         for path, value in values.items():
-            dispersions.apply(inputs, path, value, nominal_inputs.atmosphere)
+            dispersions.apply(inputs, path, value, nominal_inputs.atmosphere, self.levels)
         dispersions.set_failed(inputs, failed)
         return inputs
 

@@ -8,7 +8,10 @@ import itertools
 
 import numpy as np
 
-LEVELS = ("low", "high")
+
+def level_names(vehicle):
+    """The vehicle's thrust levels, in the order of its ``rcs.thrust_n`` (000: low, high)."""
+    return list(vehicle["rcs"]["thrust_n"])
 
 
 def unit_directions(vehicle):
@@ -138,7 +141,8 @@ def design(vehicle):
         "pulse_equivalent_ms": {},
         "pulse_correction_matching_ms": {},
     }
-    for level in LEVELS:
+    out["levels"] = level_names(vehicle)
+    for level in level_names(vehicle):
         out["omega_dot_max_rad_s2"][level] = omega_dot_max(vehicle, level).tolist()
         out["torque_max_n_m"][level] = torque_max(vehicle, level).tolist()
         given = vehicle["flight_software"].get("gains")

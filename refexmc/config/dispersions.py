@@ -10,6 +10,7 @@ to; ``refexmc.campaign.sampling`` draws them.
 
 import difflib
 import math
+import re
 import statistics
 from typing import NamedTuple
 
@@ -91,7 +92,8 @@ def _schema_node(path):
     """The schema of a vehicle or mission key path (vector items for arrays), or None."""
     node = schema.MISSION if path.split(".")[0] in ("separation", "navigation") else schema.VEHICLE
     for key in path.split("."):
-        node = node.get("properties", {}).get(key)
+        properties, per_key = node.get("properties", {}), node.get("additionalProperties")
+        node = properties.get(key, per_key if isinstance(per_key, dict) else None)  # per-level mappings
         if node is None:
             return None
     return node.get("items", node) if node.get("type") == "array" else node
@@ -110,6 +112,23 @@ def _with_schema_range(param):
 
 
 PARAMETERS = _params()
+_PER_LEVEL = re.compile(r"^rcs\.(thrust_n|valve_time_constants_ms)\.([A-Za-z][A-Za-z0-9_]*)(\..+)?$")
+
+
+def parameter(path):
+    """The Parameter of a path, or None. Per-level paths exist for every level name: those of the
+    registry name ReFEx's ``low`` and ``high``; ``rcs.thrust_n.<level>`` and
+    ``rcs.valve_time_constants_ms.<level>.<name>`` of any other level take the same unit and range."""
+    if path in PARAMETERS:
+        return PARAMETERS[path]
+    match = _PER_LEVEL.match(path)
+    if match is None:
+        return None
+    template = PARAMETERS.get(f"rcs.{match.group(1)}.low{match.group(3) or ''}")
+    if template is None:
+        return None
+    return template._replace(path=path, doc=template.doc.replace("low", match.group(2)))
+
 
 # distribution -> (required parameters, optional parameters); parameters are numbers, or lists
 # with one number per component of the path (a single number applies to every component)
@@ -145,7 +164,7 @@ _SPECIAL = {"uniform_so3": "attitude", "inertia": "inertia"}
 
 def components(path, vehicle):
     """Column suffixes of ``path``'s components (empty tuple: a scalar)."""
-    shape = PARAMETERS[path].shape
+    shape = parameter(path).shape
     if shape in ("vector", "attitude"):
         return AXES
     if shape == "thruster":
@@ -230,8 +249,6 @@ def inertia_matrix(values):
 _VEHICLE_SCALARS = {
     "mass_kg": ("mass_kg", 1.0),
     "aerodynamics.drag_area_m2": ("drag_area_m2", 1.0),
-    "rcs.thrust_n.low": ("thrust_low_n", 1.0),
-    "rcs.thrust_n.high": ("thrust_high_n", 1.0),
     "rcs.isp_s": ("isp_s", 1.0),
     "rcs.propellant_kg": ("propellant_kg", 1.0),
     "com_offset_m": ("com_offset_m", 1.0),
@@ -253,10 +270,13 @@ _NAV_FIELDS = {
 }
 
 
-def apply(inputs, path, values, nominal_atmosphere):
-    """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays."""
+def apply(inputs, path, values, nominal_atmosphere, levels=("low", "high")):
+    """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays;
+    ``levels``: the vehicle's thrust-level names, in order (``derived.level_names``)."""
     values = np.asarray(values, dtype=float)
-    if path in _VEHICLE_SCALARS:
+    if path.startswith("rcs.thrust_n."):
+        inputs.levels[list(levels).index(path.split(".")[2]), L.LV_THRUST] = values[0]
+    elif path in _VEHICLE_SCALARS:
         field, scale = _VEHICLE_SCALARS[path]
         _put(inputs.vehicle, L.VEHICLE, field, values * scale)
     elif path in _MISSION_FIELDS:
@@ -274,7 +294,8 @@ def apply(inputs, path, values, nominal_atmosphere):
         inputs.thrusters[:, L.THRUSTER.slices["thrust_scale"][0]] = values
     elif path.startswith("rcs.valve_time_constants_ms."):
         _, _, level, name = path.split(".")
-        inputs.thrusters[:, L.THRUSTER.slices[f"{name}_{level}_s"][0]] = values / 1e3
+        column = L.time_constant_column(list(levels).index(level), L.TIME_CONSTANT_NAMES.index(name))
+        inputs.thrusters[:, column] = values / 1e3
     elif path == "atmosphere.density_scale":
         inputs.atmosphere[:, 1] = nominal_atmosphere[:, 1] * values[0]
     else:  # pragma: no cover - PARAMETERS and apply() are kept in step by tests
@@ -340,11 +361,11 @@ def check(dispersions, vehicle, mission, file, lines):
             line = lines.get(key) or lines.get(_where) or lines.get(("dispersions",))
             raise ConfigError(message, file=file, line=line, path=key)
 
-        if path not in PARAMETERS:
+        if parameter(path) is None:
             guess = difflib.get_close_matches(str(path), list(PARAMETERS), n=1, cutoff=0.5)
             hint = f"; did you mean '{guess[0]}'?" if guess else "; see docs/campaigns.md for the dispersible paths"
             fail(f"unknown parameter path '{path}'{hint}")
-        param = PARAMETERS[path]
+        param = parameter(path)
         missing = _undeclared(path, vehicle, mission)
         if missing:
             fail(missing)

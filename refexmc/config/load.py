@@ -210,6 +210,19 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         for k, tid in enumerate(ids):
             if tid > len(thrusters):
                 fail(f"expected a thruster id 1..{len(thrusters)}, got {tid}", "flight_software", "allocation", key, k)
+    levels = list(vehicle["rcs"]["thrust_n"])
+    named = [("rcs", "valve_time_constants_ms")]
+    if "gains" in vehicle["flight_software"]:
+        named += [("flight_software", "gains", "kp"), ("flight_software", "gains", "kd")]
+    for path in named:
+        node = vehicle
+        for key in path:
+            node = node[key]
+        if list(node) != levels:
+            fail(
+                f"expected the thrust levels of rcs.thrust_n in its order ({', '.join(levels)}), got {', '.join(node)}",
+                *path,
+            )
     try:
         allocation_table(vehicle)
     except KeyError as missing:
@@ -288,6 +301,15 @@ def check_mission(mission, file, lines, prefix=()):
 def check_flight(vehicle, mission, fail_mission, fail_vehicle):
     """What a vehicle and a mission need of each other: a trajectory model and its inputs, given
     gains for the pd controller. ``fail_*(message, *key_path)`` raise in the file concerned."""
+    levels = list(vehicle["rcs"]["thrust_n"])
+    for m, mode in enumerate(mission["modes"]):
+        if mode.get("thrust", levels[0]) not in levels:
+            fail_mission(
+                f"thrust level '{mode['thrust']}' is not one of the vehicle's: {', '.join(levels)}",
+                "modes",
+                m,
+                "thrust",
+            )
     if vehicle["flight_software"]["controller"] == "pd" and "gains" not in vehicle["flight_software"]:
         fail_vehicle("controller pd needs given gains (flight_software.gains)", "flight_software", "controller")
     if vehicle.get("trajectory", "planar_drag") == "planar_drag":

@@ -24,14 +24,29 @@ NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0, "drag_ar
 TRAJECTORY_MODELS = {"none": L.TRAJECTORY_NONE, "planar_drag": L.TRAJECTORY_PLANAR_DRAG}
 
 
-def gains(vehicle):
-    """(kp, kd), each low x, y, z then high x, y, z: given in the vehicle file, else 000 eq. 38 and 34."""
+def gains(vehicle, level):
+    """(kp, kd) of a thrust level, body x, y, z: given in the vehicle file, else 000 eq. 38 and 34."""
     given = vehicle["flight_software"].get("gains")
     if given is not None:
-        return [np.concatenate([given[k]["low"], given[k]["high"]]) for k in ("kp", "kd")]
-    kp_low, kd_low = derived.gains(vehicle, "low")
-    kp_high, kd_high = derived.gains(vehicle, "high")
-    return np.concatenate([kp_low, kp_high]), np.concatenate([kd_low, kd_high])
+        return np.asarray(given["kp"][level], dtype=float), np.asarray(given["kd"][level], dtype=float)
+    return derived.gains(vehicle, level)
+
+
+level_names = derived.level_names  # a level's row in the levels table is its place in thrust_n
+
+
+def pack_levels(vehicle):
+    """Thrust-level table (layout.LEVEL rows): the truth thrust and the flight software's design."""
+    names = level_names(vehicle)
+    out = np.zeros((len(names), L.LEVEL_SIZE))
+    for row, level in zip(out, names, strict=True):
+        kp, kd = gains(vehicle, level)
+        _put(row, L.LEVEL, "thrust_n", vehicle["rcs"]["thrust_n"][level])
+        _put(row, L.LEVEL, "kp", kp)
+        _put(row, L.LEVEL, "kd", kd)
+        _put(row, L.LEVEL, "torque_max_n_m", derived.torque_max(vehicle, level))
+        _put(row, L.LEVEL, "accel_max_rad_s2", derived.omega_dot_max(vehicle, level))
+    return out
 
 
 def pack_vehicle(vehicle):
@@ -44,8 +59,6 @@ def pack_vehicle(vehicle):
     _put(out, L.VEHICLE, "inertia_kg_m2", vehicle["inertia_kg_m2"])
     _put(out, L.VEHICLE, "com_offset_m", vehicle["com_offset_m"])
     _put(out, L.VEHICLE, "mass_kg", vehicle["mass_kg"])
-    _put(out, L.VEHICLE, "thrust_low_n", rcs["thrust_n"]["low"])
-    _put(out, L.VEHICLE, "thrust_high_n", rcs["thrust_n"]["high"])
     _put(out, L.VEHICLE, "derating", derating)
     _put(out, L.VEHICLE, "isp_s", rcs["isp_s"])
     _put(out, L.VEHICLE, "propellant_kg", rcs["propellant_kg"])
@@ -57,22 +70,22 @@ def pack_vehicle(vehicle):
 
 
 def pack_thrusters(vehicle, failed=()):
-    """Thruster table (layout.THRUSTER), one row per thruster; ``failed`` are 1-based ids."""
+    """Thruster table (layout.THRUSTER, then the time constants per level), one row per thruster;
+    ``failed`` are 1-based ids."""
     rcs = vehicle["rcs"]
     n = len(rcs["thrusters"])
-    out = np.zeros((n, L.THRUSTER_SIZE))
+    levels = level_names(vehicle)
+    out = np.zeros((n, L.thruster_size(len(levels))))
     directions = derived.unit_directions(vehicle)
     for i, thruster in enumerate(rcs["thrusters"]):
         row = out[i]
         _put(row, L.THRUSTER, "position_m", thruster["position_m"])
         _put(row, L.THRUSTER, "direction", directions[i])
         _put(row, L.THRUSTER, "thrust_scale", 1.0)
-        for level in ("low", "high"):
+        for k, level in enumerate(levels):
             tc = rcs["valve_time_constants_ms"][level]
-            _put(row, L.THRUSTER, f"on_delay_{level}_s", tc["on_delay"] / 1e3)
-            _put(row, L.THRUSTER, f"rise_{level}_s", tc["rise"] / 1e3)
-            _put(row, L.THRUSTER, f"off_delay_{level}_s", tc["off_delay"] / 1e3)
-            _put(row, L.THRUSTER, f"fall_{level}_s", tc["fall"] / 1e3)
+            for which, name in enumerate(L.TIME_CONSTANT_NAMES):
+                row[L.time_constant_column(k, which)] = tc[name] / 1e3
         _put(row, L.THRUSTER, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
     return out
 
@@ -82,13 +95,8 @@ def pack_fsw(vehicle):
     fsw_cfg = vehicle["flight_software"]
     pwpf = fsw_cfg["pwpf"]
     out = np.zeros(L.FSW_SIZE)
-    kp, kd = gains(vehicle)
     _put(out, L.FSW, "control_period_s", 1.0 / fsw_cfg["control_rate_hz"])
     _put(out, L.FSW, "inertia_kg_m2", vehicle["inertia_kg_m2"])
-    _put(out, L.FSW, "kp", kp)
-    _put(out, L.FSW, "kd", kd)
-    _put(out, L.FSW, "torque_max_n_m", np.concatenate([derived.torque_max(vehicle, lv) for lv in derived.LEVELS]))
-    _put(out, L.FSW, "accel_max_rad_s2", np.concatenate([derived.omega_dot_max(vehicle, lv) for lv in derived.LEVELS]))
     _put(out, L.FSW, "accel_margin", fsw_cfg["guidance_accel_margin"])
     _put(out, L.FSW, "tau_min_fraction", pwpf["tau_min_fraction"])
     _put(out, L.FSW, "pwpf_on_s", pwpf["t_on_ms"] / 1e3)
@@ -153,9 +161,10 @@ def _predicate_value(name, value):
     return math.radians(value) if name.endswith(("_deg", "_deg_s")) else float(value)
 
 
-def pack_modes(mission):
-    """Mode table (layout.MODE rows) and exit table (layout.EXIT rows) of the mode program."""
-    levels = {"low": 0, "high": 1}
+def pack_modes(mission, levels=("low", "high")):
+    """Mode table (layout.MODE rows) and exit table (layout.EXIT rows) of the mode program;
+    ``levels``: the vehicle's thrust-level names (:func:`level_names`)."""
+    levels = {name: k for k, name in enumerate(levels)}
     program = mission["modes"]
     table = np.zeros((len(program), L.MODE_SIZE))
     exit_rows = []
@@ -164,7 +173,7 @@ def pack_modes(mission):
         target = mode.get("target", {"type": "none"})
         _put(row, L.MODE, "kind_id", core_modes.KINDS[mode["kind"]])
         _put(row, L.MODE, "target_id", core_modes.TARGETS[target["type"]])
-        _put(row, L.MODE, "thrust_level", levels[mode.get("thrust", "low")])
+        _put(row, L.MODE, "thrust_level", levels[mode["thrust"]] if "thrust" in mode else 0)
         _put(row, L.MODE, "navigation_calibration", 1.0 if mode.get("navigation_calibration") else 0.0)
         _put(row, L.MODE, "timeout_s", mode.get("timeout_s", math.inf))
         _put(row, L.MODE, "t1_design_s", mode.get("t1_design_s", 0.0))
@@ -212,10 +221,11 @@ def pack_atmosphere(mission):
 
 def pack(vehicle, mission, failed_thrusters=()):
     """All run inputs for the nominal (undispersed) vehicle and mission."""
-    mode_table, exit_table = pack_modes(mission)
+    mode_table, exit_table = pack_modes(mission, level_names(vehicle))
     return RunInputs(
         vehicle=pack_vehicle(vehicle),
         thrusters=pack_thrusters(vehicle, failed_thrusters),
+        levels=pack_levels(vehicle),
         fsw=pack_fsw(vehicle),
         mission=pack_mission(mission, vehicle.get("trajectory", "planar_drag")),
         modes=mode_table,

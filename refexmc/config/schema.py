@@ -48,6 +48,21 @@ def obj(doc, properties, optional=()):
 
 
 POSITIVE = {"exclusive_minimum": 0.0}
+LEVEL_NAME_PATTERN = "^[A-Za-z][A-Za-z0-9_]*$"
+MAX_LEVELS = 8
+
+
+def per_level(doc, item):
+    """A mapping thrust-level name -> ``item`` (levels are named by the vehicle's thrust_n)."""
+    return {
+        "type": "object",
+        "description": doc,
+        "propertyNames": {"pattern": LEVEL_NAME_PATTERN},
+        "additionalProperties": item,
+        "minProperties": 1,
+        "maxProperties": MAX_LEVELS,
+    }
+
 
 _time_constants = obj(
     "valve time constants of one thrust level (000 Table 2)",
@@ -102,12 +117,9 @@ VEHICLE = obj(
         "rcs": obj(
             "reaction control system",
             {
-                "thrust_n": obj(
-                    "nominal thrust per thruster",
-                    {
-                        "low": number("low thrust mode [N]", **POSITIVE),
-                        "high": number("high thrust mode [N]", **POSITIVE),
-                    },
+                "thrust_n": per_level(
+                    "thrust levels by name, in order (e.g. low, high): nominal thrust per thruster",
+                    number("thrust of the level [N]", **POSITIVE),
                 ),
                 "derating": {
                     "type": "array",
@@ -118,8 +130,8 @@ VEHICLE = obj(
                 },
                 "isp_s": number("specific impulse [s]", **POSITIVE),
                 "propellant_kg": number("propellant mass at separation [kg]", **POSITIVE),
-                "valve_time_constants_ms": obj(
-                    "mean valve time constants", {"low": _time_constants, "high": _time_constants}
+                "valve_time_constants_ms": per_level(
+                    "mean valve time constants per thrust level (the levels of thrust_n)", _time_constants
                 ),
                 "switching_limits_ms": obj(
                     "hardware switching limits per thruster (000 sec. 5)",
@@ -149,12 +161,8 @@ VEHICLE = obj(
                     "given gains per thrust level, body x, y, z (default: derived, 000 eq. 38 and 34). "
                     "pd: kp [N m], kd [N m s/rad]; pd_feedback_linearisation: kp [1/s^2], kd [1/s]",
                     {
-                        "kp": obj(
-                            "proportional gain", {"low": vector("[-]", minimum=0.0), "high": vector("[-]", minimum=0.0)}
-                        ),
-                        "kd": obj(
-                            "derivative gain", {"low": vector("[-]", minimum=0.0), "high": vector("[-]", minimum=0.0)}
-                        ),
+                        "kp": per_level("proportional gain per thrust level", vector("body x, y, z [-]", minimum=0.0)),
+                        "kd": per_level("derivative gain per thrust level", vector("body x, y, z [-]", minimum=0.0)),
                     },
                 ),
                 "actuation": string("torque-to-thruster chain", enum=["pwpf_table"]),
@@ -317,7 +325,11 @@ MODE = obj(
             "guidance kind: " + "; ".join(f"{k}: {v['doc']}" for k, v in MODE_KINDS.items()), enum=list(MODE_KINDS)
         ),
         "target": TARGET,
-        "thrust": string("thrust level flown in the mode", enum=["low", "high"]),
+        "thrust": {
+            "type": "string",
+            "pattern": LEVEL_NAME_PATTERN,
+            "description": "thrust level flown in the mode, a level of the vehicle's thrust_n (default: its first)",
+        },
         "t1_design_s": number("shortest slew duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
         "rate_deg_s": vector("spin-up: final body rate [deg/s]"),
         "navigation_calibration": {

@@ -13,7 +13,7 @@ from refexmc.core.layout import (
     F_PWPF_OFF,
     F_PWPF_ON,
     F_TAU_MIN_FRACTION,
-    F_TORQUE_MAX,
+    LV_TORQUE_MAX,
 )
 
 
@@ -43,10 +43,11 @@ def table_masks(table, out):
 
 
 @jit_inline
-def thruster_commands(actuation_id, fsw, thrust_level, torque_cmd, pwpf_state, row_masks, t, pulse_out):
+def thruster_commands(actuation_id, fsw, level, torque_cmd, pwpf_state, row_masks, t, pulse_out):
     """Bit mask of the thrusters to open for this control step (bit i for thruster i).
 
-    ``row_masks`` is the allocation table as bit masks (:func:`table_masks`); ``pulse_out``
+    ``level`` is the row of the thrust level flown (layout.LEVEL); ``row_masks`` is the
+    allocation table as bit masks (:func:`table_masks`); ``pulse_out``
     receives the per-axis modulator outputs for the history.
     """
     if actuation_id == ACTUATION_PWPF_TABLE:
@@ -55,7 +56,7 @@ def thruster_commands(actuation_id, fsw, thrust_level, torque_cmd, pwpf_state, r
                 pwpf_state,
                 axis,
                 torque_cmd[axis],
-                fsw[F_TORQUE_MAX + 3 * thrust_level + axis],
+                level[LV_TORQUE_MAX + axis],
                 fsw[F_TAU_MIN_FRACTION],
                 fsw[F_PWPF_ON],
                 fsw[F_PWPF_OFF],

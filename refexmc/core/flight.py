@@ -32,13 +32,10 @@ from refexmc.core import (
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     F_ACCEL_MARGIN,
-    F_ACCEL_MAX,
     F_ACTUATION,
     F_CONTROL_PERIOD,
     F_CONTROLLER,
     F_INERTIA,
-    F_KD,
-    F_KP,
     F_MIN_OFF,
     F_MIN_ON,
     FAIL_HANDOVER_ANGLE,
@@ -58,6 +55,10 @@ from refexmc.core.layout import (
     H_THETA_E,
     H_THETA_T,
     H_VALVES,
+    LV_ACCEL_MAX,
+    LV_KD,
+    LV_KP,
+    LV_THRUST,
     M_HANDOVER_ANGLE,
     M_MAX_STEP,
     M_MAX_TIME,
@@ -89,7 +90,6 @@ from refexmc.core.layout import (
 )
 
 _DEG = 180.0 / math.pi
-N_LEVELS = 2  # thrust levels (rcs.LEVEL_*)
 
 # --- flight status: the loop's scalars, one float64 array ------------------------------------
 ST_MODE = 0  # index of the mode flown; n_modes when the program is done
@@ -159,7 +159,7 @@ class Actuation(NamedTuple):
     torque_cmd: np.ndarray
     pulse: np.ndarray  # modulator output per axis
     rotvec: np.ndarray  # history scratch
-    gains: np.ndarray  # (levels, 2, 3): kp, kd per axis
+    gains: np.ndarray  # (levels, 2, 3): kp, kd per axis (contiguous rows for the controller)
     fsw_inertia: np.ndarray  # the inertia the flight software knows (000 eq. 30)
     pwpf_state: np.ndarray
     row_masks: np.ndarray  # allocation table rows as bit masks
@@ -187,6 +187,7 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
     ``summary[S_HISTORY_ROWS]`` says how many rows were written.
     """
     n_thr = inputs.thrusters.shape[0]
+    n_levels = inputs.levels.shape[0]
     work = Work(
         Body(
             np.empty(dynamics.STATE_SIZE),
@@ -210,7 +211,7 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
             np.zeros(4),
             np.zeros((3, 4)),
             np.zeros((6, 4)),
-            np.empty((N_LEVELS, 3)),
+            np.empty((n_levels, 3)),
         ),
         Actuation(
             np.zeros(4),
@@ -218,7 +219,7 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
             np.zeros(3),
             np.zeros(3),
             np.zeros(3),
-            np.empty((N_LEVELS, 2, 3)),
+            np.empty((n_levels, 2, 3)),
             np.empty((3, 3)),
             np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
             np.empty(inputs.allocation.shape[0], dtype=np.int64),
@@ -243,11 +244,12 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
     dynamics.invert_3x3(body.inertia, body.inertia_inv)
     allocation.table_masks(inputs.allocation, act.row_masks)
     margin = fsw[F_ACCEL_MARGIN]
-    for lv in range(N_LEVELS):
+    levels = inputs.levels
+    for lv in range(levels.shape[0]):
         for i in range(3):
-            act.gains[lv, 0, i] = fsw[F_KP + 3 * lv + i]
-            act.gains[lv, 1, i] = fsw[F_KD + 3 * lv + i]
-            guide.accels[lv, i] = margin * fsw[F_ACCEL_MAX + 3 * lv + i]
+            act.gains[lv, 0, i] = levels[lv, LV_KP + i]
+            act.gains[lv, 1, i] = levels[lv, LV_KD + i]
+            guide.accels[lv, i] = margin * levels[lv, LV_ACCEL_MAX + i]
     sensed.rng_state[0] = np.uint64(nav_seed)
 
     if int(mission[M_TRAJECTORY_MODEL]) != TRAJECTORY_NONE:
@@ -398,7 +400,9 @@ def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sens
 
 
 @jit_noalloc(force_inline=True)
-def _actuate(fsw, thrusters, sensed, guide, act, masks, t, level, active, controlled, has_reference, pulse_counts):
+def _actuate(
+    fsw, levels, thrusters, sensed, guide, act, masks, t, level, active, controlled, has_reference, pulse_counts
+):
     """Controller, actuation (pulse modulation + allocation), switching check and valve commands.
 
     ``active``: False when the mode is locked, the program done or the run failed.
@@ -431,7 +435,7 @@ def _actuate(fsw, thrusters, sensed, guide, act, masks, t, level, active, contro
             act.torque_cmd,
         )
         desired = allocation.thruster_commands(
-            int(fsw[F_ACTUATION]), fsw, level, act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
+            int(fsw[F_ACTUATION]), fsw, levels[level], act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
         )
     valves_open = masks[MASK_OPEN]
     opened, closed = switching.enforce(act.switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
@@ -468,9 +472,9 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
 
 
 @jit_noalloc(force_inline=True)
-def _integrate(vehicle, thrusters, max_step, dt, body, act, status, masks, qbar, t, level):
-    """Integrate the attitude over one control period, segment by segment; returns True when
-    the propellant ran out in it."""
+def _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level):
+    """Integrate the attitude over one control period, segment by segment, ``thrust`` (N) being the
+    level's nominal thrust; returns True when the propellant ran out in it."""
     n_thr = thrusters.shape[0]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
@@ -492,7 +496,7 @@ def _integrate(vehicle, thrusters, max_step, dt, body, act, status, masks, qbar,
             t_next = t_end
         if active and fuel > 0.0:
             impulse = rcs.segment_thrust(
-                act.valve_state, thrusters, vehicle, act.arms, level, t_seg, t_next, tau0, tau1, valves_active
+                act.valve_state, thrusters, vehicle, act.arms, thrust, t_seg, t_next, tau0, tau1, valves_active
             )
         else:
             impulse = 0.0
@@ -580,7 +584,21 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
 
         level = int(program[flown, MD_LEVEL])
         active = not done and status[ST_FAILURE] == FAIL_NONE and int(program[flown, MD_KIND]) != modes.KIND_LOCKED
-        _actuate(fsw, thrusters, sensed, guide, act, masks, t, level, active, controlled, has_reference, pulse_counts)
+        _actuate(
+            fsw,
+            inputs.levels,
+            thrusters,
+            sensed,
+            guide,
+            act,
+            masks,
+            t,
+            level,
+            active,
+            controlled,
+            has_reference,
+            pulse_counts,
+        )
 
         finished = done or status[ST_FAILURE] != FAIL_NONE
         if record:
@@ -592,7 +610,8 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
             break
 
         qbar = sensed.now[modes.NOW_QBAR]
-        exhausted = _integrate(vehicle, thrusters, max_step, dt, body, act, status, masks, qbar, t, level)
+        thrust = inputs.levels[level, LV_THRUST]
+        exhausted = _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level)
         summary[S_PER_MODE + mode] += dt
         if program[mode, MD_CALIBRATION] != 0.0:
             status[ST_CALIBRATING] += dt

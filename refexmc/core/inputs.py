@@ -9,7 +9,8 @@ class RunInputs(NamedTuple):
     """Float64 tables with the column offsets of ``refexmc.core.layout``."""
 
     vehicle: np.ndarray  # layout.VEHICLE, the dispersed truth
-    thrusters: np.ndarray  # one layout.THRUSTER row per thruster
+    thrusters: np.ndarray  # one layout.THRUSTER row per thruster, then its time constants per level
+    levels: np.ndarray  # one layout.LEVEL row per thrust level
     fsw: np.ndarray  # layout.FSW, the flight software's design
     mission: np.ndarray  # layout.MISSION
     modes: np.ndarray  # one layout.MODE row per mode, in flight order

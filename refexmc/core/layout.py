@@ -29,8 +29,6 @@ VEHICLE = Fields()
 V_INERTIA = VEHICLE.add("inertia_kg_m2", 9)  # row-major 3x3, body axes about the actual CoM
 V_COM_OFFSET = VEHICLE.add("com_offset_m", 3)  # actual CoM minus nominal CoM, body axes
 V_MASS = VEHICLE.add("mass_kg")
-V_THRUST_LOW = VEHICLE.add("thrust_low_n")
-V_THRUST_HIGH = VEHICLE.add("thrust_high_n")
 V_DERATING = VEHICLE.add("derating", 8)  # factor with 1..8 valves open; more: the last
 V_ISP = VEHICLE.add("isp_s")
 V_PROPELLANT = VEHICLE.add("propellant_kg")
@@ -46,28 +44,37 @@ THRUSTER = Fields()
 T_POSITION = THRUSTER.add("position_m", 3)  # nominal body frame (origin at nominal CoM)
 T_DIRECTION = THRUSTER.add("direction", 3)  # unit force direction, body axes
 T_SCALE = THRUSTER.add("thrust_scale")
-T_ON_DELAY_LOW = THRUSTER.add("on_delay_low_s")
-T_RISE_LOW = THRUSTER.add("rise_low_s")
-T_OFF_DELAY_LOW = THRUSTER.add("off_delay_low_s")
-T_FALL_LOW = THRUSTER.add("fall_low_s")
-T_ON_DELAY_HIGH = THRUSTER.add("on_delay_high_s")
-T_RISE_HIGH = THRUSTER.add("rise_high_s")
-T_OFF_DELAY_HIGH = THRUSTER.add("off_delay_high_s")
-T_FALL_HIGH = THRUSTER.add("fall_high_s")
 T_FAILED = THRUSTER.add("failed")  # 1: never opens, uses no propellant (000 sec. 5)
-THRUSTER_SIZE = THRUSTER.size
-# offset of the time constants of a thrust level: T_ON_DELAY_LOW + 4 * level
+T_TIME_CONSTANTS = THRUSTER.size  # then per thrust level: on-delay, rise, off-delay, fall (s)
 TIME_CONSTANTS_PER_LEVEL = 4
 ON_DELAY, RISE, OFF_DELAY, FALL = 0, 1, 2, 3
+TIME_CONSTANT_NAMES = ("on_delay", "rise", "off_delay", "fall")
+
+
+def thruster_size(n_levels):
+    """Columns of the thruster table of a vehicle with ``n_levels`` thrust levels."""
+    return T_TIME_CONSTANTS + TIME_CONSTANTS_PER_LEVEL * n_levels
+
+
+def time_constant_column(level, which):
+    """Column of time constant ``which`` (ON_DELAY, RISE, OFF_DELAY, FALL) of thrust level ``level``."""
+    return T_TIME_CONSTANTS + TIME_CONSTANTS_PER_LEVEL * level + which
+
+
+# --- thrust levels: one row per level, in the vehicle file's order ----------------------------
+LEVEL = Fields()
+LV_THRUST = LEVEL.add("thrust_n")  # truth, per thruster before derating and scale (dispersible)
+LV_KP = LEVEL.add("kp", 3)  # flight software: 000 eq. 38 or given
+LV_KD = LEVEL.add("kd", 3)  # 000 eq. 34 or given
+LV_TORQUE_MAX = LEVEL.add("torque_max_n_m", 3)  # PWPF full scale tau_max (000 eq. 41)
+LV_ACCEL_MAX = LEVEL.add("accel_max_rad_s2", 3)  # omega_dot_max (000 eq. 1)
+LEVEL_SIZE = LEVEL.size
+MAX_LEVELS = 8
 
 # --- flight software design (derived from the nominal vehicle, never dispersed) -------------
 FSW = Fields()
 F_CONTROL_PERIOD = FSW.add("control_period_s")
 F_INERTIA = FSW.add("inertia_kg_m2", 9)  # the inertia the flight software knows (eq. 30)
-F_KP = FSW.add("kp", 6)  # low x,y,z then high x,y,z (000 eq. 38, or given)
-F_KD = FSW.add("kd", 6)  # (000 eq. 34, or given)
-F_TORQUE_MAX = FSW.add("torque_max_n_m", 6)  # tau_max per axis, low then high (000 eq. 41)
-F_ACCEL_MAX = FSW.add("accel_max_rad_s2", 6)  # omega_dot_max, low then high (000 eq. 1-3)
 F_ACCEL_MARGIN = FSW.add("accel_margin")  # guidance uses this fraction of omega_dot_max (eq. 13)
 F_TAU_MIN_FRACTION = FSW.add("tau_min_fraction")  # PWPF deadband tau_min / tau_max (eq. 43)
 F_PWPF_ON = FSW.add("pwpf_on_s")  # algorithm t_on (000 sec. 5: 75 ms)

@@ -19,15 +19,13 @@ from refexmc.core.layout import (
     RISE,
     T_DIRECTION,
     T_FAILED,
-    T_ON_DELAY_LOW,
     T_POSITION,
     T_SCALE,
+    T_TIME_CONSTANTS,
     TIME_CONSTANTS_PER_LEVEL,
     V_COM_OFFSET,
     V_DERATING,
     V_ISP,
-    V_THRUST_HIGH,
-    V_THRUST_LOW,
 )
 
 STANDARD_GRAVITY = 9.80665  # m/s^2, defines Isp in seconds
@@ -41,8 +39,6 @@ VS_PENDING = 4  # pairs (reaction time, 1 open / 0 close), ascending in time
 VS_KINK = VS_PENDING + 2 * MAX_PENDING  # while ramping: time the level reaches 0 or 1
 VALVE_STATE_SIZE = VS_KINK + 1
 
-LEVEL_LOW = 0
-LEVEL_HIGH = 1
 ALL_THRUSTERS = -1  # bit mask with every thruster's bit set
 _EPS_T = 1e-12
 
@@ -67,7 +63,7 @@ def level_at(valve_state, i, t):
 @jit_noalloc
 def time_constant(thrusters, i, thrust_level, which):
     """On-delay, rise, off-delay or fall time (s) of thruster ``i`` at the given thrust level."""
-    return thrusters[i, T_ON_DELAY_LOW + TIME_CONSTANTS_PER_LEVEL * thrust_level + which]
+    return thrusters[i, T_TIME_CONSTANTS + TIME_CONSTANTS_PER_LEVEL * thrust_level + which]
 
 
 @jit_noalloc
@@ -166,10 +162,11 @@ def derating_factor(vehicle, n_open):
 
 @jit_noalloc(force_inline=True)
 def segment_thrust(
-    valve_state, thrusters, vehicle, arms, thrust_level, t_start, t_end, tau_start, tau_end, active=ALL_THRUSTERS
+    valve_state, thrusters, vehicle, arms, nominal, t_start, t_end, tau_start, tau_end, active=ALL_THRUSTERS
 ):
     """Torques at both ends of a segment without kinks, and its total impulse (N s).
 
+    ``nominal`` is the thrust (N) of the level flown, before derating and per-thruster scale.
     Within the segment each level is linear; the number of open valves (level > 0 at the
     midpoint) and hence the derating are constant. Thrusters outside the bit mask ``active``
     (closed and settled, see :func:`update`) are skipped.
@@ -183,7 +180,6 @@ def segment_thrust(
         m &= m - 1
         if level_at(valve_state, i, t_mid) > 0.0:
             n_open += 1
-    nominal = vehicle[V_THRUST_HIGH] if thrust_level == LEVEL_HIGH else vehicle[V_THRUST_LOW]
     force = nominal * derating_factor(vehicle, n_open)
     sx, sy, sz = 0.0, 0.0, 0.0  # sums in registers, in the same order as into the arrays
     ex, ey, ez = 0.0, 0.0, 0.0
