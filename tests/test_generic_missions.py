@@ -262,3 +262,22 @@ def test_time_constants_must_name_the_thrust_levels(tmp_path):
     assert result.exit_code == 2
     expected = "expected the thrust levels of rcs.thrust_n in its order (low, high), got low, boost"
     assert f"rcs.valve_time_constants_ms: {expected}" in result.output, result.output
+
+
+def test_failures_name_thrusters_by_name_or_id(tmp_path):
+    """failures.thrusters takes the vehicle's names (generic-12: XP1 ... ZN2) or ids; they fly as ids."""
+    import yaml
+
+    campaign = yaml.safe_load((ROOT / "campaigns/generic-slew.yaml").read_text())
+    campaign.update(vehicle=str(GENERIC_VEHICLE), mission=str(GENERIC_MISSION), runs=2, dispersions={})
+    campaign["failures"] = {"mode": "fixed", "thrusters": ["XP2", 9]}
+    (tmp_path / "campaign.yaml").write_text(yaml.safe_dump(campaign))
+    loaded = load_campaign(tmp_path / "campaign.yaml")
+    assert loaded["failures"]["thrusters"] == [2, 9]
+    rows, _ = fly_chunk(loaded, [1])
+    assert rows[0]["failed_thrusters"] == "2,9"
+    campaign["failures"]["thrusters"] = ["XP3"]
+    (tmp_path / "campaign.yaml").write_text(yaml.safe_dump(campaign))
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "campaign.yaml")])
+    assert result.exit_code == 2
+    assert "failures.thrusters.0: unknown thruster 'XP3'; did you mean" in result.output, result.output

@@ -199,7 +199,18 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         raise ConfigError(message, file=file, line=lines.get(path) or lines.get(()), path=prefix + path)
 
     thrusters = vehicle["rcs"]["thrusters"]
+    names = {}
     for i, thruster in enumerate(thrusters):
+        if "name" in thruster:
+            if thruster["name"] in names:
+                fail(
+                    f"thruster name '{thruster['name']}' is used twice (also thruster {names[thruster['name']]})",
+                    "rcs",
+                    "thrusters",
+                    i,
+                    "name",
+                )
+            names[thruster["name"]] = i + 1
         if thruster["id"] != i + 1:
             fail(
                 f"expected thruster ids 1..{len(thrusters)} in order, got {thruster['id']}", "rcs", "thrusters", i, "id"
@@ -384,7 +395,10 @@ def failure_sets(sizes, n_thrusters):
     return [combo for k in sorted(sizes) for combo in itertools.combinations(range(1, n_thrusters + 1), k)]
 
 
-def _check_failures(failures, n_thrusters, path, lines):
+def _check_failures(failures, thrusters, path, lines):
+    """Failure settings against the vehicle's thrusters; names in ``thrusters`` become ids."""
+    n_thrusters = len(thrusters)
+
     def fail(message, *sub):
         key = ("failures", *sub)
         raise ConfigError(message, file=path, line=lines.get(key) or lines.get(("failures",)), path=key)
@@ -397,9 +411,23 @@ def _check_failures(failures, n_thrusters, path, lines):
         if key not in failures:
             fail(f"mode {mode} needs '{key}'")
     if mode == "fixed":
+        ids = {t.get("name", t["id"]): t["id"] for t in thrusters}
+        ids.update({t["id"]: t["id"] for t in thrusters})
+        resolved = []
         for k, tid in enumerate(failures["thrusters"]):
-            if tid > n_thrusters:
+            if isinstance(tid, str) and tid not in ids:
+                names = [t["name"] for t in thrusters if "name" in t]
+                guess = difflib.get_close_matches(tid, names, n=1)
+                hint = (
+                    f"; did you mean '{guess[0]}'?" if guess else f"; the vehicle names: {', '.join(names) or 'none'}"
+                )
+                fail(f"unknown thruster '{tid}'{hint}", "thrusters", k)
+            if isinstance(tid, int) and tid > n_thrusters:
                 fail(f"expected a thruster id 1..{n_thrusters}, got {tid}", "thrusters", k)
+            if ids[tid] in resolved:
+                fail(f"thruster {ids[tid]} is listed twice (by id and by name)", "thrusters", k)
+            resolved.append(ids[tid])
+        failures["thrusters"] = resolved  # ids from here on: runs table, sampling, resolved campaign
     elif mode == "random":
         probabilities = failures["count_probabilities"]
         if len(probabilities) > n_thrusters + 1:
@@ -437,7 +465,7 @@ def load_campaign(path):
         "mission": mission,
     }
     n_thrusters = len(vehicle["rcs"]["thrusters"])
-    _check_failures(campaign["failures"], n_thrusters, path, lines)
+    _check_failures(campaign["failures"], vehicle["rcs"]["thrusters"], path, lines)
     dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     mode_names = [mode["name"] for mode in mission["modes"]]

@@ -80,7 +80,13 @@ THRUSTER = obj(
         "id": integer("thruster number, 1..N in order", minimum=1),
         "position_m": vector("position in the nominal body frame [m]"),
         "direction": vector("force direction in body axes (normalised on load) [-]"),
+        "name": {
+            "type": "string",
+            "pattern": "^[A-Za-z][A-Za-z0-9_-]*$",
+            "description": "optional name, unique; failures may name the thruster by it",
+        },
     },
+    optional=("name",),
 )
 
 AXIS_COMMAND_PATTERN = "^([+-]x)?([+-]y)?([+-]z)?$"
@@ -461,9 +467,9 @@ CAMPAIGN = obj(
                 ),
                 "thrusters": {
                     "type": "array",
-                    "items": integer("thruster id", minimum=1),
+                    "items": {"type": ["integer", "string"], "minimum": 1, "description": "thruster id or name"},
                     "uniqueItems": True,
-                    "description": "failed thruster ids (mode fixed)",
+                    "description": "failed thrusters by id or name (mode fixed)",
                 },
                 "count_probabilities": {
                     "type": "array",
