@@ -68,3 +68,15 @@ def test_refexmc_has_no_import_cycle():
     assert "refexmc.campaign.dask_backend" in graph["refexmc.campaign.backends"]  # lazy ones too
     cycle = find_cycle(graph)
     assert cycle is None, f"import cycle: {' -> '.join(cycle)}"
+
+
+def test_report_campaign_and_cli_never_import_the_core():
+    """The report and the campaign read names from the files and the output directory, and fly
+    through refexmc.simulate: none of them imports refexmc.core, lazily or not (issue 12)."""
+    graph = import_graph()
+    offenders = {
+        module: sorted(m for m in imported if m == "refexmc.core" or m.startswith("refexmc.core."))
+        for module, imported in graph.items()
+        if module.startswith(("refexmc.report", "refexmc.campaign")) or module == "refexmc.cli"
+    }
+    assert not {m: i for m, i in offenders.items() if i}
