@@ -271,3 +271,32 @@ def exit_holds(mode_config, time_in_mode, t1, rates, rate_error, angle_error, al
         "dynamic_pressure_above_pa": lambda v: qbar >= v,
     }
     return any(all(tests[name](value) for name, value in group.items()) for group in mode_config["exit"])
+
+
+# --- LP thruster allocation (refexmc.core.lp_allocation), by enumerating the vertices ---------
+def lp_allocation_vertices(arms, u_max, torque, tolerance=1e-9):
+    """min sum(u) s.t. arms u = torque, 0 <= u <= u_max, by brute force over the polytope's vertices.
+
+    A vertex has at most 3 thrusters strictly between their bounds: for every choice of 3
+    (the basis) and every assignment of the others to 0 or u_max, solve for the 3 and keep the
+    feasible assignment of least total thrust. Exponential; for a handful of thrusters only.
+    Returns (least total thrust, u), or (inf, None) when the torque is not attainable.
+    """
+    import itertools
+
+    import numpy as np
+
+    n = arms.shape[1]
+    best, best_u = np.inf, None
+    for trio in itertools.combinations(range(n), 3):
+        b = arms[:, trio]
+        if abs(np.linalg.det(b)) < 1e-12:
+            continue
+        others = [j for j in range(n) if j not in trio]
+        for at_max in itertools.product((0.0, 1.0), repeat=len(others)):
+            u = np.zeros(n)
+            u[others] = np.asarray(at_max) * u_max[others]
+            u[list(trio)] = np.linalg.solve(b, torque - arms[:, others] @ u[others])
+            if np.all(u >= -tolerance) and np.all(u <= u_max + tolerance) and u.sum() < best:
+                best, best_u = u.sum(), u
+    return best, best_u

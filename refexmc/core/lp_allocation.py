@@ -1,0 +1,203 @@
+"""Fuel-optimal thruster allocation by linear programming (004 eq. 2-5).
+
+    minimise sum(u)  subject to  H u = tau,  0 <= u <= u_max
+
+for any thruster geometry (H: 3 x n torque arms times direction, N m per N). A small
+bounded-variable primal simplex on caller-owned arrays, Bland's rule against cycling.
+
+Policy when tau is not attainable (outside the thrusters' torque polytope, or a direction they
+cannot produce): the largest attainable torque along tau, s* tau with s* in [0, 1] maximal, then
+the least propellant for it. Both come from one LP in (u, s):
+
+    H u - s tau = 0,  0 <= u <= u_max,  0 <= s <= 1
+
+phase A maximises s from the feasible start u = 0, s = 0 (three artificial variables fixed at
+zero form the first basis, so no feasibility phase is needed); phase B fixes s = s* and
+minimises sum(u) from phase A's basis. An attainable tau gives s* = 1 and 004's solution.
+Thrusters that have failed undetected stay in H: the flight software does not know (000 sec. 5).
+"""
+
+from refexmc._jit import jit_noalloc
+
+N_ROWS = 3  # torque components
+MAX_ITERATIONS = 200
+COST_TOLERANCE = 1e-12  # reduced costs below this (times the cost scale) count as zero
+PIVOT_TOLERANCE = 1e-12
+
+# work layout: columns 0..n-1 thrusters, n the scale s, n+1..n+3 artificials
+STATUS_OPTIMAL = 0
+STATUS_ITERATION_LIMIT = 1
+
+
+def work_columns(n_thrusters):
+    """Columns of the LP's work arrays for ``n_thrusters`` thrusters."""
+    return n_thrusters + 1 + N_ROWS
+
+
+@jit_noalloc
+def _invert_basis(a, basis, binv):
+    """binv = inverse of the 3 x 3 basis matrix (Gauss-Jordan with partial pivoting)."""
+    m = N_ROWS
+    # build [B | I] in place: binv holds I, and a copy of B is reduced in the first 3x3 of scratch
+    for i in range(m):
+        for j in range(m):
+            binv[i, j] = 1.0 if i == j else 0.0
+    b00, b01, b02 = a[0, basis[0]], a[0, basis[1]], a[0, basis[2]]
+    b10, b11, b12 = a[1, basis[0]], a[1, basis[1]], a[1, basis[2]]
+    b20, b21, b22 = a[2, basis[0]], a[2, basis[1]], a[2, basis[2]]
+    c00 = b11 * b22 - b12 * b21
+    c01 = b02 * b21 - b01 * b22
+    c02 = b01 * b12 - b02 * b11
+    det = b00 * c00 + b10 * c01 + b20 * c02
+    if det == 0.0:
+        return False
+    inv_det = 1.0 / det
+    binv[0, 0] = c00 * inv_det
+    binv[0, 1] = c01 * inv_det
+    binv[0, 2] = c02 * inv_det
+    binv[1, 0] = (b12 * b20 - b10 * b22) * inv_det
+    binv[1, 1] = (b00 * b22 - b02 * b20) * inv_det
+    binv[1, 2] = (b02 * b10 - b00 * b12) * inv_det
+    binv[2, 0] = (b10 * b21 - b11 * b20) * inv_det
+    binv[2, 1] = (b01 * b20 - b00 * b21) * inv_det
+    binv[2, 2] = (b00 * b11 - b01 * b10) * inv_det
+    return True
+
+
+@jit_noalloc
+def _simplex(a, lower, upper, cost, x, basis, in_basis, binv, w):
+    """Bounded-variable primal simplex from the feasible basic solution ``x`` with ``basis``.
+
+    Nonbasic variables sit at a bound. Entering: the lowest-index variable whose move improves
+    the cost (Bland); leaving: the blocking basic variable with the lowest index on ties.
+    Returns the number of iterations, or -1 at the iteration limit.
+    """
+    n = a.shape[1]
+    scale = 0.0
+    for j in range(n):
+        scale = max(scale, abs(cost[j]))
+    tolerance = COST_TOLERANCE * max(scale, 1.0)
+    for iteration in range(MAX_ITERATIONS):
+        if not _invert_basis(a, basis, binv):
+            return -1
+        y0 = cost[basis[0]] * binv[0, 0] + cost[basis[1]] * binv[1, 0] + cost[basis[2]] * binv[2, 0]
+        y1 = cost[basis[0]] * binv[0, 1] + cost[basis[1]] * binv[1, 1] + cost[basis[2]] * binv[2, 1]
+        y2 = cost[basis[0]] * binv[0, 2] + cost[basis[1]] * binv[1, 2] + cost[basis[2]] * binv[2, 2]
+        entering = -1
+        direction = 0.0
+        for j in range(n):
+            if in_basis[j] or upper[j] <= lower[j]:
+                continue
+            d = cost[j] - (y0 * a[0, j] + y1 * a[1, j] + y2 * a[2, j])
+            if d < -tolerance and x[j] < upper[j]:
+                entering, direction = j, 1.0
+                break
+            if d > tolerance and x[j] > lower[j]:
+                entering, direction = j, -1.0
+                break
+        if entering < 0:
+            return iteration
+        for i in range(N_ROWS):  # change of x_B per unit step of the entering variable: -direction w
+            w[i] = binv[i, 0] * a[0, entering] + binv[i, 1] * a[1, entering] + binv[i, 2] * a[2, entering]
+        step = upper[entering] - lower[entering]  # a bound flip
+        leaving = -1
+        for i in range(N_ROWS):
+            delta = -direction * w[i]
+            k = basis[i]
+            if delta < -PIVOT_TOLERANCE:
+                t = (x[k] - lower[k]) / -delta
+            elif delta > PIVOT_TOLERANCE:
+                t = (upper[k] - x[k]) / delta
+            else:
+                continue
+            if t < 0.0:
+                t = 0.0
+            if t < step or (t == step and leaving >= 0 and k < basis[leaving]):
+                step = t
+                leaving = i
+        x[entering] += direction * step
+        for i in range(N_ROWS):
+            x[basis[i]] -= direction * w[i] * step
+        if leaving >= 0:
+            k = basis[leaving]
+            x[k] = lower[k] if -direction * w[leaving] < 0.0 else upper[k]  # exactly on its bound
+            in_basis[k] = False
+            basis[leaving] = entering
+            in_basis[entering] = True
+        else:
+            x[entering] = upper[entering] if direction > 0.0 else lower[entering]
+    return -1
+
+
+@jit_noalloc
+def _refine(a, basis, binv, x, rhs):
+    """Recompute the basic variables from the nonbasic ones: B x_B = rhs - N x_N (less rounding)."""
+    n = a.shape[1]
+    r0, r1, r2 = rhs[0], rhs[1], rhs[2]
+    for j in range(n):
+        if j != basis[0] and j != basis[1] and j != basis[2] and x[j] != 0.0:
+            r0 -= a[0, j] * x[j]
+            r1 -= a[1, j] * x[j]
+            r2 -= a[2, j] * x[j]
+    for i in range(N_ROWS):
+        x[basis[i]] = binv[i, 0] * r0 + binv[i, 1] * r1 + binv[i, 2] * r2
+
+
+@jit_noalloc
+def allocate(arms, u_max, torque, u_out, work, basis, in_basis):
+    """Thrust per thruster ``u_out`` (N) realising ``torque`` (N m) with the least total thrust.
+
+    ``arms``: (3, n) torque per newton of each thruster (r x d); ``u_max``: (n,) largest thrust.
+    ``work``: float scratch of :func:`scratch_shape`, ``basis``: (3,) int64, ``in_basis``:
+    (n + 4,) bool. Returns the scale s* in [0, 1] of the torque realised (1: attained) and
+    writes nothing but ``u_out`` and the scratch.
+    """
+    n = arms.shape[1]
+    n_cols = n + 1 + N_ROWS
+    a = work[0:3]
+    lower, upper, cost, x, rhs = work[3], work[4], work[5], work[6], work[7]
+    binv = work[8:11, 0:3]
+    w = work[8, 3:6]
+    for j in range(n_cols):
+        for i in range(N_ROWS):
+            a[i, j] = 0.0
+        lower[j] = 0.0
+        upper[j] = 0.0
+        cost[j] = 0.0
+        x[j] = 0.0
+        in_basis[j] = False
+    for j in range(n):
+        for i in range(N_ROWS):
+            a[i, j] = arms[i, j]
+        upper[j] = u_max[j]
+    s = n
+    for i in range(N_ROWS):
+        a[i, s] = -torque[i]
+        a[i, n + 1 + i] = 1.0  # artificials, fixed at zero
+        basis[i] = n + 1 + i
+        in_basis[n + 1 + i] = True
+        rhs[i] = 0.0
+    upper[s] = 1.0
+    # phase A: the largest attainable share of the torque
+    cost[s] = -1.0
+    _simplex(a, lower, upper, cost, x, basis, in_basis, binv, w)
+    scale = min(max(x[s], 0.0), 1.0)
+    # phase B: that share with the least propellant
+    lower[s] = scale
+    upper[s] = scale
+    x[s] = scale
+    cost[s] = 0.0
+    for j in range(n):
+        cost[j] = 1.0
+    _simplex(a, lower, upper, cost, x, basis, in_basis, binv, w)
+    if _invert_basis(a, basis, binv):
+        _refine(a, basis, binv, x, rhs)
+    for j in range(n):
+        u = x[j]
+        u_out[j] = 0.0 if u < 0.0 else (u_max[j] if u > u_max[j] else u)
+    return scale
+
+
+def scratch_shape(n_thrusters):
+    """Shape of ``allocate``'s float scratch."""
+    return (N_ROWS + 8, max(work_columns(n_thrusters), 6))

@@ -1,0 +1,151 @@
+"""LP thruster allocation (core.lp_allocation, 004 eq. 2-5) against scipy's HiGHS and a vertex
+enumeration (tests/naive.py).
+
+Tolerances: the kernel and HiGHS both return vertices of the same polytope, so the optimal totals
+agree to rounding; 1e-9 relative (issue 13) leaves six orders for HiGHS's own tolerances. The
+kernel recomputes its basic thrusts from the nonbasic ones, so H u reproduces the torque to
+rounding of a 3 x 3 solve: 1e-12 N m for torques of order 1 N m.
+"""
+
+from pathlib import Path
+
+import naive
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from refexmc.config import derived
+from refexmc.config.load import load_vehicle
+from refexmc.core import lp_allocation as lp
+
+ROOT = Path(__file__).resolve().parents[1]
+OBJECTIVE_REL = 1e-9
+RESIDUAL_N_M = 1e-12
+
+
+class Solver:
+    def __init__(self, arms, u_max):
+        n = arms.shape[1]
+        self.arms, self.u_max = np.ascontiguousarray(arms, dtype=float), np.asarray(u_max, dtype=float)
+        self.work = np.zeros(lp.scratch_shape(n))
+        self.basis = np.zeros(3, dtype=np.int64)
+        self.in_basis = np.zeros(lp.work_columns(n), dtype=np.bool_)
+        self.u = np.zeros(n)
+
+    def __call__(self, torque):
+        scale = lp.allocate(
+            self.arms, self.u_max, np.asarray(torque, dtype=float), self.u, self.work, self.basis, self.in_basis
+        )
+        return scale, self.u.copy()
+
+
+def bounds(u_max):
+    return [(0.0, float(top)) for top in u_max]
+
+
+def random_geometry(seed, n=12):
+    rng = np.random.default_rng(seed)
+    positions = rng.uniform(-1.0, 1.0, (n, 3))
+    directions = rng.normal(size=(n, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return np.cross(positions, directions).T, rng.uniform(0.5, 2.0, n)
+
+
+def generic_12():
+    vehicle = load_vehicle(ROOT / "configs/vehicles/generic-12.yaml")
+    return derived.torque_arms(vehicle).T, np.full(12, vehicle["rcs"]["thrust_n"]["low"])
+
+
+GEOMETRIES = {"generic-12": generic_12, "random-12": lambda: random_geometry(7)}
+
+
+def attainable_torques(arms, u_max, count, seed):
+    """Torques of random thrust vectors, about half the thrusters firing: inside the polytope."""
+    rng = np.random.default_rng(seed)
+    n = arms.shape[1]
+    thrusts = rng.uniform(0.0, 1.0, (count, n)) * (rng.random((count, n)) < 0.5) * u_max
+    return thrusts @ arms.T
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", GEOMETRIES)
+def test_ten_thousand_torques_equal_highs(name):
+    """Issue 13: 10,000 attainable torques; objective equal to linprog, H u = tau, bounds held."""
+    arms, u_max = GEOMETRIES[name]()
+    solve = Solver(arms, u_max)
+    for torque in attainable_torques(arms, u_max, 10_000, seed=1):
+        scale, u = solve(torque)
+        reference = linprog(np.ones(len(u)), A_eq=arms, b_eq=torque, bounds=bounds(u_max), method="highs")
+        assert reference.status == 0 and scale == 1.0
+        assert u.sum() == pytest.approx(reference.fun, rel=OBJECTIVE_REL, abs=1e-15)
+        assert np.abs(arms @ u - torque).max() <= RESIDUAL_N_M
+        assert np.all(u >= 0.0) and np.all(u <= u_max)
+
+
+@pytest.mark.parametrize("name", GEOMETRIES)
+def test_equal_to_highs_on_a_few_hundred_torques(name):
+    arms, u_max = GEOMETRIES[name]()
+    solve = Solver(arms, u_max)
+    for torque in attainable_torques(arms, u_max, 300, seed=2):
+        scale, u = solve(torque)
+        reference = linprog(np.ones(len(u)), A_eq=arms, b_eq=torque, bounds=bounds(u_max), method="highs")
+        assert scale == 1.0 and u.sum() == pytest.approx(reference.fun, rel=OBJECTIVE_REL, abs=1e-15)
+        assert np.abs(arms @ u - torque).max() <= RESIDUAL_N_M
+
+
+def test_equal_to_the_vertex_enumeration():
+    """The slow twin: every vertex of a 7-thruster polytope, no LP solver involved."""
+    arms, u_max = random_geometry(3, n=7)
+    solve = Solver(arms, u_max)
+    for torque in attainable_torques(arms, u_max, 20, seed=4):
+        best, _ = naive.lp_allocation_vertices(arms, u_max, torque)
+        scale, u = solve(torque)
+        assert scale == 1.0 and u.sum() == pytest.approx(best, rel=1e-9)
+
+
+def test_unattainable_torque_gets_the_largest_share_with_the_least_propellant():
+    """Policy: s* = max s with H u = s tau attainable (an LP of its own for linprog), then min sum(u)."""
+    arms, u_max = random_geometry(11)
+    solve = Solver(arms, u_max)
+    rng = np.random.default_rng(5)
+    n = arms.shape[1]
+    for _ in range(50):
+        torque = rng.normal(size=3) * 50.0  # far outside the polytope
+        scale, u = solve(torque)
+        a_eq = np.c_[arms, -torque]
+        widest = linprog(np.r_[np.zeros(n), -1.0], A_eq=a_eq, b_eq=np.zeros(3), bounds=[*bounds(u_max), (0, 1)])
+        assert 0.0 < scale < 1.0 and scale == pytest.approx(-widest.fun, rel=1e-9)
+        cheapest = linprog(np.ones(n), A_eq=arms, b_eq=scale * torque, bounds=bounds(u_max))
+        assert u.sum() == pytest.approx(cheapest.fun, rel=1e-7)
+        assert np.abs(arms @ u - scale * torque).max() <= RESIDUAL_N_M * 50
+
+
+def test_a_direction_no_thruster_can_produce_gives_nothing():
+    """generic-12 with every +x thruster unavailable (u_max 0): a +x torque gets s* = 0, u = 0."""
+    arms, u_max = generic_12()
+    u_max = u_max.copy()
+    u_max[[0, 1]] = 0.0
+    scale, u = Solver(arms, u_max)(np.array([0.3, 0.0, 0.0]))
+    assert scale == 0.0 and not u.any()
+
+
+def test_never_more_propellant_than_any_allocation_that_realises_the_torque():
+    """The thrusts that generated each torque realise it: the LP's total is never larger. The
+    clipped pseudo-inverse, clip(pinv(H) tau, 0, u_max), is such an allocation only where it
+    realises the torque; with thrusters that push one way it mostly does not (it loses the
+    negative entries), which the last assertion measures rather than assumes."""
+    arms, u_max = generic_12()
+    solve = Solver(arms, u_max)
+    pinv = np.linalg.pinv(arms)
+    rng = np.random.default_rng(6)
+    realised_by_pinv = 0
+    for _ in range(2000):
+        thrusts = rng.uniform(0.0, 1.0, 12) * (rng.random(12) < 0.5) * u_max
+        torque = arms @ thrusts
+        _, u = solve(torque)
+        assert u.sum() <= thrusts.sum() + 1e-12
+        clipped = np.clip(pinv @ torque, 0.0, u_max)
+        if np.abs(arms @ clipped - torque).max() <= 1e-9:
+            realised_by_pinv += 1
+            assert u.sum() <= clipped.sum() + 1e-12
+    assert realised_by_pinv < 2000  # couples: pinv splits each axis over both senses
