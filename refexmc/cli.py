@@ -273,10 +273,13 @@ def validate(files):
 @main.command()
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def inspect(file, as_json):
+@click.option("--torque", help="TX,TY,TZ: show what fires for this body torque (N m).")
+@click.option("--level", help="thrust level for --torque (default: the vehicle's first).")
+def inspect(file, as_json, torque, level):
     """Print the design quantities derived from a vehicle (or a campaign's vehicle).
 
-    omega_dot_max (000 eq. 1), gains (eq. 38, 34), f_min (eq. 44), switching times, allocation table.
+    omega_dot_max (000 eq. 1), gains (eq. 38, 34), f_min (eq. 44), switching times, allocation table;
+    with --torque, the allocation of that torque: per-thruster command and the torque it realises.
     Example: refexmc inspect configs/vehicles/refex.yaml --json
     """
     from refexmc.config.derived import design
@@ -289,11 +292,42 @@ def inspect(file, as_json):
     if kind == "mission":
         _bad_input(f"{file}: a mission has no design quantities; give a vehicle or campaign file")
     vehicle = data["vehicle"] if kind == "campaign" else data
+    if torque is not None:
+        _inspect_torque(vehicle, torque, level, as_json)
+        return
     info = design(vehicle)
     if as_json:
         click.echo(json.dumps(info, indent=2))
         return
     click.echo(format_design(vehicle.get("name", str(file)), info))
+
+
+def _inspect_torque(vehicle, text, level, as_json):
+    from refexmc.config.derived import allocate_torque, level_names
+
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        _bad_input(f"--torque: expected three finite numbers TX,TY,TZ in N m, got {text!r}")
+    levels = level_names(vehicle)
+    if level is not None and level not in levels:
+        _bad_input(f"--level: expected one of the vehicle's thrust levels {', '.join(levels)}, got {level!r}")
+    result = allocate_torque(vehicle, values, level)
+    if as_json:
+        click.echo(json.dumps(result, indent=2))
+        return
+    alloc = result["allocation"]
+    lines = [f"allocation ({alloc['method']}, {alloc['level']} thrust) of torque {values} N m"]
+    for i, u in enumerate(alloc["commands"]):
+        if u > 0.0:
+            lines.append(f"  thruster {i + 1:2d}  {u:10.6f} N")
+    realised = ", ".join(f"{v:.6g}" for v in alloc["realised_torque_n_m"])
+    lines.append(f"  realised torque [N m]: {realised}; total thrust {sum(alloc['commands']):.6f} N")
+    if alloc["attained_share"] is not None and alloc["attained_share"] < 1.0:
+        lines.append(f"  not attainable: {100 * alloc['attained_share']:.2f} % of it along its direction")
+    click.echo("\n".join(lines))
 
 
 def format_design(name, info):
@@ -332,6 +366,9 @@ def format_design(name, info):
                 f"impulse-matching correction {matching:.2f} ms by more than {CORRECTION_WARNING_MS:g} ms "
                 "(000 sec. 5: the pulses then deliver a different impulse than the modulator assumes)"
             )
+    if "allocation" not in info:
+        lines.append(f"  actuation {info['actuation']}: LP allocation (004 eq. 2-5); see --torque")
+        return "\n".join(lines)
     lines.append("  allocation (axis command -> thrusters):")
     for key, ids in info["allocation"].items():
         lines.append(f"    {key:8s} {', '.join(map(str, ids))}")

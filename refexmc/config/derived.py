@@ -109,9 +109,11 @@ def allocation_table(vehicle):
     of its x-y entry plus its yaw thrusters (000 sec. 5: yaw has its own thrusters), unless the
     config lists it. Raises KeyError naming a missing single- or two-axis entry.
     """
-    entries = vehicle["flight_software"]["allocation"]
     n = len(vehicle["rcs"]["thrusters"])
     table = np.zeros((27, n), dtype=np.int64)
+    if "allocation" not in vehicle["flight_software"]:
+        return table  # actuation lp_pwm: no table
+    entries = vehicle["flight_software"]["allocation"]
     for w in itertools.product((-1, 0, 1), repeat=3):
         key = axis_command_key(w)
         if not key:
@@ -159,6 +161,9 @@ def design(vehicle):
     out["pwpf_correction_ms"] = pwpf["correction_ms"]
     out["hardware_min_on_ms"] = limits["min_on"]
     out["hardware_min_off_ms"] = limits["min_off"]
+    out["actuation"] = vehicle["flight_software"]["actuation"]
+    if "allocation" not in vehicle["flight_software"]:
+        return out
     table = allocation_table(vehicle)
     out["allocation"] = {}
     combos = sorted(
@@ -184,3 +189,47 @@ def inertia_problem(inertia):
     if a + b < c * (1.0 - 1e-12):
         return f"principal moments {eig.round(6).tolist()} violate the triangle inequality"
     return None
+
+
+def allocate_torque(vehicle, torque, level=None):
+    """What fires for a body torque (N m): per-thruster thrust (N) and the torque it realises.
+
+    ``lp_pwm``: the LP allocation of the flight software (core.lp_allocation, 004 eq. 2-5), each
+    thruster limited to the level's thrust; ``pwpf_table``: the allocation table's row for the
+    signs of the torque's components, its thrusters at the level's full thrust (what the table
+    opens when the PWPF commands every axis the torque has).
+    """
+    from refexmc.core import lp_allocation
+
+    level = level or level_names(vehicle)[0]
+    thrust = vehicle["rcs"]["thrust_n"][level]
+    arms = torque_arms(vehicle)  # n x 3, N m per N
+    n = arms.shape[0]
+    torque = np.asarray(torque, dtype=float)
+    method = vehicle["flight_software"]["actuation"]
+    share = None
+    if method == "lp_pwm":
+        u = np.zeros(n)
+        work = np.zeros(lp_allocation.scratch_shape(n))
+        basis, in_basis = np.zeros(3, dtype=np.int64), np.zeros(lp_allocation.work_columns(n), dtype=np.bool_)
+        share = lp_allocation.allocate(
+            np.ascontiguousarray(arms.T), np.full(n, thrust), torque, u, work, basis, in_basis
+        )
+    else:
+        signs = tuple(int(v) for v in np.sign(torque))
+        row = (signs[0] + 1) * 9 + (signs[1] + 1) * 3 + (signs[2] + 1)
+        u = allocation_table(vehicle)[row] * float(thrust)
+    return {
+        "allocation": {
+            "method": "lp" if method == "lp_pwm" else "table",
+            "level": level,
+            "torque_n_m": torque.tolist(),
+            "commands": u.tolist(),
+            "realised_torque_n_m": (arms.T @ u).tolist(),
+            "attained_share": share,
+        },
+        "thrusters": [
+            {"position_m": list(t["position_m"]), "direction": d.tolist(), "max_thrust_n": thrust}
+            for t, d in zip(vehicle["rcs"]["thrusters"], unit_directions(vehicle), strict=True)
+        ],
+    }

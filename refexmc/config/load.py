@@ -217,7 +217,17 @@ def check_vehicle(vehicle, file, lines, prefix=()):
             )
         if np.linalg.norm(thruster["direction"]) == 0.0:
             fail("expected a non-zero force direction", "rcs", "thrusters", i, "direction")
-    for key, ids in vehicle["flight_software"]["allocation"].items():
+    if vehicle["flight_software"]["actuation"] == "lp_pwm" and vehicle["rcs"]["switching_limits_ms"]["min_off"] != 0.0:
+        fail(
+            "actuation lp_pwm pulses inside each control period and applies no minimum rest; "
+            "expected switching_limits_ms.min_off: 0 (min_on is honoured by rounding the pulse)",
+            "rcs",
+            "switching_limits_ms",
+            "min_off",
+        )
+    if vehicle["flight_software"]["actuation"] == "pwpf_table" and "allocation" not in vehicle["flight_software"]:
+        fail("actuation pwpf_table needs an allocation table (flight_software.allocation)", "flight_software")
+    for key, ids in vehicle["flight_software"].get("allocation", {}).items():
         for k, tid in enumerate(ids):
             if tid > len(thrusters):
                 fail(f"expected a thruster id 1..{len(thrusters)}, got {tid}", "flight_software", "allocation", key, k)

@@ -42,6 +42,7 @@ def pack_levels(vehicle):
     for row, level in zip(out, names, strict=True):
         kp, kd = gains(vehicle, level)
         _put(row, L.LEVEL, "thrust_n", vehicle["rcs"]["thrust_n"][level])
+        _put(row, L.LEVEL, "thrust_design_n", vehicle["rcs"]["thrust_n"][level])
         _put(row, L.LEVEL, "kp", kp)
         _put(row, L.LEVEL, "kd", kd)
         _put(row, L.LEVEL, "torque_max_n_m", derived.torque_max(vehicle, level))
@@ -105,7 +106,7 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "min_on_s", vehicle["rcs"]["switching_limits_ms"]["min_on"] / 1e3)
     _put(out, L.FSW, "min_off_s", vehicle["rcs"]["switching_limits_ms"]["min_off"] / 1e3)
     controllers = {"pd_feedback_linearisation": L.CONTROLLER_PD_FEEDBACK_LINEARISATION, "pd": L.CONTROLLER_PD}
-    actuations = {"pwpf_table": L.ACTUATION_PWPF_TABLE}
+    actuations = {"pwpf_table": L.ACTUATION_PWPF_TABLE, "lp_pwm": L.ACTUATION_LP_PWM}
     _put(out, L.FSW, "controller_id", controllers[fsw_cfg["controller"]])
     _put(out, L.FSW, "actuation_id", actuations[fsw_cfg["actuation"]])
     return out

@@ -171,7 +171,12 @@ VEHICLE = obj(
                         "kd": per_level("derivative gain per thrust level", vector("body x, y, z [-]", minimum=0.0)),
                     },
                 ),
-                "actuation": string("torque-to-thruster chain", enum=["pwpf_table"]),
+                "actuation": string(
+                    "torque-to-thruster chain: pwpf_table (PWPF per axis and the allocation table, 000 eq. 41-48, "
+                    "Table 3) or lp_pwm (fuel-optimal LP allocation, 004 eq. 2-5, realised by pulse-width "
+                    "modulation in the control period)",
+                    enum=["pwpf_table", "lp_pwm"],
+                ),
                 "damping_ratio": number("zeta of 000 eq. 34 [-]", **POSITIVE),
                 "deadband_angle_deg": number("phi_e,db of 000 eq. 38 [deg]", exclusive_minimum=0.0, maximum=10.0),
                 "thrusters_per_axis": vector("n_t of 000 eq. 1 [-]", minimum=1),
@@ -198,7 +203,7 @@ VEHICLE = obj(
                     },
                 },
             },
-            optional=("gains",),
+            optional=("gains", "allocation"),
         ),
     },
     optional=("trajectory", "aerodynamics"),

@@ -1,8 +1,8 @@
 """Thruster allocation and the actuation chain from torque command to valve commands.
 
-The actuation chain is chosen by ``actuation_id`` (layout.ACTUATION_*); later strategies (LP
-fuel-optimal allocation, reaction wheels) add a branch to :func:`thruster_commands` and keep the
-run loop unchanged.
+The actuation chain is chosen by ``actuation_id`` (layout.ACTUATION_*): the PWPF per axis with
+the allocation table (:func:`thruster_commands`), or the LP allocation of ``core.lp_allocation``
+realised by pulse-width modulation (:func:`pwm_on_time`, in the run loop's actuate step).
 """
 
 from refexmc._jit import jit_inline, jit_noalloc
@@ -14,6 +14,8 @@ from refexmc.core.layout import (
     F_PWPF_ON,
     F_TAU_MIN_FRACTION,
     LV_TORQUE_MAX,
+    T_DIRECTION,
+    T_POSITION,
 )
 
 
@@ -65,3 +67,31 @@ def thruster_commands(actuation_id, fsw, level, torque_cmd, pwpf_state, row_mask
             )
         return row_masks[table_row(pulse_out[0], pulse_out[1], pulse_out[2])]
     return 0
+
+
+@jit_noalloc
+def pwm_on_time(u, u_max, period, min_on):
+    """On-time in the control period that gives thrust ``u`` of at most ``u_max`` on average.
+
+    u / u_max of the period, rounded to the nearest possible pulse where it is shorter than the
+    hardware minimum ``min_on``: nothing below min_on / 2, min_on from there (the average
+    error is then at most min_on / 2 of full thrust per period, either way).
+    """
+    if u_max <= 0.0 or u <= 0.0:
+        return 0.0
+    on = period * (u / u_max if u < u_max else 1.0)
+    if on < min_on:
+        return 0.0 if on < 0.5 * min_on else min(min_on, period)
+    return on
+
+
+@jit_noalloc
+def nominal_arms(thrusters, out):
+    """(3, n) torque per newton the flight software assumes: nominal position x direction (the
+    nominal centre of mass is the origin; the actual one is not known to it)."""
+    for i in range(thrusters.shape[0]):
+        rx, ry, rz = thrusters[i, T_POSITION], thrusters[i, T_POSITION + 1], thrusters[i, T_POSITION + 2]
+        dx, dy, dz = thrusters[i, T_DIRECTION], thrusters[i, T_DIRECTION + 1], thrusters[i, T_DIRECTION + 2]
+        out[0, i] = ry * dz - rz * dy
+        out[1, i] = rz * dx - rx * dz
+        out[2, i] = rx * dy - ry * dx

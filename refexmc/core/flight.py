@@ -22,6 +22,7 @@ from refexmc.core import (
     dynamics,
     environment,
     guidance,
+    lp_allocation,
     modes,
     navigation,
     pulse_modulation,
@@ -31,6 +32,7 @@ from refexmc.core import (
 )
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
+    ACTUATION_LP_PWM,
     F_ACCEL_MARGIN,
     F_ACTUATION,
     F_CONTROL_PERIOD,
@@ -59,6 +61,7 @@ from refexmc.core.layout import (
     LV_KD,
     LV_KP,
     LV_THRUST,
+    LV_THRUST_DESIGN,
     M_HANDOVER_ANGLE,
     M_MAX_STEP,
     M_MAX_TIME,
@@ -168,6 +171,17 @@ class Actuation(NamedTuple):
     arms: np.ndarray  # torque arms about the actual CoM
 
 
+class Optimiser(NamedTuple):
+    """LP allocation and its pulse-width modulation (actuation lp_pwm, core.lp_allocation)."""
+
+    arms: np.ndarray  # (3, n) torque arms the flight software knows: nominal geometry and CoM
+    u: np.ndarray  # thrust per thruster (N)
+    u_max: np.ndarray  # the flight software's thrust per thruster at the level flown (N)
+    scratch: np.ndarray  # lp_allocation.scratch_shape
+    basis: np.ndarray  # (3,) int64
+    in_basis: np.ndarray  # bool
+
+
 class Work(NamedTuple):
     body: Body
     trajectory: Trajectory
@@ -176,6 +190,7 @@ class Work(NamedTuple):
     actuation: Actuation
     status: np.ndarray  # ST_*
     masks: np.ndarray  # MASK_*, int64
+    optimiser: Optimiser
 
 
 @jit
@@ -229,6 +244,14 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
         ),
         np.zeros(STATUS_SIZE),
         np.zeros(2, dtype=np.int64),
+        Optimiser(
+            np.zeros((3, n_thr)),
+            np.zeros(n_thr),
+            np.zeros(n_thr),
+            np.zeros((lp_allocation.N_ROWS + 8, max(n_thr + 1 + lp_allocation.N_ROWS, 6))),
+            np.zeros(lp_allocation.N_ROWS, dtype=np.int64),
+            np.zeros(n_thr + 1 + lp_allocation.N_ROWS, dtype=np.bool_),
+        ),
     )
     _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work)
 
@@ -401,12 +424,13 @@ def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sens
 
 @jit_noalloc(force_inline=True)
 def _actuate(
-    fsw, levels, thrusters, sensed, guide, act, masks, t, level, active, controlled, has_reference, pulse_counts
+    fsw, levels, thrusters, sensed, guide, act, opt, masks, t, level, active, controlled, has_reference, pulse_counts
 ):
     """Controller, actuation (pulse modulation + allocation), switching check and valve commands.
 
     ``active``: False when the mode is locked, the program done or the run failed.
     """
+    actuation = int(fsw[F_ACTUATION])
     if has_reference:
         control.control_errors(
             sensed.q_meas, sensed.rate_meas, guide.q_ref, guide.rate_ref, act.q_error, act.rate_error
@@ -434,9 +458,13 @@ def _actuate(
             controlled,
             act.torque_cmd,
         )
-        desired = allocation.thruster_commands(
-            int(fsw[F_ACTUATION]), fsw, levels[level], act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
-        )
+        if actuation != ACTUATION_LP_PWM:
+            desired = allocation.thruster_commands(
+                actuation, fsw, levels[level], act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
+            )
+    if actuation == ACTUATION_LP_PWM:
+        _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts)
+        return
     valves_open = masks[MASK_OPEN]
     opened, closed = switching.enforce(act.switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
     masks[MASK_OPEN] = (valves_open | opened) & ~closed
@@ -448,6 +476,42 @@ def _actuate(
         rcs.command(act.valve_state, thrusters, i, (opened >> i) & 1 != 0, t, level)
         if (opened >> i) & 1:
             pulse_counts[i] += 1
+
+
+@jit_noalloc
+def _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts):
+    """LP allocation of the commanded torque (004 eq. 2-5), each thruster realised as one pulse
+    from the start of the control period: open at ``t``, closed after its on-time
+    (``allocation.pwm_on_time``; saturated thrusters stay open into the next period)."""
+    n = thrusters.shape[0]
+    dt = fsw[F_CONTROL_PERIOD]
+    if active:
+        design = levels[level, LV_THRUST_DESIGN]
+        for i in range(n):
+            opt.u_max[i] = design
+        lp_allocation.allocate(opt.arms, opt.u_max, act.torque_cmd, opt.u, opt.scratch, opt.basis, opt.in_basis)
+    for i in range(3):
+        act.pulse[i] = 0.0
+    was_open = masks[MASK_OPEN]
+    now_open = 0
+    touched = 0
+    for i in range(n):
+        on = allocation.pwm_on_time(opt.u[i], opt.u_max[i], dt, fsw[F_MIN_ON]) if active else 0.0
+        bit = 1 << i
+        if on > 0.0:
+            if was_open & bit == 0:
+                rcs.command(act.valve_state, thrusters, i, True, t, level)
+                pulse_counts[i] += 1
+            if on < dt - 1e-12:
+                rcs.command(act.valve_state, thrusters, i, False, t + on, level)
+            else:
+                now_open |= bit
+            touched |= bit
+        elif was_open & bit != 0:
+            rcs.command(act.valve_state, thrusters, i, False, t, level)
+            touched |= bit
+    masks[MASK_OPEN] = now_open
+    masks[MASK_ACTIVE] |= touched
 
 
 @jit_noalloc
@@ -546,9 +610,11 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
         w.status,
         w.masks,
     )
+    opt = w.optimiser
     vehicle, thrusters, fsw, mission = inputs.vehicle, inputs.thrusters, inputs.fsw, inputs.mission
     program, exits, atmosphere = inputs.modes, inputs.exits, inputs.atmosphere
     _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks)
+    allocation.nominal_arms(thrusters, opt.arms)
     n_modes = program.shape[0]
     n_thr = thrusters.shape[0]
     dt = fsw[F_CONTROL_PERIOD]
@@ -591,6 +657,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
             sensed,
             guide,
             act,
+            opt,
             masks,
             t,
             level,

@@ -64,6 +64,7 @@ def time_constant_column(level, which):
 # --- thrust levels: one row per level, in the vehicle file's order ----------------------------
 LEVEL = Fields()
 LV_THRUST = LEVEL.add("thrust_n")  # truth, per thruster before derating and scale (dispersible)
+LV_THRUST_DESIGN = LEVEL.add("thrust_design_n")  # what the flight software assumes (nominal)
 LV_KP = LEVEL.add("kp", 3)  # flight software: 000 eq. 38 or given
 LV_KD = LEVEL.add("kd", 3)  # 000 eq. 34 or given
 LV_TORQUE_MAX = LEVEL.add("torque_max_n_m", 3)  # PWPF full scale tau_max (000 eq. 41)
@@ -89,6 +90,7 @@ FSW_SIZE = FSW.size
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35
 CONTROLLER_PD = 1  # 004 eq. 1: torque gains, no feedforward
 ACTUATION_PWPF_TABLE = 0  # PWPF per axis (eq. 41-48) + allocation table (Table 3)
+ACTUATION_LP_PWM = 1  # LP allocation (004 eq. 2-5) + pulse-width modulation in the control period
 
 # --- mission ----------------------------------------------------------------------------------
 MISSION = Fields()
