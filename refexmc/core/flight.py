@@ -1,13 +1,13 @@
 """The run loop: one flight through the mission's mode program.
 
-Every control period (000 sec. 5) the loop takes five named steps: navigate (trajectory and
-measured state) -> advance mode (exit conditions of the mode program, ``core.modes``) ->
-reference (the mode's guidance) -> actuate (controller, pulse modulation + allocation,
-per-thruster switching check, valve commands) -> integrate (the attitude over the period in
-segments that end on the thrust-profile breakpoints, each split into RK4 steps of at most
-``integrator_max_step_s``). All inputs a campaign may disperse arrive as array values
-(``core.inputs.RunInputs``), so one compiled kernel serves every run. Outputs go to
-caller-owned arrays.
+Every control period (000 sec. 5) the loop takes its named steps: navigate (trajectory and
+measured state) -> advance mode (the mode's guidance reference, its exit conditions, the next
+mode's start; ``core.modes``) -> actuate (controller, then PWPF + allocation table and the
+per-thruster switching check, or LP allocation + pulse-width modulation; valve commands) ->
+record (a history row) -> integrate (the attitude over the period in segments that end on the
+thrust-profile breakpoints, each split into RK4 steps of at most ``integrator_max_step_s``).
+All inputs a campaign may disperse arrive as array values (``core.inputs.RunInputs``), so one
+compiled kernel serves every run. Outputs go to caller-owned arrays.
 """
 
 import math
@@ -248,6 +248,7 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
             np.zeros((3, n_thr)),
             np.zeros(n_thr),
             np.zeros(n_thr),
+            # lp_allocation.scratch_shape(n_thr), written out: a Python function cannot run here
             np.zeros((lp_allocation.N_ROWS + 8, max(n_thr + 1 + lp_allocation.N_ROWS, 6))),
             np.zeros(lp_allocation.N_ROWS, dtype=np.int64),
             np.zeros(n_thr + 1 + lp_allocation.N_ROWS, dtype=np.bool_),
