@@ -339,6 +339,26 @@ def _navigate(mission, vehicle, atmosphere, nav, x, traj, sensed, status, t):
     navigation.measure(x, nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4)
 
 
+@jit_noalloc(force_inline=True)
+def _reference(row, mission, vehicle, atmosphere, traj_state, t, guide):
+    """The guidance reference of the mode of table row ``row`` at ``t`` (core.modes.reference)."""
+    return modes.reference(
+        row,
+        mission,
+        vehicle,
+        atmosphere,
+        traj_state,
+        t,
+        guide.state,
+        guide.q_final,
+        guide.rotations,
+        guide.q_ref,
+        guide.rate_ref,
+        guide.accel_ref,
+        guide.work,
+    )
+
+
 @jit_noalloc
 def _start_mode(row, mission, traj_state, sensed, guide, status, t):
     """Start the guidance of the mode of table row ``row`` at ``t`` (core.modes.start); its t1, or 0."""
@@ -374,20 +394,8 @@ def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sens
         status[ST_STARTED] = 1.0
         summary[S_PER_MODE + n_modes + mode] = _start_mode(program[mode], mission, traj_state, sensed, guide, status, t)
     q_ref, rate_ref = guide.q_ref, guide.rate_ref
-    controlled, has_reference = modes.reference(
-        program[min(mode, n_modes - 1)],
-        mission,
-        vehicle,
-        atmosphere,
-        traj_state,
-        t,
-        guide.state,
-        guide.q_final,
-        guide.rotations,
-        q_ref,
-        rate_ref,
-        guide.accel_ref,
-        guide.work,
+    controlled, has_reference = _reference(
+        program[min(mode, n_modes - 1)], mission, vehicle, atmosphere, traj_state, t, guide
     )
     if mode == n_modes:
         return controlled, has_reference
@@ -402,21 +410,7 @@ def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sens
         if mode < n_modes:
             row = program[mode]
             summary[S_PER_MODE + n_modes + mode] = _start_mode(row, mission, traj_state, sensed, guide, status, t)
-            controlled, has_reference = modes.reference(
-                row,
-                mission,
-                vehicle,
-                atmosphere,
-                traj_state,
-                t,
-                guide.state,
-                guide.q_final,
-                guide.rotations,
-                q_ref,
-                rate_ref,
-                guide.accel_ref,
-                guide.work,
-            )
+            controlled, has_reference = _reference(row, mission, vehicle, atmosphere, traj_state, t, guide)
     elif sensed.now[modes.NOW_TIME_IN_MODE] > row[MD_TIMEOUT]:
         status[ST_FAILURE] = FAIL_MODE_TIMEOUT
         status[ST_FAILURE_MODE] = mode
