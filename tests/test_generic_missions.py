@@ -3,7 +3,6 @@ SSM, and a 12-thruster spacecraft with plain PD and no trajectory; outputs are n
 """
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -142,7 +141,6 @@ def test_given_gains_are_flown_and_derived_ones_are_000_eq_38():
     packed = pack(refex, load_mission(ROOT / "configs/missions/refex-exo.yaml")).levels
     assert packed[0, L.LV_KP : L.LV_KP + 3].tolist() == kp.tolist()
     assert packed[0, L.LV_KD : L.LV_KD + 3].tolist() == kd.tolist()
-    assert math.isfinite(kp.sum())
 
 
 def test_sixty_three_thrusters_and_their_64_bit_masks_end_to_end():

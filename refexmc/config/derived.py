@@ -53,6 +53,14 @@ def gains(vehicle, level):
     return kp, kd
 
 
+def gains_flown(vehicle, level):
+    """(kp, kd) of a thrust level, body x, y, z: given in the vehicle file, else :func:`gains`."""
+    given = vehicle["flight_software"].get("gains")
+    if given is not None:
+        return np.asarray(given["kp"][level], dtype=float), np.asarray(given["kd"][level], dtype=float)
+    return gains(vehicle, level)
+
+
 def f_min_fraction(vehicle):
     """f_min / tau_max = t_on / (t_on + t_off) of 000 eq. 44 with the algorithm's t_on, t_off."""
     pwpf = vehicle["flight_software"]["pwpf"]
@@ -147,9 +155,8 @@ def design(vehicle):
     for level in level_names(vehicle):
         out["omega_dot_max_rad_s2"][level] = omega_dot_max(vehicle, level).tolist()
         out["torque_max_n_m"][level] = torque_max(vehicle, level).tolist()
-        given = vehicle["flight_software"].get("gains")
-        kp, kd = (given["kp"][level], given["kd"][level]) if given else (g.tolist() for g in gains(vehicle, level))
-        out["gains"][level] = {"kp": list(kp), "kd": list(kd)}
+        kp, kd = gains_flown(vehicle, level)
+        out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
         out["pulse_equivalent_ms"][level] = pulse_equivalent_ms(vehicle, level)
         out["pulse_correction_matching_ms"][level] = pulse_correction_matching_ms(vehicle, level)
     pwpf = vehicle["flight_software"]["pwpf"]

@@ -23,7 +23,6 @@ from refexmc.core import layout as L
 AXES = ("x", "y", "z")
 INERTIA_COMPONENTS = ("xx", "yy", "zz", "xy", "xz", "yz")
 _INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-TIME_CONSTANT_NAMES = ("on_delay", "rise", "off_delay", "fall")
 
 
 class Parameter(NamedTuple):
@@ -56,7 +55,7 @@ def _params():
         Parameter("rcs.propellant_kg", "kg", "propellant at separation", "scalar"),
     ]
     for level in ("low", "high"):
-        for name in TIME_CONSTANT_NAMES:
+        for name in L.TIME_CONSTANT_NAMES:
             p.append(
                 Parameter(
                     f"rcs.valve_time_constants_ms.{level}.{name}",

@@ -24,14 +24,6 @@ NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0, "drag_ar
 TRAJECTORY_MODELS = {"none": L.TRAJECTORY_NONE, "planar_drag": L.TRAJECTORY_PLANAR_DRAG}
 
 
-def gains(vehicle, level):
-    """(kp, kd) of a thrust level, body x, y, z: given in the vehicle file, else 000 eq. 38 and 34."""
-    given = vehicle["flight_software"].get("gains")
-    if given is not None:
-        return np.asarray(given["kp"][level], dtype=float), np.asarray(given["kd"][level], dtype=float)
-    return derived.gains(vehicle, level)
-
-
 level_names = derived.level_names  # a level's row in the levels table is its place in thrust_n
 
 
@@ -40,7 +32,7 @@ def pack_levels(vehicle):
     names = level_names(vehicle)
     out = np.zeros((len(names), L.LEVEL_SIZE))
     for row, level in zip(out, names, strict=True):
-        kp, kd = gains(vehicle, level)
+        kp, kd = derived.gains_flown(vehicle, level)
         _put(row, L.LEVEL, "thrust_n", vehicle["rcs"]["thrust_n"][level])
         _put(row, L.LEVEL, "thrust_design_n", vehicle["rcs"]["thrust_n"][level])
         _put(row, L.LEVEL, "kp", kp)

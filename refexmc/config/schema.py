@@ -251,7 +251,6 @@ MODE_KINDS = {
         "provides": ("rate_reference", "attitude_reference"),
     },
 }
-KIND_TARGETS = {kind: spec["targets"] for kind, spec in MODE_KINDS.items()}
 # targets computed from the trajectory (a vehicle without one cannot use them)
 TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
 _ENTRY_ANGLES = {

@@ -70,7 +70,6 @@ LV_KD = LEVEL.add("kd", 3)  # 000 eq. 34 or given
 LV_TORQUE_MAX = LEVEL.add("torque_max_n_m", 3)  # PWPF full scale tau_max (000 eq. 41)
 LV_ACCEL_MAX = LEVEL.add("accel_max_rad_s2", 3)  # omega_dot_max (000 eq. 1)
 LEVEL_SIZE = LEVEL.size
-MAX_LEVELS = 8
 
 # --- flight software design (derived from the nominal vehicle, never dispersed) -------------
 FSW = Fields()
@@ -127,7 +126,6 @@ MD_PREDICT_ALTITUDE = MODE.add("predicted_at_altitude_m")  # entry target: veloc
 MD_EXIT_FIRST = MODE.add("exit_first_row")  # the mode's rows of the exit table
 MD_EXIT_ROWS = MODE.add("exit_rows")
 MODE_SIZE = MODE.size
-MAX_MODES = 32
 
 # --- exit conditions: one row per predicate; a mode ends when every predicate of one of its
 # groups holds (OR of ANDs); rows of a mode are contiguous, grouped, cheap predicates first

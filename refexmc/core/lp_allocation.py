@@ -23,10 +23,7 @@ N_ROWS = 3  # torque components
 MAX_ITERATIONS = 200
 COST_TOLERANCE = 1e-12  # reduced costs below this (times the cost scale) count as zero
 PIVOT_TOLERANCE = 1e-12
-
 # work layout: columns 0..n-1 thrusters, n the scale s, n+1..n+3 artificials
-STATUS_OPTIMAL = 0
-STATUS_ITERATION_LIMIT = 1
 
 
 def work_columns(n_thrusters):

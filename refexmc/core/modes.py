@@ -91,12 +91,6 @@ NOW_SIZE = 4
 
 
 @jit_noalloc
-def has_attitude_reference(kind):
-    """Kinds that control the attitude (the others damp rates or do nothing)."""
-    return kind != KIND_LOCKED and kind != KIND_RATE_DAMPING
-
-
-@jit_noalloc
 def has_profile(kind):
     """Kinds whose guidance has a transition time t1 (000 eq. 13-14, 19)."""
     return kind == KIND_RATE_DAMPING or kind == KIND_SLEW or kind == KIND_SPIN_UP
