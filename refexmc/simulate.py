@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from refexmc.config.requirements import mode_time_columns
+from refexmc.config.requirements import ORBIT_COLUMNS, mode_time_columns
 from refexmc.core import layout as L
 from refexmc.core.flight import run_flight
 
@@ -24,11 +24,12 @@ def failure_name(code, mode_name=None):
 class FlightResult:
     """One flight's outputs, named."""
 
-    def __init__(self, summary, pulse_counts, history, mode_names):
+    def __init__(self, summary, pulse_counts, history, mode_names, orbit=False):
         self.summary = summary  # layout.SUMMARY then per-mode values
         self.pulse_counts = pulse_counts  # valve open commands sent, per thruster
         self.history = history  # rows x layout.HISTORY_SIZE
         self.mode_names = list(mode_names)
+        self.orbit = orbit  # the orbit trajectory: entry-state values (config.requirements.ORBIT_COLUMNS)
 
     def value(self, name):
         """A summary value by name; ``t_mode_s`` and ``t1_mode_s`` give one value per mode."""
@@ -64,6 +65,12 @@ class FlightResult:
         for name, value in zip(mode_time_columns(self.mode_names), self.value("t_mode_s"), strict=True):
             row[name] = float(value)
         row["theta_t_handover_deg"] = float(self.value("theta_t_handover_deg"))
+        if self.orbit:
+            entry = self.value("entry_state")
+            for k, name in enumerate(ORBIT_COLUMNS[:5]):
+                row[name] = float(entry[k])
+            for name in ORBIT_COLUMNS[5:]:
+                row[name] = float(self.value(name))
         row["modes_completed"] = int(self.value("modes_completed"))
         for i, count in enumerate(self.pulse_counts):
             row[f"pulses_{i + 1}"] = int(count)
@@ -151,4 +158,5 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
     history = np.zeros((max_rows, L.HISTORY_SIZE))
     run_flight(inputs, np.int64(nav_seed), np.int64(every), summary, pulses, history)
     rows = int(summary[L.S_HISTORY_ROWS])
-    return FlightResult(summary, pulses, history[:rows], mode_names)
+    orbit = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_ORBIT
+    return FlightResult(summary, pulses, history[:rows], mode_names, orbit)

@@ -195,7 +195,9 @@ def output_names(campaign):
     vehicle, mission = campaign["vehicle"], campaign["mission"]
     modes = [mode["name"] for mode in mission["modes"]]
     parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
-    columns = requirements.runs_metric_columns(modes, len(vehicle["rcs"]["thrusters"]), parameters)
+    columns = requirements.runs_metric_columns(
+        modes, len(vehicle["rcs"]["thrusters"]), parameters, vehicle.get("trajectory", "planar_drag")
+    )
     return {"modes": modes, "columns": {"runs": columns}}
 
 

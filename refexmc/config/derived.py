@@ -240,3 +240,40 @@ def allocate_torque(vehicle, torque, level=None):
             for t, d in zip(vehicle["rcs"]["thrusters"], unit_directions(vehicle), strict=True)
         ],
     }
+
+
+def rotate_by_rotation_vector(vector, rotvec_deg):
+    """``vector`` rotated by the rotation vector ``rotvec_deg`` (deg; Rodrigues' formula)."""
+    v = np.asarray(vector, dtype=float)
+    r = np.radians(np.asarray(rotvec_deg, dtype=float))
+    angle = float(np.linalg.norm(r))
+    if angle == 0.0:
+        return v.copy()
+    k = r / angle
+    return v * np.cos(angle) + np.cross(k, v) * np.sin(angle) + k * np.dot(k, v) * (1.0 - np.cos(angle))
+
+
+def engine_direction(engine, misalignment_deg=(0.0, 0.0, 0.0)):
+    """The main engine's unit force direction in body axes, turned by a misalignment rotation vector."""
+    direction = np.asarray(engine["direction"], dtype=float)
+    return rotate_by_rotation_vector(direction / np.linalg.norm(direction), misalignment_deg)
+
+
+def burn_start_attitude(vehicle, plan):
+    """Inertial attitude (quaternion, scalar last) that points the main engine's nominal axis
+    along the nominal thrust at ignition (``core.deorbit.thrust_attitude``): the ``burn_start`` target."""
+    from refexmc.core import deorbit
+    from refexmc.core import layout as L
+
+    row = plan.table[0]
+    accel = row[L.NM_THRUST_ACCEL : L.NM_THRUST_ACCEL + 3]
+    q = np.zeros(4)
+    deorbit.thrust_attitude(
+        accel / np.linalg.norm(accel),
+        row[L.NM_POSITION : L.NM_POSITION + 3].copy(),
+        row[L.NM_VELOCITY : L.NM_VELOCITY + 3].copy(),
+        engine_direction(vehicle["main_engine"]),
+        q,
+        np.zeros((9, 3)),
+    )
+    return q

@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from refexmc.config import schema
+from refexmc.config import derived, schema
 from refexmc.config.errors import ConfigError
 from refexmc.core import layout as L
 
@@ -53,6 +53,13 @@ def _params():
         Parameter("rcs.derating", "-", "thrust factor with 1, 2, ... valves open", "derating"),
         Parameter("rcs.isp_s", "s", "specific impulse", "scalar"),
         Parameter("rcs.propellant_kg", "kg", "propellant at separation", "scalar"),
+        Parameter("main_engine.thrust_n", "N", "main-engine thrust (orbit trajectory)", "scalar"),
+        Parameter(
+            "main_engine.misalignment_deg",
+            "deg",
+            "main-engine force direction: rotation vector from the nominal (the flight software keeps the nominal)",
+            "vector",
+        ),
     ]
     for level in ("low", "high"):
         for name in L.TIME_CONSTANT_NAMES:
@@ -82,6 +89,10 @@ def _params():
         Parameter(
             "navigation.ssm_calibration_time_s", "s", "attitude-bias decay time constant in calibrating modes", "scalar"
         ),
+        Parameter("navigation.gps_position_bias_m", "m", "GPS position bias, ECI axes", "vector"),
+        Parameter("navigation.gps_position_noise_m", "m", "GPS position white noise, 1 sigma per axis", "scalar"),
+        Parameter("navigation.gps_velocity_bias_m_s", "m/s", "GPS velocity bias, ECI axes", "vector"),
+        Parameter("navigation.gps_velocity_noise_m_s", "m/s", "GPS velocity white noise, 1 sigma per axis", "scalar"),
         Parameter("atmosphere.density_scale", "-", "factor on every density of the atmosphere table", "scalar", 0.0),
     ]
     return {param.path: _with_schema_range(param) for param in p}
@@ -252,6 +263,7 @@ _VEHICLE_SCALARS = {
     "rcs.propellant_kg": ("propellant_kg", 1.0),
     "com_offset_m": ("com_offset_m", 1.0),
     "aerodynamics.mistrim_cm": ("aero_mistrim_cm", 1.0),
+    "main_engine.thrust_n": ("engine_thrust_n", 1.0),
 }
 _MISSION_FIELDS = {
     "separation.altitude_m": ("separation_altitude_m", 1.0),
@@ -266,6 +278,10 @@ _NAV_FIELDS = {
     "navigation.rate_bias_deg_s": ("rate_bias_rad_s", math.pi / 180.0),
     "navigation.rate_noise_deg_s": ("rate_noise_rad_s", math.pi / 180.0),
     "navigation.ssm_calibration_time_s": ("ssm_calibration_time_s", 1.0),
+    "navigation.gps_position_bias_m": ("gps_position_bias_m", 1.0),
+    "navigation.gps_position_noise_m": ("gps_position_noise_m", 1.0),
+    "navigation.gps_velocity_bias_m_s": ("gps_velocity_bias_m_s", 1.0),
+    "navigation.gps_velocity_noise_m_s": ("gps_velocity_noise_m_s", 1.0),
 }
 
 
@@ -284,6 +300,9 @@ def apply(inputs, path, values, nominal_atmosphere, levels=("low", "high")):
     elif path in _NAV_FIELDS:
         field, scale = _NAV_FIELDS[path]
         _put(inputs.nav, L.NAV, field, values * scale)
+    elif path == "main_engine.misalignment_deg":
+        nominal_axis = inputs.fsw[L.F_ENGINE_AXIS : L.F_ENGINE_AXIS + 3]
+        _put(inputs.vehicle, L.VEHICLE, "engine_direction", derived.rotate_by_rotation_vector(nominal_axis, values))
     elif path == "inertia_kg_m2":
         _put(inputs.vehicle, L.VEHICLE, "inertia_kg_m2", inertia_matrix(values))
     elif path == "rcs.derating":

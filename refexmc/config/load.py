@@ -333,7 +333,21 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
             )
     if vehicle["flight_software"]["controller"] == "pd" and "gains" not in vehicle["flight_software"]:
         fail_vehicle("controller pd needs given gains (flight_software.gains)", "flight_software", "controller")
-    if vehicle.get("trajectory", "planar_drag") == "planar_drag":
+    trajectory = vehicle.get("trajectory", "planar_drag")
+    if trajectory != "orbit":
+        if "orbit" in mission:
+            fail_mission(
+                f"'orbit' needs a vehicle with the orbit trajectory; {vehicle['name']} has {trajectory}", "orbit"
+            )
+        for m, mode in enumerate(mission["modes"]):
+            if mode["kind"] in schema.ORBIT_KINDS:
+                fail_mission(f"kind {mode['kind']} needs the orbit trajectory", "modes", m, "kind")
+            if mode.get("target", {}).get("type") in schema.ORBIT_TARGETS:
+                fail_mission("target burn_start needs the orbit trajectory", "modes", m, "target", "type")
+    else:
+        _check_orbit(vehicle, mission, fail_mission, fail_vehicle)
+        return
+    if trajectory == "planar_drag":
         if "aerodynamics" not in vehicle:
             fail_vehicle("the planar_drag trajectory needs 'aerodynamics' (drag area, reference area and length)")
         for key in ("earth", "atmosphere"):
@@ -358,6 +372,44 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
                         g,
                         predicate,
                     )
+
+
+def _check_orbit(vehicle, mission, fail_mission, fail_vehicle):
+    """An orbit vehicle and mission: main engine, burn guidance, Earth and orbit; no planar-trajectory
+    targets or dynamic pressure; ignition on a control step."""
+    if "main_engine" not in vehicle:
+        fail_vehicle("the orbit trajectory needs 'main_engine'")
+    if "burn_guidance" not in vehicle["flight_software"]:
+        fail_vehicle("the orbit trajectory needs flight_software 'burn_guidance'", "flight_software")
+    for key in ("earth", "orbit"):
+        if key not in mission:
+            fail_mission(f"the vehicle's orbit trajectory needs '{key}'")
+    from refexmc.config.pack import deorbit_plan  # the bisection: a target it cannot reach is bad input
+
+    try:
+        deorbit_plan(vehicle, mission)
+    except ConfigError as error:
+        fail_mission(error.message, "orbit", "deorbit")
+    period = 1.0 / vehicle["flight_software"]["control_rate_hz"]
+    start = mission["orbit"]["deorbit"]["burn_start_s"]
+    if abs(start / period - round(start / period)) > 1e-6:
+        fail_mission(
+            f"burn_start_s must be a whole number of control periods ({period:g} s)", "orbit", "deorbit", "burn_start_s"
+        )
+    for m, mode in enumerate(mission["modes"]):
+        target = mode.get("target", {}).get("type")
+        if target in schema.TRAJECTORY_TARGETS:
+            fail_mission(f"target {target} needs the planar_drag trajectory", "modes", m, "target", "type")
+        for g, group in enumerate(mode["exit"]):
+            if "dynamic_pressure_above_pa" in group:
+                fail_mission(
+                    "the orbit trajectory has no atmosphere (dynamic pressure 0)",
+                    "modes",
+                    m,
+                    "exit",
+                    g,
+                    "dynamic_pressure_above_pa",
+                )
 
 
 def load_vehicle(path):
@@ -479,7 +531,8 @@ def load_campaign(path):
     dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     mode_names = [mode["name"] for mode in mission["modes"]]
-    columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns)
+    trajectory = vehicle.get("trajectory", "planar_drag")
+    columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, trajectory)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     if campaign["failures"]["mode"] == "enumerate":
         derived = len(failure_sets(campaign["failures"]["sizes"], n_thrusters)) + int(campaign["nominal_first"])

@@ -1,10 +1,12 @@
 """Validated config dicts -> the flat arrays of ``refexmc.core.layout``."""
 
+import functools
+import json
 import math
 
 import numpy as np
 
-from refexmc.config import derived, schema
+from refexmc.config import deorbit, derived, schema
 from refexmc.core import layout as L
 from refexmc.core import modes as core_modes
 from refexmc.core.inputs import RunInputs
@@ -21,7 +23,16 @@ def _put(array, fields, name, value):
 
 
 NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0, "drag_area_m2": 0.0, "mistrim_cm": [0.0] * 3}
-TRAJECTORY_MODELS = {"none": L.TRAJECTORY_NONE, "planar_drag": L.TRAJECTORY_PLANAR_DRAG}
+TRAJECTORY_MODELS = {"none": L.TRAJECTORY_NONE, "planar_drag": L.TRAJECTORY_PLANAR_DRAG, "orbit": L.TRAJECTORY_ORBIT}
+NO_ENGINE = {
+    "thrust_n": 0.0,
+    "isp_s": 1.0,
+    "propellant_kg": 0.0,
+    "direction": [1.0, 0.0, 0.0],
+    "position_m": [0.0, 0.0, 0.0],
+    "misalignment_deg": [0.0, 0.0, 0.0],
+}
+NO_BURN_GUIDANCE = {"rate_hz": 1.0, "position_gain_s2": 0.0, "velocity_gain_s": 0.0}
 
 
 level_names = derived.level_names  # a level's row in the levels table is its place in thrust_n
@@ -59,6 +70,12 @@ def pack_vehicle(vehicle):
     _put(out, L.VEHICLE, "aero_length_m", aero["reference_length_m"])
     _put(out, L.VEHICLE, "aero_mistrim_cm", aero["mistrim_cm"])
     _put(out, L.VEHICLE, "drag_area_m2", aero["drag_area_m2"])
+    engine = vehicle.get("main_engine", NO_ENGINE)
+    _put(out, L.VEHICLE, "engine_thrust_n", engine["thrust_n"])
+    _put(out, L.VEHICLE, "engine_isp_s", engine["isp_s"])
+    _put(out, L.VEHICLE, "engine_propellant_kg", engine["propellant_kg"])
+    _put(out, L.VEHICLE, "engine_direction", derived.engine_direction(engine, engine["misalignment_deg"]))
+    _put(out, L.VEHICLE, "engine_position_m", engine["position_m"])
     return out
 
 
@@ -101,11 +118,18 @@ def pack_fsw(vehicle):
     actuations = {"pwpf_table": L.ACTUATION_PWPF_TABLE, "lp_pwm": L.ACTUATION_LP_PWM}
     _put(out, L.FSW, "controller_id", controllers[fsw_cfg["controller"]])
     _put(out, L.FSW, "actuation_id", actuations[fsw_cfg["actuation"]])
+    engine = vehicle.get("main_engine", NO_ENGINE)
+    burn = fsw_cfg.get("burn_guidance", NO_BURN_GUIDANCE)
+    _put(out, L.FSW, "engine_axis", derived.engine_direction(engine))
+    _put(out, L.FSW, "guidance_period_s", 1.0 / burn["rate_hz"])
+    _put(out, L.FSW, "guidance_position_gain_s2", burn["position_gain_s2"])
+    _put(out, L.FSW, "guidance_velocity_gain_s", burn["velocity_gain_s"])
     return out
 
 
-def pack_mission(mission, trajectory="planar_drag"):
-    """Mission array (layout.MISSION); ``trajectory`` is the vehicle's trajectory model."""
+def pack_mission(mission, trajectory="planar_drag", plan=None):
+    """Mission array (layout.MISSION); ``trajectory`` is the vehicle's trajectory model, ``plan``
+    an orbit mission's nominal deorbit plan (``config.deorbit.plan``)."""
     out = np.zeros(L.MISSION_SIZE)
     sep = mission["separation"]
     sun = np.asarray(mission.get("sun_direction", [1.0, 0.0, 0.0]), dtype=float)
@@ -126,7 +150,13 @@ def pack_mission(mission, trajectory="planar_drag"):
         "integrator_max_step_s": mission["integrator"]["max_step_s"],
         "trajectory_step_s": mission["integrator"]["trajectory_step_s"],
         "trajectory_model_id": TRAJECTORY_MODELS[trajectory],
+        "earth_rotation_rate_rad_s": earth.get("rotation_rate_rad_s", 0.0),
     }
+    if plan is not None:
+        values["orbit_state"] = plan.state0[:6]
+        values["entry_interface_altitude_m"] = mission["orbit"]["entry_interface_altitude_m"]
+        values["burn_start_s"] = plan.ignition_s
+        values["burn_duration_s"] = plan.burn_duration_s
     for name, value in values.items():
         _put(out, L.MISSION, name, value)
     return out
@@ -154,9 +184,10 @@ def _predicate_value(name, value):
     return math.radians(value) if name.endswith(("_deg", "_deg_s")) else float(value)
 
 
-def pack_modes(mission, levels=("low", "high")):
+def pack_modes(mission, levels=("low", "high"), burn_attitude=None):
     """Mode table (layout.MODE rows) and exit table (layout.EXIT rows) of the mode program;
-    ``levels``: the vehicle's thrust-level names (:func:`level_names`)."""
+    ``levels``: the vehicle's thrust-level names (:func:`level_names`); ``burn_attitude``: the
+    inertial attitude of a ``burn_start`` target (``derived.burn_start_attitude``)."""
     levels = {name: k for k, name in enumerate(levels)}
     program = mission["modes"]
     table = np.zeros((len(program), L.MODE_SIZE))
@@ -165,7 +196,9 @@ def pack_modes(mission, levels=("low", "high")):
         row = table[m]
         target = mode.get("target", {"type": "none"})
         _put(row, L.MODE, "kind_id", core_modes.KINDS[mode["kind"]])
-        _put(row, L.MODE, "target_id", core_modes.TARGETS[target["type"]])
+        # a burn_start target is an inertial one, computed from the nominal plan
+        target_type = "inertial" if target["type"] == "burn_start" else target["type"]
+        _put(row, L.MODE, "target_id", core_modes.TARGETS[target_type])
         _put(row, L.MODE, "thrust_level", levels[mode["thrust"]] if "thrust" in mode else 0)
         _put(row, L.MODE, "navigation_calibration", 1.0 if mode.get("navigation_calibration") else 0.0)
         _put(row, L.MODE, "timeout_s", mode.get("timeout_s", math.inf))
@@ -173,6 +206,8 @@ def pack_modes(mission, levels=("low", "high")):
         angles = [target.get(k, 0.0) for k in ("alpha_deg", "beta_deg", "bank_deg")]
         _put(row, L.MODE, "aerodynamic_angles_rad", np.radians(angles))
         quaternion = target_quaternion(target) if target["type"] == "inertial" else [0.0, 0.0, 0.0, 1.0]
+        if target["type"] == "burn_start":
+            quaternion = burn_attitude
         _put(row, L.MODE, "target_quaternion", quaternion)
         _put(row, L.MODE, "rate_rad_s", np.radians(mode.get("rate_deg_s", [0.0, 0.0, 0.0])))
         _put(row, L.MODE, "predicted_at_altitude_m", target.get("predicted_at_altitude_m", 0.0))
@@ -200,6 +235,10 @@ def pack_navigation(mission):
     _put(out, L.NAV, "rate_bias_rad_s", np.radians(nav["rate_bias_deg_s"]))
     _put(out, L.NAV, "rate_noise_rad_s", np.radians(nav["rate_noise_deg_s"]))
     _put(out, L.NAV, "ssm_calibration_time_s", nav["ssm_calibration_time_s"])
+    _put(out, L.NAV, "gps_position_bias_m", nav.get("gps_position_bias_m", [0.0, 0.0, 0.0]))
+    _put(out, L.NAV, "gps_position_noise_m", nav.get("gps_position_noise_m", 0.0))
+    _put(out, L.NAV, "gps_velocity_bias_m_s", nav.get("gps_velocity_bias_m_s", [0.0, 0.0, 0.0]))
+    _put(out, L.NAV, "gps_velocity_noise_m_s", nav.get("gps_velocity_noise_m_s", 0.0))
     return out
 
 
@@ -212,18 +251,38 @@ def pack_atmosphere(mission):
     return np.array(rows, dtype=float).reshape(-1, 3)
 
 
-def pack(vehicle, mission, failed_thrusters=()):
-    """All run inputs for the nominal (undispersed) vehicle and mission."""
-    mode_table, exit_table = pack_modes(mission, level_names(vehicle))
+def deorbit_plan(vehicle, mission):
+    """The nominal deorbit plan of an orbit mission (``config.deorbit``), or None. Computed once
+    per process for the same vehicle and mission (a bisection of ~0.5 s; every chunk packs)."""
+    if vehicle.get("trajectory") != "orbit":
+        return None
+    return _cached_plan(json.dumps([vehicle, mission], sort_keys=True))
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_plan(key):
+    vehicle, mission = json.loads(key)
+    fsw = vehicle["flight_software"]
+    return deorbit.plan(vehicle, mission, 1.0 / fsw["control_rate_hz"], 1.0 / fsw["burn_guidance"]["rate_hz"])
+
+
+def pack(vehicle, mission, failed_thrusters=(), plan=None):
+    """All run inputs for the nominal (undispersed) vehicle and mission; ``plan``: the deorbit
+    plan when already computed (:func:`deorbit_plan`)."""
+    plan = plan or deorbit_plan(vehicle, mission)
+    burn_attitude = None if plan is None else derived.burn_start_attitude(vehicle, plan)
+    mode_table, exit_table = pack_modes(mission, level_names(vehicle), burn_attitude)
+    nominal = np.zeros((0, L.NOMINAL_SIZE)) if plan is None else plan.table
     return RunInputs(
         vehicle=pack_vehicle(vehicle),
         thrusters=pack_thrusters(vehicle, failed_thrusters),
         levels=pack_levels(vehicle),
         fsw=pack_fsw(vehicle),
-        mission=pack_mission(mission, vehicle.get("trajectory", "planar_drag")),
+        mission=pack_mission(mission, vehicle.get("trajectory", "planar_drag"), plan),
         modes=mode_table,
         exits=exit_table,
         nav=pack_navigation(mission),
         atmosphere=pack_atmosphere(mission),
         allocation=derived.allocation_table(vehicle),
+        nominal=nominal,
     )

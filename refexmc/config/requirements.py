@@ -6,7 +6,8 @@ METRIC is either a campaign-level metric (``CAMPAIGN_METRICS``) or ``<column>.<s
 
 - ``<column>``: a numeric column of the ``runs`` table (``fuel_remaining``, ``fuel_used_kg``,
   ``t_end_s``, ``t_<mode>_s``, ``theta_t_handover_deg``, ``modes_completed``, ``pulses_<k>``,
-  ``p.<path>``), or the derived ``pulses_total`` (sum of the thrusters' pulse counts);
+  ``p.<path>``; with the orbit trajectory ``ORBIT_COLUMNS``), or the derived ``pulses_total``
+  (sum of the thrusters' pulse counts);
 - ``<stat>``, judged by the report over every stored run: a failed flight or an errored run
   counts as failing the requirement (docs/report.md says how for each statistic):
   ``count min max mean median std`` (std with ddof 1); ``mean_minus_3sd mean_plus_3sd``;
@@ -157,15 +158,32 @@ def mode_time_columns(mode_names):
     return [f"t_{name.lower()}_s" for name in mode_names]
 
 
-def run_value_columns(mode_names):
-    """The float columns of a runs row, in table order (NaN in an errored run's row)."""
-    return ["fuel_remaining", "fuel_used_kg", "t_end_s", *mode_time_columns(mode_names), "theta_t_handover_deg"]
+# runs of a vehicle with the orbit trajectory (004): the entry state at the entry interface
+# (Earth-relative, geocentric), the engine's pointing error while it fires, its propellant
+ORBIT_COLUMNS = (
+    "entry_longitude_deg",
+    "entry_latitude_deg",
+    "entry_speed_m_s",
+    "entry_flight_path_angle_deg",
+    "entry_heading_deg",
+    "entry_time_s",
+    "burn_pointing_rms_deg",
+    "burn_pointing_max_deg",
+    "engine_propellant_used_kg",
+)
 
 
-def runs_metric_columns(mode_names, n_thrusters, parameter_columns=()):
+def run_value_columns(mode_names, trajectory="planar_drag"):
+    """The float columns of a runs row, in table order (NaN in an errored run's row);
+    ``trajectory``: the vehicle's trajectory model (``orbit`` adds ``ORBIT_COLUMNS``)."""
+    columns = ["fuel_remaining", "fuel_used_kg", "t_end_s", *mode_time_columns(mode_names), "theta_t_handover_deg"]
+    return columns + list(ORBIT_COLUMNS) if trajectory == "orbit" else columns
+
+
+def runs_metric_columns(mode_names, n_thrusters, parameter_columns=(), trajectory="planar_drag"):
     """The numeric columns of a campaign's runs table (``refexmc.campaign.storage.runs_row``)."""
     pulses = [f"pulses_{k + 1}" for k in range(n_thrusters)]
-    return [*run_value_columns(mode_names), "modes_completed", *pulses, *parameter_columns]
+    return [*run_value_columns(mode_names, trajectory), "modes_completed", *pulses, *parameter_columns]
 
 
 def check_requirements(requirements, columns, file=None, lines=None):

@@ -96,9 +96,10 @@ VEHICLE = obj(
     {
         "name": string("vehicle name"),
         "trajectory": string(
-            "trajectory model: planar_drag (point mass, gravity and drag; altitude and dynamic pressure) "
+            "trajectory model: planar_drag (point mass, gravity and drag; altitude and dynamic pressure), "
+            "orbit (3D two-body orbit with a main engine, 004 sec. III; the mission's orbit block) "
             "or none (attitude only); default planar_drag",
-            enum=["planar_drag", "none"],
+            enum=["planar_drag", "orbit", "none"],
         ),
         "mass_kg": number("vehicle mass [kg]", **POSITIVE),
         "length_m": number("vehicle length [m]", **POSITIVE),
@@ -118,6 +119,17 @@ VEHICLE = obj(
                 "reference_length_m": number("reference length L [m]", **POSITIVE),
                 "drag_area_m2": number("drag area C_D S for the trajectory [m^2]", minimum=0.0),
                 "mistrim_cm": vector("mistrim moment coefficient per body axis [-]"),
+            },
+        ),
+        "main_engine": obj(
+            "constant-thrust main engine (orbit trajectory; 004 sec. III)",
+            {
+                "thrust_n": number("thrust [N]", **POSITIVE),
+                "isp_s": number("specific impulse [s]", **POSITIVE),
+                "propellant_kg": number("main-engine propellant, part of mass_kg [kg]", **POSITIVE),
+                "direction": vector("nominal force direction in body axes (normalised on load) [-]"),
+                "position_m": vector("thrust application point, nominal body frame [m]"),
+                "misalignment_deg": vector("true minus nominal force direction, rotation vector [deg]"),
             },
         ),
         "rcs": obj(
@@ -192,6 +204,14 @@ VEHICLE = obj(
                         "correction_ms": number("delay correction delta gamma [ms]", minimum=0.0),
                     },
                 ),
+                "burn_guidance": obj(
+                    "deorbit burn guidance (004 sec. III; core.deorbit): a_cmd = a_nom - k_r dr - k_v dv",
+                    {
+                        "rate_hz": number("guidance rate [Hz]", **POSITIVE),
+                        "position_gain_s2": number("k_r [1/s^2]", minimum=0.0),
+                        "velocity_gain_s": number("k_v [1/s]", minimum=0.0),
+                    },
+                ),
                 "allocation": {
                     "type": "object",
                     "description": "thrusters opened per axis-command combination, e.g. '+x-y' (000 Table 3)",
@@ -203,10 +223,10 @@ VEHICLE = obj(
                     },
                 },
             },
-            optional=("gains", "allocation"),
+            optional=("gains", "allocation", "burn_guidance"),
         ),
     },
-    optional=("trajectory", "aerodynamics"),
+    optional=("trajectory", "aerodynamics", "main_engine"),
 )
 
 # --- the mode program (refexmc.core.modes): kinds, targets and exit predicates by name -------
@@ -228,7 +248,7 @@ MODE_KINDS = {
     },
     "slew": {
         "doc": "SLERP paced by a quintic to the target, t1 from 000 eq. 13-14",
-        "targets": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial"),
+        "targets": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial", "burn_start"),
         "keys": ((), ("t1_design_s",)),
         "provides": ("profile", "rate_reference", "attitude_reference"),
     },
@@ -240,7 +260,7 @@ MODE_KINDS = {
     },
     "hold": {
         "doc": "the target attitude at zero rate",
-        "targets": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial", "previous"),
+        "targets": ("sun_horizontal", "entry_predicted", "entry_velocity", "inertial", "previous", "burn_start"),
         "keys": ((), ()),
         "provides": ("rate_reference", "attitude_reference"),
     },
@@ -250,9 +270,19 @@ MODE_KINDS = {
         "keys": ((), ()),
         "provides": ("rate_reference", "attitude_reference"),
     },
+    "burn": {
+        "doc": "main engine on from the planned ignition to cut-off, the engine axis steered by the burn "
+        "guidance (004 sec. III); t1: the cut-off",
+        "targets": None,
+        "keys": ((), ()),
+        "provides": ("profile", "rate_reference", "attitude_reference"),
+    },
 }
 # targets computed from the trajectory (a vehicle without one cannot use them)
 TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
+# kinds and targets of the orbit trajectory only (the deorbit plan)
+ORBIT_KINDS = ("burn",)
+ORBIT_TARGETS = ("burn_start",)
 _ENTRY_ANGLES = {
     "alpha_deg": number("angle of attack [deg]", minimum=-90.0, maximum=90.0),
     "beta_deg": number("sideslip [deg]", minimum=-90.0, maximum=90.0),
@@ -279,6 +309,7 @@ TARGET_TYPES = {
         optional=("quaternion", "euler_deg", "sequence"),
     ),
     "previous": obj("the attitude the previous mode targeted (the measured one if none did)", {}),
+    "burn_start": obj("the attitude of the nominal burn at ignition: the engine along the planned thrust", {}),
 }
 _TARGET_TYPE = string("target type", enum=list(TARGET_TYPES))
 TARGET = {
@@ -298,6 +329,7 @@ TARGET = {
 # needs: None, "trajectory", or what the mode's kind must provide)
 EXIT_PREDICATES = {
     "time_in_mode_s": (number("time in mode at least [s]", minimum=0.0), 0, None),
+    "mission_time_s": (number("time since t = 0 at least [s]", minimum=0.0), 0, None),
     "guidance_finished": ({"const": True, "description": "time in mode beyond the profile's t1"}, 1, "profile"),
     "descending": ({"const": True, "description": "navigated climb rate negative"}, 2, "trajectory"),
     "altitude_below_m": (number("navigated altitude below [m]"), 3, "trajectory"),
@@ -367,6 +399,37 @@ MISSION = obj(
             {
                 "radius_m": number("radius [m]", **POSITIVE),
                 "mu_m3_s2": number("gravitational parameter [m^3/s^2]", **POSITIVE),
+                "rotation_rate_rad_s": number("spin rate (orbit trajectory: entry-state angles) [rad/s]", minimum=0.0),
+            },
+            optional=("rotation_rate_rad_s",),
+        ),
+        "orbit": obj(
+            "initial orbit and deorbit target (orbit trajectory; config.deorbit)",
+            {
+                "altitude_m": number("altitude of the initial circular orbit [m]", **POSITIVE),
+                "inclination_deg": number("inclination [deg]", exclusive_minimum=0.0, maximum=180.0),
+                "entry_interface_altitude_m": number("entry interface altitude (004: 125 km) [m]", **POSITIVE),
+                "deorbit": obj(
+                    "the nominal burn: ignition, steering and the entry it targets",
+                    {
+                        "approach": string(
+                            "opposite_velocity (thrust along -v) or hohmann_direction (the ignition's "
+                            "tangential -v, fixed inertial), 004 Fig. 7",
+                            enum=["opposite_velocity", "hohmann_direction"],
+                        ),
+                        "burn_start_s": number("ignition time [s]", **POSITIVE),
+                        "entry_flight_path_angle_deg": number(
+                            "target entry flight-path angle (burn time by bisection) [deg]",
+                            exclusive_minimum=-90.0,
+                            maximum=0.0,
+                        ),
+                        "entry_longitude_deg": number("target entry longitude [deg E]", minimum=-180.0, maximum=360.0),
+                        "entry_latitude_deg": number("target entry latitude [deg N]", minimum=-90.0, maximum=90.0),
+                        "pass": string(
+                            "entry on the ascending (northbound) or descending pass", enum=["ascending", "descending"]
+                        ),
+                    },
+                ),
             },
         ),
         "separation": obj(
@@ -420,7 +483,16 @@ MISSION = obj(
                 "ssm_calibration_time_s": number(
                     "attitude-bias decay time constant in modes with navigation_calibration; 0: none [s]", minimum=0.0
                 ),
+                "gps_position_bias_m": vector("GPS position bias, ECI axes (orbit trajectory) [m]"),
+                "gps_position_noise_m": number(
+                    "GPS position white noise, 1 sigma per axis and sample [m]", minimum=0.0
+                ),
+                "gps_velocity_bias_m_s": vector("GPS velocity bias, ECI axes [m/s]"),
+                "gps_velocity_noise_m_s": number(
+                    "GPS velocity white noise, 1 sigma per axis and sample [m/s]", minimum=0.0
+                ),
             },
+            optional=("gps_position_bias_m", "gps_position_noise_m", "gps_velocity_bias_m_s", "gps_velocity_noise_m_s"),
         ),
         "integrator": obj(
             "numerical integration",
@@ -434,7 +506,7 @@ MISSION = obj(
             },
         ),
     },
-    optional=("handover_max_angle_deg", "earth", "sun_direction", "atmosphere"),
+    optional=("handover_max_angle_deg", "earth", "sun_direction", "atmosphere", "orbit"),
 )
 
 _reference = {

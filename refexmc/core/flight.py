@@ -19,12 +19,14 @@ from refexmc._jit import jit, jit_noalloc
 from refexmc.core import (
     allocation,
     control,
+    deorbit,
     dynamics,
     environment,
     guidance,
     lp_allocation,
     modes,
     navigation,
+    orbit,
     pulse_modulation,
     quaternion,
     rcs,
@@ -37,6 +39,10 @@ from refexmc.core.layout import (
     F_ACTUATION,
     F_CONTROL_PERIOD,
     F_CONTROLLER,
+    F_ENGINE_AXIS,
+    F_GUIDANCE_PERIOD,
+    F_GUIDANCE_POSITION_GAIN,
+    F_GUIDANCE_VELOCITY_GAIN,
     F_INERTIA,
     F_MIN_OFF,
     F_MIN_ON,
@@ -62,9 +68,16 @@ from refexmc.core.layout import (
     LV_KP,
     LV_THRUST,
     LV_THRUST_DESIGN,
+    M_BURN_DURATION,
+    M_BURN_START,
+    M_EARTH_MU,
+    M_EARTH_RADIUS,
+    M_EARTH_RATE,
+    M_ENTRY_ALTITUDE,
     M_HANDOVER_ANGLE,
     M_MAX_STEP,
     M_MAX_TIME,
+    M_ORBIT_STATE,
     M_SEP_ATTITUDE,
     M_SEP_FLIGHT_PATH,
     M_SEP_RATES,
@@ -74,7 +87,13 @@ from refexmc.core.layout import (
     MD_KIND,
     MD_LEVEL,
     MD_TIMEOUT,
+    NOMINAL_SIZE,
     S_ALTITUDE_END,
+    S_BURN_POINTING_MAX,
+    S_BURN_POINTING_RMS,
+    S_ENGINE_PROPELLANT_USED,
+    S_ENTRY,
+    S_ENTRY_TIME,
     S_FAILURE,
     S_FAILURE_MODE,
     S_FUEL_REMAINING,
@@ -87,8 +106,16 @@ from refexmc.core.layout import (
     S_SUCCESS,
     S_T_END,
     S_THETA_HANDOVER,
-    TRAJECTORY_NONE,
+    TRAJECTORY_ORBIT,
+    TRAJECTORY_PLANAR_DRAG,
+    V_COM_OFFSET,
+    V_ENGINE_DIRECTION,
+    V_ENGINE_ISP,
+    V_ENGINE_POSITION,
+    V_ENGINE_PROPELLANT,
+    V_ENGINE_THRUST,
     V_INERTIA,
+    V_MASS,
     V_PROPELLANT,
 )
 
@@ -106,7 +133,14 @@ ST_MODES_COMPLETED = 7
 ST_RK4_STEPS = 8
 ST_NODE_INDEX = 9  # trajectory node a is at node_index * trajectory_step_s
 ST_STARTED = 10  # 1 once the first mode has started
-STATUS_SIZE = 11
+ST_GUIDANCE_TICK = 11  # orbit: time of the last burn-guidance step
+ST_POINTING_SUM2 = 12  # sum of squared pointing errors (rad^2) over control steps with the engine on
+ST_POINTING_COUNT = 13
+ST_POINTING_MAX = 14
+ST_ENTERED = 15  # 1 once the entry interface was crossed
+ST_ENGINE_ON = 16  # engine on-time in the coming control period: start, end (s)
+ST_ENGINE_OFF = 17
+STATUS_SIZE = 18
 # --- thruster bit masks (bit i for thruster i), one int64 array --------------------------------
 MASK_OPEN = 0  # commanded open (switching.enforce)
 MASK_ACTIVE = 1  # not closed and settled (rcs.update)
@@ -182,6 +216,21 @@ class Optimiser(NamedTuple):
     in_basis: np.ndarray  # bool
 
 
+class Orbit(NamedTuple):
+    """The orbit trajectory (core.orbit) and the deorbit burn guidance (core.deorbit)."""
+
+    state: np.ndarray  # [r, v, m], ECI
+    prev: np.ndarray  # the state at the start of the control period
+    stage: np.ndarray  # (6, 7) RK4 scratch
+    measured: np.ndarray  # GPS position and velocity at the last guidance step
+    nominal: np.ndarray  # the nominal row then
+    command: np.ndarray  # commanded thrust direction (unit, ECI)
+    thrust_dirs: np.ndarray  # (2, 3) true thrust direction at the period's start and end (ECI)
+    torque: np.ndarray  # gravity-gradient + engine torque over the period (body, N m)
+    crossing: np.ndarray  # the state at the entry interface
+    work: np.ndarray  # (9, 3) scratch
+
+
 class Work(NamedTuple):
     body: Body
     trajectory: Trajectory
@@ -191,6 +240,7 @@ class Work(NamedTuple):
     status: np.ndarray  # ST_*
     masks: np.ndarray  # MASK_*, int64
     optimiser: Optimiser
+    orbit: Orbit
 
 
 @jit
@@ -253,6 +303,18 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
             np.zeros(lp_allocation.N_ROWS, dtype=np.int64),
             np.zeros(n_thr + 1 + lp_allocation.N_ROWS, dtype=np.bool_),
         ),
+        Orbit(
+            np.zeros(orbit.ORBIT_STATE_SIZE),
+            np.zeros(orbit.ORBIT_STATE_SIZE),
+            np.zeros((6, orbit.ORBIT_STATE_SIZE)),
+            np.zeros(6),
+            np.zeros(NOMINAL_SIZE),
+            np.zeros(3),
+            np.zeros((2, 3)),
+            np.zeros(3),
+            np.zeros(orbit.ORBIT_STATE_SIZE),
+            np.zeros((9, 3)),
+        ),
     )
     _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work)
 
@@ -276,7 +338,7 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
             guide.accels[lv, i] = margin * levels[lv, LV_ACCEL_MAX + i]
     sensed.rng_state[0] = np.uint64(nav_seed)
 
-    if int(mission[M_TRAJECTORY_MODEL]) != TRAJECTORY_NONE:
+    if int(mission[M_TRAJECTORY_MODEL]) == TRAJECTORY_PLANAR_DRAG:
         span = mission[M_TRAJECTORY_STEP]
         environment.initial_state(mission, traj.nodes[1])
         traj.node_accels[1, 0], traj.node_accels[1, 1] = environment.acceleration(
@@ -312,10 +374,14 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
 
 
 @jit_noalloc(force_inline=True)
-def _navigate(mission, vehicle, atmosphere, nav, x, traj, sensed, status, t):
+def _navigate(mission, vehicle, atmosphere, nav, x, traj, orbit_state, sensed, status, t):
     """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and rates."""
     altitude, climb, qbar = 0.0, 0.0, 0.0
-    if int(mission[M_TRAJECTORY_MODEL]) != TRAJECTORY_NONE:
+    model = int(mission[M_TRAJECTORY_MODEL])
+    if model == TRAJECTORY_ORBIT:  # integrated with the attitude, period by period (_translate)
+        altitude = orbit.radius(orbit_state) - mission[M_EARTH_RADIUS]
+        climb = orbit.climb_rate(orbit_state)
+    elif model == TRAJECTORY_PLANAR_DRAG:
         span = mission[M_TRAJECTORY_STEP]
         node_index = status[ST_NODE_INDEX]
         while t >= (node_index + 1) * span - 1e-9:
@@ -336,6 +402,7 @@ def _navigate(mission, vehicle, atmosphere, nav, x, traj, sensed, status, t):
     sensed.now[modes.NOW_ALTITUDE] = altitude
     sensed.now[modes.NOW_CLIMB] = climb
     sensed.now[modes.NOW_QBAR] = qbar
+    sensed.now[modes.NOW_TIME] = t
     navigation.measure(x, nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4)
 
 
@@ -531,15 +598,19 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
 
 
 @jit_noalloc(force_inline=True)
-def _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level):
+def _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level, extra, has_extra):
     """Integrate the attitude over one control period, segment by segment, ``thrust`` (N) being the
-    level's nominal thrust; returns True when the propellant ran out in it."""
+    level's nominal thrust, ``extra`` a further disturbance torque when ``has_extra`` (the orbit's
+    gravity gradient and main engine); returns True when the propellant ran out in it."""
     n_thr = thrusters.shape[0]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
     one_step_limit = max_step * (1.0 + 1e-10)
     tau0, tau1, tau_a, tau_b, aero = body.torques[0], body.torques[1], body.torques[2], body.torques[3], body.torques[4]
     environment.aerodynamic_torque(vehicle, qbar, aero)
+    if has_extra:
+        for i in range(3):
+            aero[i] += extra[i]
     fuel = status[ST_FUEL]
     valves_active = masks[MASK_ACTIVE]
     rk4_steps = 0
@@ -591,6 +662,122 @@ def _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, mask
     return exhausted
 
 
+# --- the orbit trajectory and the deorbit burn (004 sec. III) -----------------------------------
+
+
+@jit_noalloc
+def _start_orbit(mission, vehicle, orb, status, summary):
+    """Orbit state at t = 0 (mass: the vehicle's, main-engine propellant included); outputs NaN."""
+    for i in range(6):
+        orb.state[i] = mission[M_ORBIT_STATE + i]
+    orb.state[6] = vehicle[V_MASS]
+    status[ST_GUIDANCE_TICK] = -math.inf
+    for i in range(5):
+        summary[S_ENTRY + i] = math.nan
+    summary[S_ENTRY_TIME] = math.nan
+    summary[S_BURN_POINTING_RMS] = math.nan
+    summary[S_BURN_POINTING_MAX] = math.nan
+
+
+@jit_noalloc
+def _thrust_direction(vehicle, q, out):
+    """The engine's true force direction in ECI at attitude ``q``."""
+    quaternion.rotate(q, vehicle[V_ENGINE_DIRECTION : V_ENGINE_DIRECTION + 3], out)
+
+
+@jit_noalloc
+def _steer(nominal, fsw, nav, vehicle, x, orb, guide, rng_state, status, t, burning):
+    """Burn guidance every guidance period (core.deorbit): GPS, the nominal row, the commanded
+    direction and the attitude that points the engine's nominal axis along it (the mode's target
+    and reference). While the engine fires, the angle between its true force and the commanded
+    direction is accumulated (004 Fig. 5)."""
+    if t >= status[ST_GUIDANCE_TICK] + fsw[F_GUIDANCE_PERIOD] - 1e-9:
+        status[ST_GUIDANCE_TICK] = t
+        deorbit.measure(orb.state, nav, rng_state, orb.measured)
+        deorbit.nominal_at(nominal, t, orb.nominal)
+        deorbit.steer(
+            orb.measured, orb.nominal, fsw[F_GUIDANCE_POSITION_GAIN], fsw[F_GUIDANCE_VELOCITY_GAIN], orb.command
+        )
+        deorbit.thrust_attitude(
+            orb.command,
+            orb.measured[0:3],
+            orb.measured[3:6],
+            fsw[F_ENGINE_AXIS : F_ENGINE_AXIS + 3],
+            guide.q_final,
+            orb.work,
+        )
+        for i in range(4):
+            guide.q_ref[i] = guide.q_final[i]
+    if burning:
+        d = orb.work[0]
+        _thrust_direction(vehicle, x[0:4], d)
+        c = d[0] * orb.command[0] + d[1] * orb.command[1] + d[2] * orb.command[2]
+        angle = math.acos(max(-1.0, min(1.0, c)))
+        status[ST_POINTING_SUM2] += angle * angle
+        status[ST_POINTING_COUNT] += 1.0
+        status[ST_POINTING_MAX] = max(status[ST_POINTING_MAX], angle)
+
+
+@jit_noalloc
+def _engine_period(mission, vehicle, inertia, x, orb, status, t, dt, burn_mode):
+    """Before the attitude is integrated over ``[t, t + dt]``: the engine's on-time in it (the
+    burn mode, the planned ignition and cut-off, the propellant left), the true thrust direction
+    at its start, and the disturbance torque over it (gravity gradient at its start, engine torque
+    times the fraction of the period it fires)."""
+    on, off = t, t
+    if burn_mode:
+        mass_flow = vehicle[V_ENGINE_THRUST] / (vehicle[V_ENGINE_ISP] * orbit.G0)
+        left = vehicle[V_ENGINE_PROPELLANT] - (vehicle[V_MASS] - orb.state[6])
+        on = max(t, mission[M_BURN_START])
+        off = min(t + dt, mission[M_BURN_START] + mission[M_BURN_DURATION], t + left / mass_flow)
+        if off < on:
+            off = on
+    status[ST_ENGINE_ON] = on
+    status[ST_ENGINE_OFF] = off
+    _thrust_direction(vehicle, x[0:4], orb.thrust_dirs[0])
+    r_body = orb.work[0]
+    quaternion.rotate_inverse(x[0:4], orb.state[0:3], r_body)
+    orbit.gravity_gradient_torque(r_body, mission[M_EARTH_MU], inertia, orb.torque)
+    if off > on:
+        force = vehicle[V_ENGINE_THRUST] * (off - on) / dt  # mean over the period
+        arm = orb.work[1]
+        for i in range(3):
+            arm[i] = vehicle[V_ENGINE_POSITION + i] - vehicle[V_COM_OFFSET + i]
+        e = vehicle[V_ENGINE_DIRECTION : V_ENGINE_DIRECTION + 3]
+        orb.torque[0] += force * (arm[1] * e[2] - arm[2] * e[1])
+        orb.torque[1] += force * (arm[2] * e[0] - arm[0] * e[2])
+        orb.torque[2] += force * (arm[0] * e[1] - arm[1] * e[0])
+
+
+@jit_noalloc
+def _translate(mission, vehicle, x, orb, status, summary, t, dt):
+    """Integrate the orbit over ``[t, t + dt]`` after the attitude: coast / engine / coast
+    segments, the thrust direction following the body from the period's start to its end (004's
+    3+3 DOF); record the entry state where the radius first falls through the entry interface."""
+    _thrust_direction(vehicle, x[0:4], orb.thrust_dirs[1])
+    for i in range(orbit.ORBIT_STATE_SIZE):
+        orb.prev[i] = orb.state[i]
+    mu = mission[M_EARTH_MU]
+    on, off = status[ST_ENGINE_ON], status[ST_ENGINE_OFF]
+    thrust = vehicle[V_ENGINE_THRUST]
+    mass_flow = thrust / (vehicle[V_ENGINE_ISP] * orbit.G0)
+    d0, d1 = orb.thrust_dirs[0], orb.thrust_dirs[1]
+    if off <= on:
+        orbit.rk4_step(orb.state, dt, mu, 0.0, 0.0, d0, d1, 0.0, 1.0, orb.stage)
+    else:
+        if on > t:
+            orbit.rk4_step(orb.state, on - t, mu, 0.0, 0.0, d0, d1, 0.0, (on - t) / dt, orb.stage)
+        orbit.rk4_step(orb.state, off - on, mu, thrust, mass_flow, d0, d1, (on - t) / dt, (off - t) / dt, orb.stage)
+        if off < t + dt:
+            orbit.rk4_step(orb.state, t + dt - off, mu, 0.0, 0.0, d0, d1, (off - t) / dt, 1.0, orb.stage)
+    r_entry = mission[M_EARTH_RADIUS] + mission[M_ENTRY_ALTITUDE]
+    if status[ST_ENTERED] == 0.0 and orbit.radius(orb.state) < r_entry and orbit.climb_rate(orb.state) < 0.0:
+        status[ST_ENTERED] = 1.0  # the crossing is coasted to from the period's start (engine off)
+        h = orbit.coast_to_radius(orb.prev, r_entry, 0.5 * dt, mu, orb.stage, orb.crossing)
+        summary[S_ENTRY_TIME] = t + h
+        orbit.entry_state(orb.crossing, t + h, mission[M_EARTH_RATE], summary[S_ENTRY : S_ENTRY + 5])
+
+
 @jit_noalloc
 def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     """The run loop of :func:`run_flight` on the work arrays it allocated (no allocation, no
@@ -606,9 +793,14 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
         w.masks,
     )
     opt = w.optimiser
+    orb = w.orbit
     vehicle, thrusters, fsw, mission = inputs.vehicle, inputs.thrusters, inputs.fsw, inputs.mission
     program, exits, atmosphere = inputs.modes, inputs.exits, inputs.atmosphere
     _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks)
+    orbit_model = int(mission[M_TRAJECTORY_MODEL]) == TRAJECTORY_ORBIT
+    if orbit_model:
+        _start_orbit(mission, vehicle, orb, status, summary)
+    cutoff = mission[M_BURN_START] + mission[M_BURN_DURATION]
     allocation.nominal_arms(thrusters, opt.arms)
     n_modes = program.shape[0]
     n_thr = thrusters.shape[0]
@@ -621,7 +813,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     t = 0.0
     while True:
         t = step * dt
-        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj, sensed, status, t)
+        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj, orb.state, sensed, status, t)
         controlled, has_reference = _advance_mode(
             program, exits, mission, vehicle, atmosphere, traj.state, sensed, guide, status, summary, t
         )
@@ -644,7 +836,12 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
                 status[ST_FAILURE] = FAIL_HANDOVER_ANGLE
 
         level = int(program[flown, MD_LEVEL])
-        active = not done and status[ST_FAILURE] == FAIL_NONE and int(program[flown, MD_KIND]) != modes.KIND_LOCKED
+        kind = int(program[flown, MD_KIND])
+        active = not done and status[ST_FAILURE] == FAIL_NONE and kind != modes.KIND_LOCKED
+        burn_mode = orbit_model and active and kind == modes.KIND_BURN
+        if burn_mode:
+            firing = mission[M_BURN_START] <= t < cutoff
+            _steer(inputs.nominal, fsw, inputs.nav, vehicle, body.x, orb, guide, sensed.rng_state, status, t, firing)
         _actuate(
             fsw,
             inputs.levels,
@@ -673,7 +870,13 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
 
         qbar = sensed.now[modes.NOW_QBAR]
         thrust = inputs.levels[level, LV_THRUST]
-        exhausted = _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level)
+        if orbit_model:
+            _engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
+        exhausted = _integrate(
+            vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level, orb.torque, orbit_model
+        )
+        if orbit_model:
+            _translate(mission, vehicle, body.x, orb, status, summary, t, dt)
         summary[S_PER_MODE + mode] += dt
         if program[mode, MD_CALIBRATION] != 0.0:
             status[ST_CALIBRATING] += dt
@@ -701,3 +904,8 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     summary[S_QBAR_END] = sensed.now[modes.NOW_QBAR]
     summary[S_RK4_STEPS] = status[ST_RK4_STEPS]
     summary[S_HISTORY_ROWS] = rows
+    if orbit_model:
+        summary[S_ENGINE_PROPELLANT_USED] = vehicle[V_MASS] - orb.state[6]
+        if status[ST_POINTING_COUNT] > 0.0:
+            summary[S_BURN_POINTING_RMS] = math.sqrt(status[ST_POINTING_SUM2] / status[ST_POINTING_COUNT]) * _DEG
+            summary[S_BURN_POINTING_MAX] = status[ST_POINTING_MAX] * _DEG

@@ -18,3 +18,4 @@ class RunInputs(NamedTuple):
     nav: np.ndarray  # layout.NAV
     atmosphere: np.ndarray  # rows [base altitude m, density kg/m^3, scale height m]
     allocation: np.ndarray  # 27 rows x thrusters: thrusters opened per axis-command combination
+    nominal: np.ndarray  # layout.NOMINAL rows of the nominal deorbit burn (orbit missions; else no rows)

@@ -36,6 +36,11 @@ V_AERO_AREA = VEHICLE.add("aero_area_m2")
 V_AERO_LENGTH = VEHICLE.add("aero_length_m")
 V_MISTRIM = VEHICLE.add("aero_mistrim_cm", 3)  # torque coefficient per body axis
 V_DRAG_AREA = VEHICLE.add("drag_area_m2")  # C_D S for the trajectory
+V_ENGINE_THRUST = VEHICLE.add("engine_thrust_n")  # main engine, constant thrust (orbit trajectory)
+V_ENGINE_ISP = VEHICLE.add("engine_isp_s")
+V_ENGINE_PROPELLANT = VEHICLE.add("engine_propellant_kg")
+V_ENGINE_DIRECTION = VEHICLE.add("engine_direction", 3)  # true force direction, body axes (misaligned)
+V_ENGINE_POSITION = VEHICLE.add("engine_position_m", 3)  # nominal body frame
 VEHICLE_SIZE = VEHICLE.size
 DERATING_MAX_VALVES = 8
 
@@ -84,6 +89,10 @@ F_MIN_ON = FSW.add("min_on_s")  # per-thruster hardware minimum pulse (25 ms)
 F_MIN_OFF = FSW.add("min_off_s")  # per-thruster hardware minimum rest (175 ms)
 F_CONTROLLER = FSW.add("controller_id")
 F_ACTUATION = FSW.add("actuation_id")
+F_ENGINE_AXIS = FSW.add("engine_axis", 3)  # the main engine's nominal force direction, body axes
+F_GUIDANCE_PERIOD = FSW.add("guidance_period_s")  # deorbit burn guidance (004 sec. III: 1 Hz)
+F_GUIDANCE_POSITION_GAIN = FSW.add("guidance_position_gain_s2")  # k_r (1/s^2)
+F_GUIDANCE_VELOCITY_GAIN = FSW.add("guidance_velocity_gain_s")  # k_v (1/s)
 FSW_SIZE = FSW.size
 
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35
@@ -106,10 +115,16 @@ M_MAX_TIME = MISSION.add("max_flight_time_s")
 M_MAX_STEP = MISSION.add("integrator_max_step_s")
 M_TRAJECTORY_STEP = MISSION.add("trajectory_step_s")  # RK4 node spacing, Hermite in between
 M_TRAJECTORY_MODEL = MISSION.add("trajectory_model_id")  # TRAJECTORY_*
+M_ORBIT_STATE = MISSION.add("orbit_state", 6)  # orbit trajectory: ECI position (m), velocity (m/s) at t = 0
+M_EARTH_RATE = MISSION.add("earth_rotation_rate_rad_s")
+M_ENTRY_ALTITUDE = MISSION.add("entry_interface_altitude_m")
+M_BURN_START = MISSION.add("burn_start_s")  # main engine ignition (the nominal plan's)
+M_BURN_DURATION = MISSION.add("burn_duration_s")  # from the bisection on the entry flight-path angle
 MISSION_SIZE = MISSION.size
 
 TRAJECTORY_NONE = 0  # attitude only: no altitude, no dynamic pressure, no aerodynamic torque
 TRAJECTORY_PLANAR_DRAG = 1  # point mass in the x-z plane, spherical gravity and drag (core.environment)
+TRAJECTORY_ORBIT = 2  # point mass in 3D, two-body gravity and a main engine (core.orbit, 004 sec. III)
 
 # --- mode program: one row per mode, flown in order (refexmc.core.modes) ---------------------
 MODE = Fields()
@@ -142,7 +157,19 @@ N_ATT_NOISE = NAV.add("attitude_noise_rad")
 N_RATE_BIAS = NAV.add("rate_bias_rad_s", 3)
 N_RATE_NOISE = NAV.add("rate_noise_rad_s")
 N_CALIBRATION_TIME = NAV.add("ssm_calibration_time_s")  # attitude bias decay in calibrating modes
+N_GPS_POSITION_BIAS = NAV.add("gps_position_bias_m", 3)  # ECI axes
+N_GPS_POSITION_NOISE = NAV.add("gps_position_noise_m")  # 1 sigma per axis and sample
+N_GPS_VELOCITY_BIAS = NAV.add("gps_velocity_bias_m_s", 3)
+N_GPS_VELOCITY_NOISE = NAV.add("gps_velocity_noise_m_s")
 NAV_SIZE = NAV.size
+
+# --- nominal deorbit burn: one row per guidance period, ignition to cut-off (core.deorbit) ---
+NOMINAL = Fields()
+NM_T = NOMINAL.add("t_s")
+NM_POSITION = NOMINAL.add("position_m", 3)  # ECI
+NM_VELOCITY = NOMINAL.add("velocity_m_s", 3)
+NM_THRUST_ACCEL = NOMINAL.add("thrust_accel_m_s2", 3)  # nominal thrust / mass along the nominal direction
+NOMINAL_SIZE = NOMINAL.size
 
 # --- why a run failed ------------------------------------------------------------------------
 FAIL_NONE = 0
@@ -174,6 +201,11 @@ S_ALTITUDE_END = SUMMARY.add("altitude_end_m")
 S_QBAR_END = SUMMARY.add("qbar_end_pa")
 S_RK4_STEPS = SUMMARY.add("rk4_steps")
 S_HISTORY_ROWS = SUMMARY.add("history_rows")
+S_ENTRY = SUMMARY.add("entry_state", 5)  # orbit: longitude, latitude (deg), speed (m/s), fpa, heading (deg)
+S_ENTRY_TIME = SUMMARY.add("entry_time_s")
+S_BURN_POINTING_RMS = SUMMARY.add("burn_pointing_rms_deg")  # thrust vs commanded direction, engine on
+S_BURN_POINTING_MAX = SUMMARY.add("burn_pointing_max_deg")
+S_ENGINE_PROPELLANT_USED = SUMMARY.add("engine_propellant_used_kg")
 S_PER_MODE = SUMMARY.size  # summary[S_PER_MODE + m]: time in mode m; + n_modes + m: its t1
 
 

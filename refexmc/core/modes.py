@@ -18,6 +18,8 @@ from refexmc.core.layout import (
     E_GROUP,
     E_PREDICATE,
     E_VALUE,
+    M_BURN_DURATION,
+    M_BURN_START,
     M_SUN_DIRECTION,
     MD_ANGLES,
     MD_EXIT_FIRST,
@@ -37,6 +39,7 @@ KIND_SLEW = 2  # SLERP paced by the quintic to the target (000 eq. 4-14)
 KIND_SPIN_UP = 3  # quartic spin-up about a body rate vector from the last target (000 eq. 20-27)
 KIND_HOLD = 4  # the target attitude at zero rate
 KIND_TRACK = 5  # a target that moves, recomputed every control period
+KIND_BURN = 6  # main engine on from the planned ignition to cut-off, steered by core.deorbit
 KINDS = {
     "locked": KIND_LOCKED,
     "rate_damping": KIND_RATE_DAMPING,
@@ -44,6 +47,7 @@ KINDS = {
     "spin_up": KIND_SPIN_UP,
     "hold": KIND_HOLD,
     "track": KIND_TRACK,
+    "burn": KIND_BURN,
 }
 
 # --- targets -------------------------------------------------------------------------------
@@ -71,6 +75,7 @@ PREDICATE_ANGLE_ERROR_BELOW = 4  # angle measured attitude -> target < value
 PREDICATE_ALTITUDE_BELOW = 5  # navigated altitude < value
 PREDICATE_DESCENDING = 6  # navigated climb rate < 0
 PREDICATE_QBAR_ABOVE = 7  # dynamic pressure >= value
+PREDICATE_MISSION_TIME = 8  # time since t = 0 >= value
 PREDICATES = {
     "time_in_mode_s": PREDICATE_TIME_IN_MODE,
     "guidance_finished": PREDICATE_GUIDANCE_FINISHED,
@@ -80,6 +85,7 @@ PREDICATES = {
     "altitude_below_m": PREDICATE_ALTITUDE_BELOW,
     "descending": PREDICATE_DESCENDING,
     "dynamic_pressure_above_pa": PREDICATE_QBAR_ABOVE,
+    "mission_time_s": PREDICATE_MISSION_TIME,
 }
 
 # what the flight software knows this control period, as the predicates read it (``now`` array)
@@ -87,13 +93,14 @@ NOW_TIME_IN_MODE = 0
 NOW_ALTITUDE = 1
 NOW_CLIMB = 2
 NOW_QBAR = 3
-NOW_SIZE = 4
+NOW_TIME = 4
+NOW_SIZE = 5
 
 
 @jit_noalloc
 def has_profile(kind):
     """Kinds whose guidance has a transition time t1 (000 eq. 13-14, 19)."""
-    return kind == KIND_RATE_DAMPING or kind == KIND_SLEW or kind == KIND_SPIN_UP
+    return kind == KIND_RATE_DAMPING or kind == KIND_SLEW or kind == KIND_SPIN_UP or kind == KIND_BURN
 
 
 @jit_noalloc
@@ -137,6 +144,9 @@ def start(mode, mission, traj, t, q_meas, rate_meas, accel, guid, q_final, has_f
                 q_final[i] = q_meas[i]
         guidance.start_spin_up(guid, t, q_final, mode[MD_RATE : MD_RATE + 3], accel)
         return True
+    if kind == KIND_BURN:  # t1: the planned cut-off; the target follows core.deorbit's steering
+        guid[guidance.G_T1] = mission[M_BURN_START] + mission[M_BURN_DURATION] - t
+        return has_final
     if kind == KIND_SLEW or kind == KIND_HOLD:
         target_attitude(mode, mission, traj, q_meas, q_final, has_final, rotations, work)
         if kind == KIND_SLEW:
@@ -169,7 +179,7 @@ def reference(mode, mission, vehicle, atmosphere, traj, t, guid, q_final, rotati
         quaternion.rotate_inverse(q_ref, inertial_rate[0:3], rate_ref)
         for i in range(3):
             accel_ref[i] = 0.0
-    elif kind == KIND_HOLD:
+    elif kind == KIND_HOLD or kind == KIND_BURN:
         for i in range(4):
             q_ref[i] = q_final[i]
         for i in range(3):
@@ -205,6 +215,8 @@ def predicate_holds(predicate, value, now, t1, rate_meas, rate_ref, q_meas, q_ta
         return now[NOW_CLIMB] < 0.0
     if predicate == PREDICATE_QBAR_ABOVE:
         return now[NOW_QBAR] >= value
+    if predicate == PREDICATE_MISSION_TIME:
+        return now[NOW_TIME] >= value
     return False
 
 

@@ -1,0 +1,186 @@
+"""SPORE (004): the orbit trajectory, the deorbit plan and burn, entry-state outputs, bad input.
+
+The kernels (core.orbit, core.deorbit) are checked against solve_ivp and closed forms in
+tests/test_orbit.py; here: the plan reaches 004's targets, the nominal flight follows it, the
+campaign's outputs and dispersions, and what validation refuses.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from refexmc.campaign.chunk import fly_chunk
+from refexmc.cli import main
+from refexmc.config import derived
+from refexmc.config.load import load_campaign, load_mission, load_vehicle
+from refexmc.config.pack import deorbit_plan, mode_names, pack
+from refexmc.config.requirements import ORBIT_COLUMNS
+from refexmc.core import layout as L
+from refexmc.simulate import fly
+
+ROOT = Path(__file__).resolve().parents[1]
+VEHICLE = ROOT / "configs/vehicles/spore-sm.yaml"
+MISSION = ROOT / "configs/missions/spore-deorbit-iss.yaml"
+CAMPAIGN = ROOT / "campaigns/spore-deorbit-iss.yaml"
+
+
+@pytest.fixture(scope="module")
+def spore():
+    vehicle, mission = load_vehicle(VEHICLE), load_mission(MISSION)
+    return vehicle, mission, deorbit_plan(vehicle, mission)
+
+
+def test_the_plan_enters_at_the_targets_of_004_table_3(spore):
+    vehicle, mission, plan = spore
+    target = mission["orbit"]["deorbit"]
+    # the bisection stops at 1e-7 s of burn (~1e-8 deg of flight-path angle); the phasing is exact
+    # for two-body motion, repeated to rounding
+    assert plan.entry[3] == pytest.approx(target["entry_flight_path_angle_deg"], abs=1e-6)
+    assert plan.entry[0] == pytest.approx(target["entry_longitude_deg"], abs=1e-6)
+    assert plan.entry[1] == pytest.approx(target["entry_latitude_deg"], abs=1e-6)
+    assert plan.entry[4] < 90.0  # the ascending pass heads north
+    # the burn fits the main engine's propellant, and the mass flow is thrust / (Isp g0)
+    engine = vehicle["main_engine"]
+    used = plan.burn_duration_s * engine["thrust_n"] / (engine["isp_s"] * 9.80665)
+    assert 0.0 < used < engine["propellant_kg"]
+    assert plan.table[-1, L.NM_T] == pytest.approx(plan.ignition_s + plan.burn_duration_s, abs=1e-9)
+
+
+def test_the_heading_is_that_of_the_orbit_plane(spore):
+    """With no Earth rotation, a circular orbit of inclination i crosses latitude phi heading
+    asin(cos i / cos phi) east of north (spherical trigonometry); the burn stays in the plane."""
+    vehicle, mission, _ = spore
+    still = {**mission, "earth": {**mission["earth"], "rotation_rate_rad_s": 0.0}}
+    plan = deorbit_plan(vehicle, still)
+    i = math.radians(mission["orbit"]["inclination_deg"])
+    phi = math.radians(mission["orbit"]["deorbit"]["entry_latitude_deg"])
+    assert plan.entry[4] == pytest.approx(math.degrees(math.asin(math.cos(i) / math.cos(phi))), abs=1e-6)
+
+
+def test_hohmann_direction_needs_the_shorter_burn_at_5_deg(spore):
+    """004 Fig. 8: beyond an entry flight-path angle of about 4.5 deg, thrusting along the fixed
+    Hohmann direction needs a shorter burn than thrusting opposite to the velocity; a steeper
+    target needs a longer burn with either."""
+    vehicle, mission, plan = spore
+
+    def duration(approach, fpa):
+        deorbit = {**mission["orbit"]["deorbit"], "approach": approach, "entry_flight_path_angle_deg": fpa}
+        return deorbit_plan(vehicle, {**mission, "orbit": {**mission["orbit"], "deorbit": deorbit}}).burn_duration_s
+
+    assert duration("hohmann_direction", -5.0) == pytest.approx(plan.burn_duration_s)
+    assert duration("hohmann_direction", -5.0) < duration("opposite_velocity", -5.0)
+    assert duration("hohmann_direction", -4.0) < duration("hohmann_direction", -5.0)
+
+
+def test_the_nominal_flight_follows_the_plan(spore):
+    vehicle, mission, plan = spore
+    result = fly(pack(vehicle, mission), 0, 0.1, mode_names(mission))
+    assert result.success, result.failure_reason
+    values = result.runs_values()
+    # the undispersed run flies the plan up to its attitude control error (0.02 deg rms), which
+    # the guidance corrects: entry within 1e-4 deg and 0.02 m/s of the plan (measured 8e-6 deg,
+    # 0.004 m/s)
+    for k, name in enumerate(ORBIT_COLUMNS[:5]):
+        assert values[name] == pytest.approx(plan.entry[k], abs=0.02 if k == 2 else 1e-4), name
+    assert values["entry_time_s"] == pytest.approx(plan.entry_time_s, abs=0.05)
+    assert values["burn_pointing_rms_deg"] < 0.1
+    engine = vehicle["main_engine"]
+    assert values["engine_propellant_used_kg"] == pytest.approx(
+        plan.burn_duration_s * engine["thrust_n"] / (engine["isp_s"] * 9.80665), rel=1e-9
+    )
+    t_burn = result.value("t_mode_s")[mode_names(mission).index("burn")]
+    assert plan.burn_duration_s < t_burn < plan.burn_duration_s + 0.2  # ends at the first step after cut-off
+
+
+def test_a_misaligned_engine_fires_off_axis_and_the_guidance_corrects(spore):
+    """0.5 deg of misalignment about body x: the engine's torque F L sin(delta) about x leaves the
+    PD (004 eq. 1) a steady error 2 tau / Kp (q ~ theta / 2) that turns the thrust line back toward
+    the command, so the pointing error settles at delta - 2 tau / Kp; the entry stays near the plan."""
+    vehicle, mission, plan = spore
+    engine = vehicle["main_engine"]
+    delta = math.radians(0.5)
+    torque = engine["thrust_n"] * abs(engine["position_m"][2]) * math.sin(delta)
+    settled = math.degrees(delta - 2.0 * torque / vehicle["flight_software"]["gains"]["kp"]["cold_gas"][0])
+    inputs = pack(vehicle, mission)
+    axis = inputs.fsw[L.F_ENGINE_AXIS : L.F_ENGINE_AXIS + 3].copy()
+    inputs.vehicle[L.V_ENGINE_DIRECTION : L.V_ENGINE_DIRECTION + 3] = derived.rotate_by_rotation_vector(
+        axis, [0.5, 0.0, 0.0]
+    )
+    values = fly(inputs, 0, 0.1, mode_names(mission)).runs_values()
+    # rms over the burn: the settled error plus the first seconds' transient (measured 0.238 vs 0.212)
+    assert values["burn_pointing_rms_deg"] == pytest.approx(settled, abs=0.05)
+    assert values["entry_flight_path_angle_deg"] == pytest.approx(-5.0, abs=1e-3)
+
+
+def test_rotate_by_rotation_vector_matches_scipy():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        v, r = rng.normal(size=3), rng.normal(size=3) * 30.0
+        expected = Rotation.from_rotvec(np.radians(r)).apply(v)
+        np.testing.assert_allclose(derived.rotate_by_rotation_vector(v, r), expected, atol=1e-14)
+
+
+def test_the_campaign_stores_entry_columns_and_disperses_gps_and_misalignment():
+    campaign = load_campaign(CAMPAIGN)
+    rows, _ = fly_chunk(campaign, range(3))
+    for row in rows:
+        assert row["status"] == "ok" and row["success"]
+        for name in ORBIT_COLUMNS:
+            assert math.isfinite(row[name]), name
+    dispersed = rows[1]
+    assert dispersed["p.main_engine.misalignment_deg.x"] != 0.0
+    assert dispersed["p.navigation.gps_position_bias_m.y"] != 0.0
+    assert rows[0]["burn_pointing_rms_deg"] < dispersed["burn_pointing_rms_deg"]
+
+
+def test_entry_columns_only_for_orbit_vehicles():
+    campaign = load_campaign(ROOT / "campaigns/generic-slew.yaml")
+    rows, _ = fly_chunk(campaign, range(1))
+    assert not set(ORBIT_COLUMNS) & set(rows[0])
+
+
+def _validate(tmp_path, vehicle_text=None, mission_text=None):
+    campaign = yaml.safe_load(CAMPAIGN.read_text())
+    campaign["vehicle"] = str(VEHICLE)
+    campaign["mission"] = str(MISSION)
+    if vehicle_text is not None:
+        (tmp_path / "vehicle.yaml").write_text(vehicle_text)
+        campaign["vehicle"] = "vehicle.yaml"
+    if mission_text is not None:
+        (tmp_path / "mission.yaml").write_text(mission_text)
+        campaign["mission"] = "mission.yaml"
+    (tmp_path / "campaign.yaml").write_text(yaml.safe_dump(campaign))
+    return CliRunner().invoke(main, ["validate", str(tmp_path / "campaign.yaml")])
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("entry_latitude_deg: -43.75", "entry_latitude_deg: -60.0", "never reaches latitude -60"),
+        ("entry_flight_path_angle_deg: -5.0", "entry_flight_path_angle_deg: -30.0", "cannot reach an entry"),
+        ("burn_start_s: 300.0", "burn_start_s: 300.05", "whole number of control periods"),
+        ("exit: [{altitude_below_m: 125000.0", "exit: [{dynamic_pressure_above_pa: 10.0", "has no atmosphere"),
+    ],
+)
+def test_bad_deorbit_missions_are_refused_with_file_and_key(tmp_path, old, new, message):
+    text = MISSION.read_text()
+    assert old in text
+    result = _validate(tmp_path, mission_text=text.replace(old, new))
+    assert result.exit_code == 2, result.output
+    assert "mission.yaml:" in result.output and message in result.output, result.output
+    assert "Traceback" not in result.output
+
+
+def test_orbit_missions_need_an_orbit_vehicle_and_the_reverse(tmp_path):
+    planar = ROOT / "configs/vehicles/generic-12.yaml"
+    result = _validate(tmp_path, vehicle_text=planar.read_text())
+    assert result.exit_code == 2 and "needs a vehicle with the orbit trajectory" in result.output, result.output
+    no_engine = VEHICLE.read_text().split("main_engine:")[0] + "rcs:" + VEHICLE.read_text().split("\nrcs:")[1]
+    result = _validate(tmp_path, vehicle_text=no_engine)
+    assert result.exit_code == 2 and "the orbit trajectory needs 'main_engine'" in result.output, result.output
