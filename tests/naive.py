@@ -300,3 +300,31 @@ def lp_allocation_vertices(arms, u_max, torque, tolerance=1e-9):
             if np.all(u >= -tolerance) and np.all(u <= u_max + tolerance) and u.sum() < best:
                 best, best_u = u.sum(), u
     return best, best_u
+
+
+# --- orbit translation with a constant-thrust engine (refexmc.core.orbit), one RK4 step ------
+def orbit_rk4_step(state, h, mu, thrust, mass_flow, d0, d1, f0, f1):
+    """One classical RK4 step of ``[r, v, m]`` under two-body gravity and ``thrust`` along the
+    unit vector of ``d0 + (d1 - d0) f``, with ``f`` going linearly from ``f0`` to ``f1`` over the
+    step (the stages at f0, the midpoint and f1); returns the new state as a list."""
+
+    def direction(f):
+        d = [a + (b - a) * f for a, b in zip(d0, d1, strict=True)]
+        norm = math.sqrt(sum(c * c for c in d))
+        return [c / norm for c in d]
+
+    def rate(y, d):
+        r, v, m = y[0:3], y[3:6], y[6]
+        r_norm = math.sqrt(sum(c * c for c in r))
+        gravity = [-mu / r_norm**3 * c for c in r]
+        return [*v, *(g + thrust / m * c for g, c in zip(gravity, d, strict=True)), -mass_flow]
+
+    def shifted(y, k, scale):
+        return [a + scale * b for a, b in zip(y, k, strict=True)]
+
+    y = [float(c) for c in state]
+    k1 = rate(y, direction(f0))
+    k2 = rate(shifted(y, k1, 0.5 * h), direction(0.5 * (f0 + f1)))
+    k3 = rate(shifted(y, k2, 0.5 * h), direction(0.5 * (f0 + f1)))
+    k4 = rate(shifted(y, k3, h), direction(f1))
+    return [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for a, b1, b2, b3, b4 in zip(y, k1, k2, k3, k4, strict=True)]

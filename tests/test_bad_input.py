@@ -327,7 +327,11 @@ MISSION_CASES = [
     (
         "predicate-the-kind-cannot-answer",
         _mission_edit("exit: [{time_in_mode_s: 5.0}]", "exit: [{guidance_finished: true}]"),
-        ["modes.0.exit.0.guidance_finished", "needs a profile (rate_damping, slew, spin_up, burn)", "kind locked has none"],
+        [
+            "modes.0.exit.0.guidance_finished",
+            "needs a profile (rate_damping, slew, spin_up, burn)",
+            "kind locked has none",
+        ],
         "guidance_finished: true}]",
     ),
     ("empty-mode-list", _EMPTY, ["modes", "expected 1..32 items, got 0"], "modes: []"),

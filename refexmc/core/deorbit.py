@@ -191,6 +191,7 @@ def coast_to_entry(state, r_entry, mu, step, max_time, stage, prev, out):
             prev[i] = out[i]
         orbit.coast(out, step, mu, stage)
         if orbit.radius(out) < r_entry and orbit.climb_rate(out) < 0.0:
-            return t + orbit.coast_to_radius(prev, r_entry, 0.5 * step, mu, stage, out)
+            t_cross = t + orbit.coast_to_radius(prev, r_entry, 0.5 * step, mu, stage, out)
+            return t_cross if t_cross <= max_time else math.nan
         t += step
     return math.nan

@@ -132,7 +132,7 @@ def entry_state(state, t, earth_rate, out):
     out[0] = math.degrees(longitude)
     out[1] = math.degrees(latitude)
     out[2] = speed
-    out[3] = math.degrees(math.asin(up / speed))
+    out[3] = math.degrees(math.atan2(up, math.sqrt(east * east + north * north)))  # asin(up / speed) can NaN
     heading = math.degrees(math.atan2(east, north))
     out[4] = heading + 360.0 if heading < 0.0 else heading
 
