@@ -6,6 +6,9 @@ mode's start; ``core.modes``) -> actuate (controller, then PWPF + allocation tab
 per-thruster switching check, or LP allocation + pulse-width modulation; valve commands) ->
 record (a history row) -> integrate (the attitude over the period in segments that end on the
 thrust-profile breakpoints, each split into RK4 steps of at most ``integrator_max_step_s``).
+With the ``orbit`` trajectory, a burn mode first steers (``_steer``: core.deorbit at the guidance
+rate), and after the attitude the orbit is integrated over the same period (``_engine_period``,
+``_translate``: core.orbit), the thrust direction following the body.
 All inputs a campaign may disperse arrive as array values (``core.inputs.RunInputs``), so one
 compiled kernel serves every run. Outputs go to caller-owned arrays.
 """
