@@ -40,7 +40,7 @@ def failed_set(row):
     return tuple(int(t) for t in text.split(",")) if text else ()
 
 
-def _number(value, fmt):
+def number(value, fmt):
     return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, fmt)
 
 
@@ -77,10 +77,10 @@ def table(campaign, rows):
             "yes" if done else "no",
             row["failure_reason"] or "—",
             str(row["modes_completed"]),
-            _number(row["t_end_s"], ".1f"),
-            _number(row["theta_t_handover_deg"], ".3f"),
+            number(row["t_end_s"], ".1f"),
+            number(row["theta_t_handover_deg"], ".3f"),
             agrees,
-            _number(used, ".3f"),
+            number(used, ".3f"),
             ("yes" if used <= tank_kg else "**no**") if done else "—",
         )
         lines.append("| " + " | ".join(cells) + " |")
@@ -114,7 +114,7 @@ def summary(campaign, rows):
     return "\n".join(lines) + "\n"
 
 
-def provenance():
+def provenance(script="docs/gen_failure_sweep.py"):
     """The commit the sweep was flown at, and whether the model sources had uncommitted changes."""
     source = Path(sys.modules["refexmc"].__file__).resolve().parents[1]
 
@@ -131,7 +131,7 @@ def provenance():
         return "Flown from a source tree that is not a git checkout (commit unknown)."
     dirty = git("status", "--porcelain", "--", "refexmc", "configs", "campaigns")
     state = " (the working tree had uncommitted changes under refexmc/, configs/ or campaigns/)" if dirty else ""
-    return f"Flown with `.venv/bin/python docs/gen_failure_sweep.py` at commit `{commit}`{state}."
+    return f"Flown with `.venv/bin/python {script}` at commit `{commit}`{state}."
 
 
 def generate(campaign_file=CAMPAIGN):
@@ -139,12 +139,17 @@ def generate(campaign_file=CAMPAIGN):
     return f"{provenance()}\n\n{table(campaign, rows)}\n{summary(campaign, rows)}"
 
 
+def write_between_markers(doc, generated):
+    """Replace the text between BEGIN and END in ``doc`` with ``generated``."""
+    head, rest = doc.read_text().split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    doc.write_text(f"{head}{BEGIN}\n{generated}{END}{tail}")
+
+
 def main(argv):
     generated = generate()
     if "--write" in argv:
-        head, rest = DOC.read_text().split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-        DOC.write_text(f"{head}{BEGIN}\n{generated}{END}{tail}")
+        write_between_markers(DOC, generated)
     else:
         sys.stdout.write(generated)
 
