@@ -63,9 +63,9 @@ def _rss_kib(pid):
     return 0
 
 
-def run_cli(runs, jobs, out):
+def run_cli(runs, jobs, out, campaign=CAMPAIGN):
     """(wall s, peak tree RSS MiB, peak single-process RSS MiB) of one `refexmc run`."""
-    command = [*REFEXMC, "run", str(CAMPAIGN), "--runs", str(runs), "-j", str(jobs), "-o", str(out)]
+    command = [*REFEXMC, "run", str(campaign), "--runs", str(runs), "-j", str(jobs), "-o", str(out)]
     command += ["--overwrite", "--no-progress"]
     peak = {"tree": 0, "process": 0}
     t0 = time.perf_counter()
