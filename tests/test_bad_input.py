@@ -129,6 +129,24 @@ CASES = [
         [],
         ["dispersions.com_offset_m: duplicate key 'com_offset_m'", f"first at line {_line('dispersions:') + 1}"],
     ),
+    (
+        "published-column-the-campaign-lacks",
+        SMOKE
+        + "published:\n  - source: 004 Table 2\n    statistic: three_sigma\n    values: {entry_speed_m_s: 0.04}\n",
+        [],
+        [
+            f":{len(SMOKE.splitlines()) + 4}:",
+            "published.0.values.entry_speed_m_s",
+            "not a runs column of this campaign",
+            "orbit trajectory only",
+        ],
+    ),
+    (
+        "published-unknown-statistic",
+        SMOKE + "published:\n  - source: 000 sec. 6.2\n    statistic: sigma3\n    values: {fuel_remaining: 0.1}\n",
+        [],
+        [f":{len(SMOKE.splitlines()) + 3}:", "published.0.statistic", "unknown statistic 'sigma3'"],
+    ),
     ("runs-option-inf", SMOKE, ["--runs", "inf"], ["--runs", "'inf' is not a valid integer"]),
     ("seed-option-nan", SMOKE, ["--seed", "nan"], ["--seed", "'nan' is not a valid integer"]),
     (

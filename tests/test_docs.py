@@ -62,6 +62,15 @@ def test_campaign_files_validate_and_use_documented_paths(path, generator, doc_t
     assert not undocumented, f"{path.name} disperses paths not in docs/campaigns.md: {undocumented}"
 
 
+def test_every_campaign_key_is_in_the_key_table(doc_text):
+    """docs/campaigns.md section 1 has a row for each top-level key the campaign schema accepts."""
+    from refexmc.config import schema
+
+    table = doc_text.split("## 1. Campaign keys", 1)[1].split("\n\n", 2)[1]
+    rows = re.findall(r"^\| `([a-z_]+)", table, flags=re.M)
+    assert sorted(set(rows)) == sorted(schema.CAMPAIGN["properties"])
+
+
 def test_the_shipped_campaigns_are_listed(doc_text):
     unlisted = [p.name for p in CAMPAIGN_FILES if f"`campaigns/{p.name}`" not in doc_text]
     assert not unlisted, f"campaign files not listed in docs/campaigns.md: {unlisted}"

@@ -436,6 +436,7 @@ def test_requirement_parser_good_and_bad():
     assert parse_requirement("success_rate_lower95 > 0.9", columns).op == ">"
     assert parse_requirement("fuel_remaining.p1_lower95 >= 0.3", columns).value == 0.3
     assert parse_requirement("t_sam_s.mean_plus_3sd <= 1e2", columns).value == 100.0
+    assert parse_requirement("t_sam_s.three_sigma <= 5", columns).metric == "t_sam_s.three_sigma"
     with pytest.raises(ConfigError, match="did you mean 'fuel_remaining.min'"):
         parse_requirement("fuel_remaning.min >= 0.2", columns)
     with pytest.raises(ConfigError, match="did you mean 'success_rate'"):

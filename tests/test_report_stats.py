@@ -90,6 +90,7 @@ def test_column_stats_match_numpy():
     assert stats.column_stat(with_nan, "min") == x.min()
     assert stats.column_stat(with_nan, "median") == np.median(x)
     assert stats.column_stat(with_nan, "std") == pytest.approx(np.std(x, ddof=1))
+    assert stats.column_stat(with_nan, "three_sigma") == pytest.approx(3 * np.std(x, ddof=1))
     assert stats.column_stat(with_nan, "mean_minus_3sd") == pytest.approx(x.mean() - 3 * np.std(x, ddof=1))
     assert stats.column_stat(with_nan, "count") == 257
     k = stats.normal_tolerance_factor(257)
@@ -97,6 +98,7 @@ def test_column_stats_match_numpy():
     assert stats.column_stat(with_nan, "tol_upper") == pytest.approx(x.mean() + k * np.std(x, ddof=1))
     assert stats.column_stat(x, "tol_lower") < stats.column_stat(x, "mean_minus_3sd")  # k > 3 at finite n
     assert math.isnan(stats.column_stat([1.0], "std"))
+    assert math.isnan(stats.column_stat([1.0, np.nan], "three_sigma"))  # one finite value: no spread
     assert math.isnan(stats.column_stat([], "min"))
 
 
@@ -236,7 +238,7 @@ def test_failing_runs_rank_at_the_failing_end_like_a_far_sentinel(stat, side, n_
 
 def test_failing_runs_fail_moments_and_equality_and_are_not_counted():
     values = np.linspace(1.0, 2.0, 50)
-    for stat in ("mean", "std", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper"):
+    for stat in ("mean", "std", "three_sigma", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper"):
         assert stats.column_stat_with_failing(values, 1, stat, "low") == -math.inf
         assert stats.column_stat_with_failing(values, 1, stat, "high") == math.inf
         assert stats.column_stat_with_failing(values, 0, stat, "low") == stats.column_stat(values, stat)

@@ -11,7 +11,7 @@ import jsonschema
 import numpy as np
 import yaml
 
-from refexmc.config import requirements, schema
+from refexmc.config import published, requirements, schema
 from refexmc.config.derived import allocation_table, inertia_problem
 from refexmc.config.errors import ConfigError
 
@@ -523,6 +523,8 @@ def load_campaign(path):
         "run_time_limit_s": data.get("run_time_limit_s", 60.0),
         "output": data.get("output", {"history_rate_hz": 2.0}),
         "requirements": data.get("requirements", []),
+        # only when given: the resolved campaign (its digest, --resume) of a file without it is unchanged
+        **({"published": data["published"]} if "published" in data else {}),
         "vehicle": vehicle,
         "mission": mission,
     }
@@ -534,6 +536,7 @@ def load_campaign(path):
     trajectory = vehicle.get("trajectory", "planar_drag")
     columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, trajectory)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
+    published.check_published(campaign.get("published", []), columns, path, lines)
     if campaign["failures"]["mode"] == "enumerate":
         derived = len(failure_sets(campaign["failures"]["sizes"], n_thrusters)) + int(campaign["nominal_first"])
         if campaign["runs"] is not None and campaign["runs"] != derived:

@@ -11,6 +11,7 @@ METRIC is either a campaign-level metric (``CAMPAIGN_METRICS``) or ``<column>.<s
 - ``<stat>``, judged by the report over every stored run: a failed flight or an errored run
   counts as failing the requirement (docs/report.md says how for each statistic):
   ``count min max mean median std`` (std with ddof 1); ``mean_minus_3sd mean_plus_3sd``;
+  ``three_sigma`` 3 std, the half-width of the 3-sigma dispersion (a source's "3-sigma uncertainty");
   ``p<q>`` the q-th percentile, 0 <= q <= 100 (``p0.135 p1 p50 p99 p99.865``; numpy's linear
   interpolation); ``tol_lower tol_upper`` the one-sided normal tolerance bounds, 99.865 % coverage
   at 95 % confidence (the confidence bound of the 3-sigma value, assuming normality);
@@ -46,7 +47,7 @@ CAMPAIGN_METRICS = {
     "failure_rate_upper95": "1 - success_rate_lower95: the failure probability bound",
 }
 
-BASIC_STATS = ("count", "min", "max", "mean", "median", "std", "mean_minus_3sd", "mean_plus_3sd")
+BASIC_STATS = ("count", "min", "max", "mean", "median", "std", "three_sigma", "mean_minus_3sd", "mean_plus_3sd")
 BOUND_STATS = ("tol_lower", "tol_upper")
 PERCENTILE_STATS = ("p0.135", "p1", "p5", "p50", "p95", "p99", "p99.865")
 NAMED_STATS = BASIC_STATS + BOUND_STATS

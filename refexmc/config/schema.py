@@ -576,6 +576,27 @@ CAMPAIGN = obj(
             "items": string("'METRIC OP VALUE'"),
             "description": "requirement verdicts for the report",
         },
+        "published": {
+            "type": "array",
+            "description": "values a source reports for this campaign, shown by the report beside ours "
+            "(refexmc.config.published)",
+            "items": obj(
+                "one source's values of one statistic",
+                {
+                    "source": string("where the values come from (document, table, column)"),
+                    "statistic": string(
+                        "the statistic the values are, a requirement statistic (three_sigma: 3 std, std, mean, "
+                        "p<q>, ...; refexmc.config.requirements), computed over the flown runs"
+                    ),
+                    "values": {
+                        "type": "object",
+                        "description": "runs column -> the source's value",
+                        "additionalProperties": number("the source's value [the column's unit]"),
+                        "minProperties": 1,
+                    },
+                },
+            ),
+        },
     },
     optional=(
         "runs",
@@ -586,5 +607,6 @@ CAMPAIGN = obj(
         "run_time_limit_s",
         "output",
         "requirements",
+        "published",
     ),
 )

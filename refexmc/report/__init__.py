@@ -12,8 +12,9 @@ the figures as ``OUT/report/figures/*.png``), and returns a dict:
 - ``text``: the terminal summary;
 - ``report_dir``, ``files``: where it wrote.
 
-Bad input (OUT not a campaign output, a malformed requirement, an unknown metric) raises
-``refexmc.config.errors.ConfigError`` before anything is written. The metric grammar is in
+Bad input (OUT not a campaign output, a malformed requirement, an unknown metric, a
+``published`` column the stored runs table lacks) raises ``refexmc.config.errors.ConfigError``
+before anything is written. The metric grammar is in
 ``refexmc.report.requirements``.
 """
 

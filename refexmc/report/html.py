@@ -128,6 +128,29 @@ def failure_sets_section(sets):
     )
 
 
+def published_section(entries):
+    """One table per published entry: column, our statistic with its n, the source's value, the ratio."""
+    parts = []
+    for entry in entries:
+        rows = [
+            [
+                f"<code>{e(row['column'])}</code>",
+                str(row["n"]),
+                number(row["ours"]),
+                number(row["published"]),
+                number(row["ratio_published_to_ours"], 3),
+            ]
+            for row in entry["rows"]
+        ]
+        parts += [
+            f"<h3>{e(entry['source'])}</h3>",
+            f"<p><code>{e(entry['statistic'])}</code>: {e(entry['statistic_meaning'])}, ours over "
+            f"{e(entry['covers'])}.</p>",
+            table(["column", "n", f"ours ({entry['statistic']})", "published", "published / ours"], rows),
+        ]
+    return "\n".join(parts)
+
+
 def worst_section(worst):
     parts = []
     for key, section in worst.items():
@@ -223,6 +246,13 @@ def page(summary, figures, sensitivity_labels):
         f"<code>mean±3sd</code>: {e(notes['mean_3sd'])}. Time in each mode: <code>t_&lt;mode&gt;_s</code>; "
         "hand-over angle error over the flights that reached hand-over.</p>",
     ]
+    if summary.get("published"):
+        body += [
+            "<h2>Published values beside this campaign's</h2>",
+            "<p>Values a source reports for the same campaign (the campaign file's <code>published</code>), "
+            "beside the same statistic of these runs.</p>",
+            published_section(summary["published"]),
+        ]
     for title, caption, png_bytes in figures:
         body += [
             f"<h2>{e(title)}</h2>",

@@ -9,7 +9,7 @@ How the report evaluates a metric (docs/report.md):
   their values, and every failed flight (success false) and errored run counts as failing the
   requirement. It stands at the failing end of the distribution (-inf for ``>=``/``>``, +inf for
   ``<=``/``<``): min and max fail with one such run, a percentile fails when its tail reaches
-  them, moment statistics (mean, std, mean_minus_3sd, mean_plus_3sd, tol_lower, tol_upper) fail
+  them, moment statistics (mean, std, three_sigma, mean_minus_3sd, mean_plus_3sd, tol_lower, tol_upper) fail
   with one, and ``==`` cannot be met by them (stats.column_stat_with_failing); ``count`` counts
   the successful flights' values;
 - ``<column>.<stat>`` of an input column (``p.<path>``) is over every run's value.

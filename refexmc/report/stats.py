@@ -15,7 +15,7 @@ CONFIDENCE = 0.95
 THREE_SIGMA_LOW_FRACTION = 0.00135  # P(Z < -3) of a normal distribution: the "3-sigma" tail, 0.135 %
 THREE_SIGMA_COVERAGE = 1.0 - THREE_SIGMA_LOW_FRACTION
 TOLERANCE_COVERAGE = 0.99  # the statistics tables' tolerance bound: 99 % of flights, 95 % confidence
-MOMENT_STATS = ("mean", "std", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper")
+MOMENT_STATS = ("mean", "std", "three_sigma", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper")
 # the statistics of each tail (refexmc.report.tails): summary.json "columns" holds these
 TAIL_STATS = {
     "upper": (
@@ -157,12 +157,14 @@ def column_stat(values, stat, confidence=CONFIDENCE):
         return float(values.mean())
     if stat == "median":
         return float(np.median(values))
-    if stat in ("std", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper"):
+    if stat in ("std", "three_sigma", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper"):
         if n < 2:
             return math.nan
         mean, sd = float(values.mean()), float(values.std(ddof=1))
         if stat == "std":
             return sd
+        if stat == "three_sigma":
+            return 3.0 * sd
         if stat == "mean_minus_3sd":
             return mean - 3.0 * sd
         if stat == "mean_plus_3sd":
@@ -246,7 +248,7 @@ def column_stat_with_failing(values, failing, stat, failing_side, confidence=CON
     they fail the requirement: ``failing_side`` "low" (-inf: for METRIC >= VALUE) or "high" (+inf:
     for METRIC <= VALUE); ``None`` (for ==): any failing run makes the statistic NaN. Order
     statistics (min, max, median, p<q>, p<q>_lower95/_upper95) rank them with the others, so a
-    percentile tolerates the failing runs its tail can hold; moment statistics (mean, std,
+    percentile tolerates the failing runs its tail can hold; moment statistics (mean, std, three_sigma,
     mean_minus_3sd, mean_plus_3sd, tol_lower, tol_upper) have no room for a run without a value
     and are infinite on the failing side; count counts the values only.
     """

@@ -5,7 +5,7 @@ import shlex
 
 import numpy as np
 
-from refexmc.report import data, stats, tails
+from refexmc.report import data, published, stats, tails
 from refexmc.report.requirements import campaign_metric_covers
 
 KEY_COLUMNS = ("fuel_remaining", "fuel_used_kg", "theta_t_handover_deg", "t_end_s", "pulses_total")
@@ -367,6 +367,7 @@ def build(campaign):
         "sensitivity": sensitivity(campaign) if campaign.parameter_columns and n_ok >= 3 else None,
         "convergence": convergence(campaign) if n_ok >= 2 else None,
         "worst_cases": worst_cases(campaign),
+        "published": published.sections(campaign, published.load_published(campaign)),
         "modes": list(campaign.modes),
         "notes": notes,
     }

@@ -78,8 +78,34 @@ def failure_reason_lines(summary):
     return lines
 
 
+PUBLISHED_WIDTHS = (6, 12, 12, 16)  # n, ours, published, published/ours
+
+
+def _cells(texts, widths=PUBLISHED_WIDTHS):
+    return "".join(text.rjust(w) for text, w in zip(texts, widths, strict=True))
+
+
+def published_lines(summary):
+    """Each ``published`` entry of the campaign: its columns, our statistic (n), the source's value, the ratio."""
+    lines = []
+    for entry in summary.get("published") or []:
+        lines += [
+            "",
+            f"published: {entry['source']}",
+            f"  ours: {entry['statistic']} = {entry['statistic_meaning']}, over {entry['covers']}",
+        ]
+        width = max(len(row["column"]) for row in entry["rows"]) + 4
+        lines.append("".ljust(width) + _cells(("n", "ours", "published", "published/ours")))
+        for row in entry["rows"]:
+            ratio = number(row["ratio_published_to_ours"], 3)
+            cells = (str(row["n"]), number(row["ours"]), number(row["published"]), ratio)
+            lines.append(f"  {row['column']}".ljust(width) + _cells(cells))
+    return lines
+
+
 def format_summary(summary, report_dir=None):
-    """A one-screen summary: banner, counts, success, key statistics, failure reasons, requirements, verdict."""
+    """A one-screen summary: banner, counts, success, key statistics, published values beside ours,
+    failure reasons, requirements, verdict."""
     counts = summary["counts"]
     success = summary["success"]
     lines = [f"*** {summary['banner']} ***", ""] if summary.get("banner") else []
@@ -133,6 +159,7 @@ def format_summary(summary, report_dir=None):
             f"largest hand-over angle error: run {run['run_id']} ({number(run['theta_t_handover_deg'])} deg): "
             f"{run['command']}"
         )
+    lines += published_lines(summary)
     reasons = failure_reason_lines(summary)
     if reasons:
         lines += ["", *reasons]
