@@ -8,7 +8,16 @@ import numpy as np
 from refexmc.report import data, published, stats, tails
 from refexmc.report.requirements import campaign_metric_covers
 
-KEY_COLUMNS = ("fuel_remaining", "fuel_used_kg", "theta_t_handover_deg", "t_end_s", "pulses_total")
+KEY_COLUMNS = (  # those a runs table has, in this order
+    "fuel_remaining",
+    "fuel_used_kg",
+    "theta_t_handover_deg",
+    "burn_pointing_max_deg",
+    "burn_pointing_rms_deg",
+    "engine_propellant_used_kg",
+    "t_end_s",
+    "pulses_total",
+)
 SENSITIVITY_OUTPUTS = ("fuel_used_kg", "theta_t_handover_deg")
 WORST_CASES = (  # (column, what its worst end means); the end is the column's worse tail (tails.py)
     ("fuel_remaining", "least propellant remaining"),

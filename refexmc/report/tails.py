@@ -13,6 +13,8 @@ TAIL_RULES = (  # (column pattern, worse tail, what the column is)
     ("modes_completed", "lower", "modes completed"),
     ("fuel_used_kg", "upper", "propellant used"),
     ("theta_t_handover_deg", "upper", "total angle error at hand-over"),
+    ("burn_pointing_*_deg", "upper", "engine pointing error during a burn (RMS, largest)"),
+    ("engine_propellant_used_kg", "upper", "main-engine propellant used"),
     ("t_end_s", "upper", "flight duration"),
     ("t_*_s", "upper", "time spent in a mode"),
     ("pulses_*", "upper", "valve pulses (per thruster, and pulses_total)"),

@@ -4,6 +4,7 @@ import math
 
 from refexmc.report.data import mode_time_column
 from refexmc.report.requirements import requirement_label
+from refexmc.report.summary import KEY_COLUMNS
 
 # the statistics tables: (stat key, header) per worse tail (refexmc.report.tails)
 TABLE_STATS = {
@@ -27,7 +28,7 @@ TABLE_STATS = {
     ),
 }
 TAIL_TITLES = {"upper": "larger is worse (upper tail)", "lower": "smaller is worse (lower tail)"}
-TABLE_COLUMNS = ("fuel_remaining", "fuel_used_kg", "theta_t_handover_deg", "t_end_s", "pulses_total")
+TABLE_COLUMNS = KEY_COLUMNS  # those the summary has are shown, in this order
 
 
 def number(value, digits=4):
