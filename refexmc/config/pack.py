@@ -151,6 +151,8 @@ def pack_mission(mission, trajectory="planar_drag", plan=None):
         "trajectory_step_s": mission["integrator"]["trajectory_step_s"],
         "trajectory_model_id": TRAJECTORY_MODELS[trajectory],
         "earth_rotation_rate_rad_s": earth.get("rotation_rate_rad_s", 0.0),
+        "gravity_gradient_direction": [0.0, 0.0, 1.0],
+        "pointing_statistics_from_s": math.inf,
     }
     if plan is not None:
         values["orbit_state"] = plan.state0[:6]
@@ -285,4 +287,6 @@ def pack(vehicle, mission, failed_thrusters=(), plan=None):
         atmosphere=pack_atmosphere(mission),
         allocation=derived.allocation_table(vehicle),
         nominal=nominal,
+        wheels=np.zeros((0, L.WHEEL_SIZE)),
+        wheel_distribution=np.zeros((0, 3)),
     )

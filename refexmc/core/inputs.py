@@ -19,3 +19,5 @@ class RunInputs(NamedTuple):
     atmosphere: np.ndarray  # rows [base altitude m, density kg/m^3, scale height m]
     allocation: np.ndarray  # 27 rows x thrusters: thrusters opened per axis-command combination
     nominal: np.ndarray  # layout.NOMINAL rows of the nominal deorbit burn (orbit missions; else no rows)
+    wheels: np.ndarray  # one layout.WHEEL row per reaction wheel (no rows: no wheels)
+    wheel_distribution: np.ndarray  # (wheels, 3): the flight software's distribution matrix (001 sec. 9.1)

@@ -76,6 +76,20 @@ LV_TORQUE_MAX = LEVEL.add("torque_max_n_m", 3)  # PWPF full scale tau_max (000 e
 LV_ACCEL_MAX = LEVEL.add("accel_max_rad_s2", 3)  # omega_dot_max (000 eq. 1)
 LEVEL_SIZE = LEVEL.size
 
+# --- reaction wheels: one row per wheel (001 sec. 4, 8; core.wheels) -------------------------
+WHEEL = Fields()
+W_AXIS = WHEEL.add("axis", 3)  # unit spin axis, body frame (truth; a column of 001's W)
+W_SPIN_INERTIA = WHEEL.add("spin_inertia_kg_m2")  # rotor inertia about its axis
+W_TORQUE_MAX = WHEEL.add("torque_max_n_m")  # motor torque limit
+W_MOMENTUM_MAX = WHEEL.add("momentum_max_n_m_s")  # |I_w Omega| limit (speed limiter), Omega relative to the body
+W_COULOMB = WHEEL.add("coulomb_friction_n_m")  # 001 eq. 1: tau_e
+W_VISCOUS = WHEEL.add("viscous_friction_n_m_s")  # 001 eq. 1: tau_v, N m per rad/s
+W_FAILED = WHEEL.add("failed")  # 1: the motor gives no torque (friction still acts)
+W_MOMENTUM0 = WHEEL.add("initial_momentum_n_m_s")  # I_w Omega at t = 0, relative to the body
+WHEEL_SIZE = WHEEL.size
+# The flight software's wheel distribution is a separate (wheels, 3) table (RunInputs.wheel_distribution):
+# motor torque commands = -D (u + omega x H_wheels), D = W^+ over the wheels it uses (001 sec. 9.1).
+
 # --- flight software design (derived from the nominal vehicle, never dispersed) -------------
 FSW = Fields()
 F_CONTROL_PERIOD = FSW.add("control_period_s")
@@ -93,12 +107,17 @@ F_ENGINE_AXIS = FSW.add("engine_axis", 3)  # the main engine's nominal force dir
 F_GUIDANCE_PERIOD = FSW.add("guidance_period_s")  # deorbit burn guidance (004 sec. III: 1 Hz)
 F_GUIDANCE_POSITION_GAIN = FSW.add("guidance_position_gain_s2")  # k_r (1/s^2)
 F_GUIDANCE_VELOCITY_GAIN = FSW.add("guidance_velocity_gain_s")  # k_v (1/s)
+F_SMC_SLOPE = FSW.add("smc_slope_s", 3)  # 001 eq. 12: Lambda, sliding-surface slope (1/s)
+F_SMC_GAIN = FSW.add("smc_gain_rad_s2", 3)  # G (rad/s^2)
+F_SMC_LAYER = FSW.add("smc_boundary_layer_rad_s", 3)  # epsilon of sat(sigma, epsilon) (rad/s)
 FSW_SIZE = FSW.size
 
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35
 CONTROLLER_PD = 1  # 004 eq. 1: torque gains, no feedforward
+CONTROLLER_SMC = 2  # 001 eq. 12: sliding mode with boundary layer
 ACTUATION_PWPF_TABLE = 0  # PWPF per axis (eq. 41-48) + allocation table (Table 3)
 ACTUATION_LP_PWM = 1  # LP allocation (004 eq. 2-5) + pulse-width modulation in the control period
+ACTUATION_WHEELS = 2  # reaction wheels: RunInputs.wheel_distribution (001 sec. 9.1), held over the period
 
 # --- mission ----------------------------------------------------------------------------------
 MISSION = Fields()
@@ -120,6 +139,10 @@ M_EARTH_RATE = MISSION.add("earth_rotation_rate_rad_s")
 M_ENTRY_ALTITUDE = MISSION.add("entry_interface_altitude_m")
 M_BURN_START = MISSION.add("burn_start_s")  # main engine ignition (the nominal plan's)
 M_BURN_DURATION = MISSION.add("burn_duration_s")  # from the bisection on the entry flight-path angle
+M_GG_COEFFICIENT = MISSION.add("gravity_gradient_coefficient_s2")  # 001 eq. 11: mu1/r1^3 + mu2/r2^3; 0: none
+M_GG_DIRECTION = MISSION.add("gravity_gradient_direction", 3)  # unit, inertial: the line to the attracting bodies
+M_CONSTANT_TORQUE = MISSION.add("constant_torque_n_m", 3)  # 001 eq. 10: u_const, body axes
+M_POINTING_FROM = MISSION.add("pointing_statistics_from_s")  # pointing RMS/max over t >= this; inf: none
 MISSION_SIZE = MISSION.size
 
 TRAJECTORY_NONE = 0  # attitude only: no altitude, no dynamic pressure, no aerodynamic torque
@@ -206,6 +229,14 @@ S_ENTRY_TIME = SUMMARY.add("entry_time_s")
 S_BURN_POINTING_RMS = SUMMARY.add("burn_pointing_rms_deg")  # thrust vs commanded direction, engine on
 S_BURN_POINTING_MAX = SUMMARY.add("burn_pointing_max_deg")
 S_ENGINE_PROPELLANT_USED = SUMMARY.add("engine_propellant_used_kg")
+S_POINTING_END = SUMMARY.add("pointing_end_arcsec", 3)  # true attitude vs reference at the end, per body axis
+S_POINTING_RMS = SUMMARY.add("pointing_rms_arcsec", 3)  # per axis over t >= pointing_statistics_from_s
+S_POINTING_MAX = SUMMARY.add("pointing_max_arcsec")  # largest total angle there
+S_WHEEL_MOMENTUM_PEAK = SUMMARY.add("wheel_momentum_peak_n_m_s")  # largest |I_w Omega| of any wheel
+S_WHEEL_MOMENTUM_END = SUMMARY.add("wheel_momentum_end_n_m_s")  # largest |I_w Omega| at the end
+S_WHEEL_TORQUE_PEAK = SUMMARY.add("wheel_torque_demand_peak_n_m")  # largest motor torque asked for, before limits
+S_WHEEL_SATURATED_TIME = SUMMARY.add("wheel_saturated_s")  # time some wheel was held at a torque or momentum limit
+S_MOMENTUM_RESIDUAL = SUMMARY.add("angular_momentum_residual")  # |L(T) - L(0) - external impulse| / |L|, inertial
 S_PER_MODE = SUMMARY.size  # summary[S_PER_MODE + m]: time in mode m; + n_modes + m: its t1
 
 
