@@ -328,3 +328,97 @@ def orbit_rk4_step(state, h, mu, thrust, mass_flow, d0, d1, f0, f1):
     k3 = rate(shifted(y, k2, 0.5 * h), direction(0.5 * (f0 + f1)))
     k4 = rate(shifted(y, k3, h), direction(f1))
     return [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for a, b1, b2, b3, b4 in zip(y, k1, k2, k3, k4, strict=True)]
+
+
+# --- reaction wheels (refexmc.core.wheels, 001 eq. 1, 5-6, 11, 12; sec. 9.1) -----------------
+@dataclass
+class NaiveWheels:
+    """A wheel set in plain numpy: spin axes as the columns of ``axes`` (001's W), rotor inertia,
+    001 eq. 1's friction coefficients, limits; ``failed`` a boolean per wheel."""
+
+    axes: np.ndarray  # (3, n)
+    spin_inertia: np.ndarray  # (n,)
+    coulomb: np.ndarray
+    viscous: np.ndarray
+    coulomb_width: np.ndarray  # rad/s: sign(Omega) made Omega / width inside it
+    torque_max: np.ndarray
+    momentum_max: np.ndarray
+    failed: np.ndarray
+
+
+def quaternion_matrix(q):
+    """Body-to-inertial rotation matrix of a scalar-last unit quaternion, written out."""
+    x, y, z, w = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def wheel_state_rate(x, h, motor, torque, wheels, inertia, gg_coefficient=0.0, gg_direction=(0.0, 0.0, 1.0)):
+    """d/dt of [q, omega] and [h (inertial axial momenta), p (inertial external impulse)].
+
+    L = J_b omega + W h with J_b = J - sum I_w a a^T; dh/dt = motor + friction(Omega), Omega =
+    h / I_w - a . omega (001 eq. 1, its sign linear within the Coulomb width); J_b domega/dt =
+    tau - omega x L - W dh/dt (001 eq. 5-6);
+    tau = torque + 3 k c x J c, c = R^T d (gravity gradient, physical sign); dp/dt = R tau.
+    """
+    q, omega = np.asarray(x[:4], float), np.asarray(x[4:7], float)
+    n = wheels.axes.shape[1]
+    h_w = np.asarray(h[:n], float)
+    inertia = np.asarray(inertia, float)
+    inertia_b = inertia - sum(wheels.spin_inertia[i] * np.outer(wheels.axes[:, i], wheels.axes[:, i]) for i in range(n))
+    rotation = quaternion_matrix(q)
+    c = rotation.T @ np.asarray(gg_direction, float)
+    tau = np.asarray(torque, float) + 3.0 * gg_coefficient * np.cross(c, inertia @ c)
+    speed = h_w / wheels.spin_inertia - wheels.axes.T @ omega
+    friction = -wheels.coulomb * np.clip(speed / wheels.coulomb_width, -1.0, 1.0) - wheels.viscous * speed
+    h_dot = np.asarray(motor, float) + friction
+    total = inertia_b @ omega + wheels.axes @ h_w
+    omega_dot = np.linalg.solve(inertia_b, tau - np.cross(omega, total) - wheels.axes @ h_dot)
+    w_x, w_y, w_z = omega
+    omega_matrix = np.array([[0, w_z, -w_y, w_x], [-w_z, 0, w_x, w_y], [w_y, -w_x, 0, w_z], [-w_x, -w_y, -w_z, 0]])
+    q_dot = 0.5 * omega_matrix @ q  # 001 eq. 4: Omega(omega) q / 2, scalar last
+    return np.concatenate([q_dot, omega_dot]), np.concatenate([h_dot, rotation @ tau])
+
+
+def wheel_total_momentum(x, h, wheels, inertia):
+    """Inertial total angular momentum R(q) (J_b omega + W h)."""
+    n = wheels.axes.shape[1]
+    inertia_b = np.asarray(inertia, float) - sum(
+        wheels.spin_inertia[i] * np.outer(wheels.axes[:, i], wheels.axes[:, i]) for i in range(n)
+    )
+    return quaternion_matrix(x[:4]) @ (inertia_b @ np.asarray(x[4:7]) + wheels.axes @ np.asarray(h[:n]))
+
+
+def wheel_commands(distribution, wheels, h, rate_meas, omega, torque_cmd):
+    """Motor torques: demand = -D (u + omega x W h) (001 eq. 6, sec. 9.1), scaled as one vector to
+    the working wheels' torque limit, a wheel at its momentum limit not driven further, failed
+    wheels zero. Returns (motor, demand)."""
+    n = wheels.axes.shape[1]
+    h_w = np.asarray(h[:n], float)
+    demand = -np.asarray(distribution) @ (np.asarray(torque_cmd) + np.cross(rate_meas, wheels.axes @ h_w))
+    working = ~wheels.failed
+    ratios = [wheels.torque_max[i] / abs(demand[i]) for i in range(n) if working[i] and abs(demand[i]) > 0]
+    scale = min([1.0, *ratios])
+    motor = np.where(working, demand * scale, 0.0)
+    relative = h_w - wheels.spin_inertia * (wheels.axes.T @ np.asarray(omega))
+    at_limit = (np.abs(relative) >= wheels.momentum_max) & (motor * relative > 0)
+    return np.where(at_limit, 0.0, motor), demand
+
+
+def sliding_mode_torque(q_error, rate_error, rate_meas, accel_ref, slope, gain, layer, inertia):
+    """001 eq. 12 in vector form: sigma = omega_e + Lambda q_e,vec (q_e4 >= 0); dq_e,vec/dt =
+    (q_e4 omega_e + q_e,vec x omega_e) / 2; u = J (-Lambda dq_e + omega_dot_d) + omega x J omega
+    - J G sat(sigma / epsilon)."""
+    e, e4 = np.asarray(q_error[:3], float), float(q_error[3])
+    w_e = np.asarray(rate_error, float)
+    sigma = w_e + np.asarray(slope) * e
+    q_dot = 0.5 * (e4 * w_e + np.cross(e, w_e))
+    saturated = np.clip(sigma / np.asarray(layer), -1.0, 1.0)
+    inertia = np.asarray(inertia, float)
+    accel = -np.asarray(slope) * q_dot + np.asarray(accel_ref) - np.asarray(gain) * saturated
+    return inertia @ accel + np.cross(rate_meas, inertia @ np.asarray(rate_meas))

@@ -121,9 +121,13 @@ def test_pd_controller_is_004_eq_1():
         q_error = np.append(rng.normal(size=3) * 0.1, 1.0)
         rate_error, kp, kd = rng.normal(size=3), rng.uniform(0, 10, 3), rng.uniform(0, 10, 3)
         out = np.zeros(3)
-        control.torque_command(1, q_error, rate_error, np.zeros(3), np.zeros(3), kp, kd, np.eye(3), True, out)
+        control.torque_command(
+            1, q_error, rate_error, np.zeros(3), np.zeros(3), kp, kd, np.zeros((3, 3)), np.eye(3), True, out
+        )
         assert out == pytest.approx(-kp * q_error[:3] - kd * rate_error, rel=1e-15)
-        control.torque_command(1, q_error, rate_error, np.zeros(3), np.zeros(3), kp, kd, np.eye(3), False, out)
+        control.torque_command(
+            1, q_error, rate_error, np.zeros(3), np.zeros(3), kp, kd, np.zeros((3, 3)), np.eye(3), False, out
+        )
         assert out == pytest.approx(-kd * rate_error, rel=1e-15)
 
 

@@ -6,7 +6,7 @@ The controller is chosen by ``controller_id`` (layout.CONTROLLER_*); new laws ad
 
 from refexmc._jit import jit_inline
 from refexmc.core import quaternion
-from refexmc.core.layout import CONTROLLER_PD, CONTROLLER_PD_FEEDBACK_LINEARISATION
+from refexmc.core.layout import CONTROLLER_PD, CONTROLLER_PD_FEEDBACK_LINEARISATION, CONTROLLER_SMC
 
 
 @jit_inline
@@ -52,12 +52,58 @@ def pd(q_error, rate_error, kp, kd, attitude_controlled, out):
 
 
 @jit_inline
-def torque_command(controller_id, q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out):
+def sat(value, width):
+    """001 eq. 12's sat(sigma, epsilon): sigma / epsilon inside the boundary layer, its sign outside."""
+    ratio = value / width
+    return min(1.0, max(-1.0, ratio))
+
+
+@jit_inline
+def sliding_mode(q_error, rate_error, rate_meas, accel_ref, smc, inertia, attitude_controlled, out):
+    """001 eq. 12: u = J (-Lambda dq_e/dt + omega_dot_d) + omega x J omega - J G sat(sigma, epsilon),
+    sigma = omega_e + Lambda sign(q_e4) q_e,vec; ``smc`` rows: Lambda, G, epsilon per axis.
+
+    q_e has q_e4 >= 0 (control_errors), so sign(q_e4) = 1; dq_e,vec/dt = (q_e4 omega_e + q_e,vec x
+    omega_e) / 2 (the error's kinematics). In rate damping the attitude terms are left out.
+    """
+    slope, gain, layer = smc[0], smc[1], smc[2]
+    ex, ey, ez, e4 = q_error[0], q_error[1], q_error[2], q_error[3]
+    wx, wy, wz = rate_error[0], rate_error[1], rate_error[2]
+    qd0 = 0.5 * (e4 * wx + ey * wz - ez * wy)
+    qd1 = 0.5 * (e4 * wy + ez * wx - ex * wz)
+    qd2 = 0.5 * (e4 * wz + ex * wy - ey * wx)
+    a0, a1, a2 = accel_ref[0], accel_ref[1], accel_ref[2]
+    s0, s1, s2 = wx, wy, wz
+    if attitude_controlled:
+        a0 -= slope[0] * qd0
+        a1 -= slope[1] * qd1
+        a2 -= slope[2] * qd2
+        s0 += slope[0] * ex
+        s1 += slope[1] * ey
+        s2 += slope[2] * ez
+    a0 -= gain[0] * sat(s0, layer[0])
+    a1 -= gain[1] * sat(s1, layer[1])
+    a2 -= gain[2] * sat(s2, layer[2])
+    bx, by, bz = rate_meas[0], rate_meas[1], rate_meas[2]
+    hx = inertia[0, 0] * bx + inertia[0, 1] * by + inertia[0, 2] * bz
+    hy = inertia[1, 0] * bx + inertia[1, 1] * by + inertia[1, 2] * bz
+    hz = inertia[2, 0] * bx + inertia[2, 1] * by + inertia[2, 2] * bz
+    out[0] = inertia[0, 0] * a0 + inertia[0, 1] * a1 + inertia[0, 2] * a2 + (by * hz - bz * hy)
+    out[1] = inertia[1, 0] * a0 + inertia[1, 1] * a1 + inertia[1, 2] * a2 + (bz * hx - bx * hz)
+    out[2] = inertia[2, 0] * a0 + inertia[2, 1] * a1 + inertia[2, 2] * a2 + (bx * hy - by * hx)
+
+
+@jit_inline
+def torque_command(
+    controller_id, q_error, rate_error, rate_meas, accel_ref, kp, kd, smc, inertia, attitude_controlled, out
+):
     """Commanded torque (N m, body axes) of the configured controller."""
     if controller_id == CONTROLLER_PD_FEEDBACK_LINEARISATION:
         pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out)
     elif controller_id == CONTROLLER_PD:
         pd(q_error, rate_error, kp, kd, attitude_controlled, out)
+    elif controller_id == CONTROLLER_SMC:
+        sliding_mode(q_error, rate_error, rate_meas, accel_ref, smc, inertia, attitude_controlled, out)
     else:
         for i in range(3):
             out[i] = 0.0

@@ -34,10 +34,12 @@ from refexmc.core import (
     quaternion,
     rcs,
     switching,
+    wheels,
 )
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     ACTUATION_LP_PWM,
+    ACTUATION_WHEELS,
     F_ACCEL_MARGIN,
     F_ACTUATION,
     F_CONTROL_PERIOD,
@@ -49,6 +51,9 @@ from refexmc.core.layout import (
     F_INERTIA,
     F_MIN_OFF,
     F_MIN_ON,
+    F_SMC_GAIN,
+    F_SMC_LAYER,
+    F_SMC_SLOPE,
     FAIL_HANDOVER_ANGLE,
     FAIL_MODE_TIMEOUT,
     FAIL_NON_FINITE,
@@ -73,14 +78,18 @@ from refexmc.core.layout import (
     LV_THRUST_DESIGN,
     M_BURN_DURATION,
     M_BURN_START,
+    M_CONSTANT_TORQUE,
     M_EARTH_MU,
     M_EARTH_RADIUS,
     M_EARTH_RATE,
     M_ENTRY_ALTITUDE,
+    M_GG_COEFFICIENT,
+    M_GG_DIRECTION,
     M_HANDOVER_ANGLE,
     M_MAX_STEP,
     M_MAX_TIME,
     M_ORBIT_STATE,
+    M_POINTING_FROM,
     M_SEP_ATTITUDE,
     M_SEP_FLIGHT_PATH,
     M_SEP_RATES,
@@ -103,12 +112,20 @@ from refexmc.core.layout import (
     S_FUEL_USED,
     S_HISTORY_ROWS,
     S_MODES_COMPLETED,
+    S_MOMENTUM_RESIDUAL,
     S_PER_MODE,
+    S_POINTING_END,
+    S_POINTING_MAX,
+    S_POINTING_RMS,
     S_QBAR_END,
     S_RK4_STEPS,
     S_SUCCESS,
     S_T_END,
     S_THETA_HANDOVER,
+    S_WHEEL_MOMENTUM_END,
+    S_WHEEL_MOMENTUM_PEAK,
+    S_WHEEL_SATURATED_TIME,
+    S_WHEEL_TORQUE_PEAK,
     TRAJECTORY_ORBIT,
     TRAJECTORY_PLANAR_DRAG,
     V_COM_OFFSET,
@@ -123,6 +140,7 @@ from refexmc.core.layout import (
 )
 
 _DEG = 180.0 / math.pi
+_ARCSEC = 3600.0 * _DEG
 
 # --- flight status: the loop's scalars, one float64 array ------------------------------------
 ST_MODE = 0  # index of the mode flown; n_modes when the program is done
@@ -143,7 +161,13 @@ ST_POINTING_MAX = 14
 ST_ENTERED = 15  # 1 once the entry interface was crossed
 ST_ENGINE_ON = 16  # engine on-time in the coming control period: start, end (s)
 ST_ENGINE_OFF = 17
-STATUS_SIZE = 18
+ST_POINTING_WINDOW_SUM2 = 18  # per body axis: sum of squared pointing errors (rad^2) in the pointing window
+ST_POINTING_WINDOW_COUNT = 21
+ST_POINTING_WINDOW_MAX = 22  # largest total angle there (rad)
+ST_WHEEL_MOMENTUM_PEAK = 23  # largest |I_w Omega| of any wheel (N m s)
+ST_WHEEL_TORQUE_PEAK = 24  # largest motor torque demand before limits (N m)
+ST_WHEEL_SATURATED = 25  # time with a wheel limit acting (s)
+STATUS_SIZE = 26
 # --- thruster bit masks (bit i for thruster i), one int64 array --------------------------------
 MASK_OPEN = 0  # commanded open (switching.enforce)
 MASK_ACTIVE = 1  # not closed and settled (rcs.update)
@@ -206,6 +230,7 @@ class Actuation(NamedTuple):
     switch_state: np.ndarray
     valve_state: np.ndarray
     arms: np.ndarray  # torque arms about the actual CoM
+    smc: np.ndarray  # (3, 3): sliding-mode slope, gain, boundary layer per axis (001 eq. 12)
 
 
 class Optimiser(NamedTuple):
@@ -244,6 +269,7 @@ class Work(NamedTuple):
     masks: np.ndarray  # MASK_*, int64
     optimiser: Optimiser
     orbit: Orbit
+    wheels: wheels.Plant
 
 
 @jit
@@ -256,6 +282,7 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
     """
     n_thr = inputs.thrusters.shape[0]
     n_levels = inputs.levels.shape[0]
+    n_wheels = inputs.wheels.shape[0]
     work = Work(
         Body(
             np.empty(dynamics.STATE_SIZE),
@@ -294,6 +321,7 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
             np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
             np.zeros((n_thr, rcs.VALVE_STATE_SIZE)),
             np.empty((n_thr, 3)),
+            np.zeros((3, 3)),
         ),
         np.zeros(STATUS_SIZE),
         np.zeros(2, dtype=np.int64),
@@ -318,19 +346,38 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
             np.zeros(orbit.ORBIT_STATE_SIZE),
             np.zeros((9, 3)),
         ),
+        wheels.Plant(  # as wheels.plant(inputs.wheels) (a Python function cannot run here)
+            inputs.wheels,
+            np.zeros(n_wheels + wheels.IMPULSE),
+            np.zeros(n_wheels),
+            np.zeros(n_wheels),
+            np.zeros((3, 3)),
+            np.zeros((3, 3)),
+            np.zeros((3, 3)),
+            np.zeros(4),
+            np.zeros((5, 7)),
+            np.zeros((5, n_wheels + wheels.IMPULSE)),
+            np.zeros((5, 3)),
+            np.zeros((3, 3)),
+        ),
     )
     _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work)
 
 
 @jit_noalloc
-def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks):
-    """Initial state: body x along the velocity, wings level, then the separation error."""
+def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks, wh):
+    """Initial state: body x along the velocity, wings level, then the separation error; the
+    wheels' momenta and the total angular momentum."""
     vehicle, fsw, mission = inputs.vehicle, inputs.fsw, inputs.mission
     for i in range(3):
         for j in range(3):
             body.inertia[i, j] = vehicle[V_INERTIA + 3 * i + j]
             act.fsw_inertia[i, j] = fsw[F_INERTIA + 3 * i + j]
     dynamics.invert_3x3(body.inertia, body.inertia_inv)
+    for i in range(3):
+        act.smc[0, i] = fsw[F_SMC_SLOPE + i]
+        act.smc[1, i] = fsw[F_SMC_GAIN + i]
+        act.smc[2, i] = fsw[F_SMC_LAYER + i]
     allocation.table_masks(inputs.allocation, act.row_masks)
     margin = fsw[F_ACCEL_MARGIN]
     levels = inputs.levels
@@ -374,6 +421,9 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
     masks[MASK_OPEN] = 0
     masks[MASK_ACTIVE] = 0
     status[ST_FUEL] = vehicle[V_PROPELLANT]
+    if wh.table.shape[0] > 0:
+        gg = M_GG_DIRECTION
+        wheels.start(wh, body.inertia, body.x, mission[M_GG_COEFFICIENT], mission[gg : gg + 3])
 
 
 @jit_noalloc(force_inline=True)
@@ -510,6 +560,7 @@ def _actuate(
         desired = 0
         for i in range(3):
             act.pulse[i] = 0.0
+            act.torque_cmd[i] = 0.0
     else:
         control.torque_command(
             int(fsw[F_CONTROLLER]),
@@ -519,14 +570,17 @@ def _actuate(
             guide.accel_ref,
             act.gains[level, 0],
             act.gains[level, 1],
+            act.smc,
             act.fsw_inertia,
             controlled,
             act.torque_cmd,
         )
-        if actuation != ACTUATION_LP_PWM:
+        if actuation != ACTUATION_LP_PWM and actuation != ACTUATION_WHEELS:
             desired = allocation.thruster_commands(
                 actuation, fsw, levels[level], act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
             )
+    if actuation == ACTUATION_WHEELS:  # the wheels take act.torque_cmd (_drive_wheels)
+        return
     if actuation == ACTUATION_LP_PWM:
         _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts)
         return
@@ -580,6 +634,28 @@ def _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, puls
 
 
 @jit_noalloc
+def _drive_wheels(distribution, wh, rate_meas, omega, torque_cmd, status, dt):
+    """Motor torques for this control period (core.wheels.command; ``torque_cmd`` is zero when
+    the mode is locked or the run is over) and the wheel statistics."""
+    peak, limited = wheels.command(distribution, wh, rate_meas, omega, torque_cmd)
+    status[ST_WHEEL_TORQUE_PEAK] = max(status[ST_WHEEL_TORQUE_PEAK], peak)
+    if limited:
+        status[ST_WHEEL_SATURATED] += dt
+
+
+@jit_noalloc
+def _pointing(q, q_ref, scratch, out):
+    """True attitude against the reference: the error's rotation vector (rad, body axes) in ``out``;
+    returns its angle. ``scratch``: 4 values."""
+    quaternion.conj_multiply(q_ref, q, scratch)
+    if scratch[3] < 0.0:
+        for i in range(4):
+            scratch[i] = -scratch[i]
+    quaternion.to_rotation_vector(scratch, out)
+    return math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
+
+
+@jit_noalloc
 def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, rate_meas, act, now):
     """One history row (``mode``: the index of the mode flown)."""
     rotvec = act.rotvec
@@ -601,11 +677,17 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
 
 
 @jit_noalloc(force_inline=True)
-def _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level, extra, has_extra):
+def _integrate(
+    mission, vehicle, thrusters, thrust, max_step, dt, body, act, wh, status, masks, qbar, t, level, extra, has_extra
+):
     """Integrate the attitude over one control period, segment by segment, ``thrust`` (N) being the
     level's nominal thrust, ``extra`` a further disturbance torque when ``has_extra`` (the orbit's
-    gravity gradient and main engine); returns True when the propellant ran out in it."""
+    gravity gradient and main engine), plus the mission's constant torque; with reaction wheels
+    the wheels' momenta too (core.wheels), the gravity gradient of 001 eq. 11 then evaluated at
+    every RK4 stage (else held over the period). Returns True when the propellant ran out."""
     n_thr = thrusters.shape[0]
+    has_wheels = wh.table.shape[0] > 0
+    gg_coefficient = mission[M_GG_COEFFICIENT]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
     one_step_limit = max_step * (1.0 + 1e-10)
@@ -614,6 +696,11 @@ def _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, mask
     if has_extra:
         for i in range(3):
             aero[i] += extra[i]
+    for i in range(3):
+        aero[i] += mission[M_CONSTANT_TORQUE + i]
+    if gg_coefficient != 0.0 and not has_wheels:
+        gg = M_GG_DIRECTION
+        wheels.gravity_gradient(body.x[0:4], gg_coefficient, mission[gg : gg + 3], body.inertia, wh.scratch[0:2], aero)
     fuel = status[ST_FUEL]
     valves_active = masks[MASK_ACTIVE]
     rk4_steps = 0
@@ -652,7 +739,10 @@ def _integrate(vehicle, thrusters, thrust, max_step, dt, body, act, status, mask
             for i in range(3):
                 tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
                 tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb
-            dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
+            if has_wheels:
+                wheels.rk4_step(body.x, h, tau_a, tau_b, wh)
+            else:
+                dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
             rk4_steps += 1
         fuel -= rcs.propellant_for_impulse(vehicle, impulse)
         if fuel <= 0.0 and impulse > 0.0:
@@ -797,9 +887,11 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     )
     opt = w.optimiser
     orb = w.orbit
+    wh = w.wheels
+    n_wheels = wh.table.shape[0]
     vehicle, thrusters, fsw, mission = inputs.vehicle, inputs.thrusters, inputs.fsw, inputs.mission
     program, exits, atmosphere = inputs.modes, inputs.exits, inputs.atmosphere
-    _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks)
+    _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks, wh)
     orbit_model = int(mission[M_TRAJECTORY_MODEL]) == TRAJECTORY_ORBIT
     if orbit_model:
         _start_orbit(mission, vehicle, orb, status, summary)
@@ -810,6 +902,8 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     dt = fsw[F_CONTROL_PERIOD]
     max_step = mission[M_MAX_STEP]
     propellant0 = vehicle[V_PROPELLANT]
+    pointing_from = mission[M_POINTING_FROM]
+    pointing = act.rotvec  # free between history rows (_record fills it when it writes one)
     theta_handover = math.nan
     rows = 0
     step = 0
@@ -861,6 +955,14 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
             has_reference,
             pulse_counts,
         )
+        if n_wheels > 0:
+            _drive_wheels(inputs.wheel_distribution, wh, sensed.rate_meas, body.x[4:7], act.torque_cmd, status, dt)
+        if t >= pointing_from and has_reference:  # true attitude against the reference (001: PE)
+            angle = _pointing(body.x[0:4], guide.q_ref, sensed.work4, pointing)
+            for i in range(3):
+                status[ST_POINTING_WINDOW_SUM2 + i] += pointing[i] * pointing[i]
+            status[ST_POINTING_WINDOW_COUNT] += 1.0
+            status[ST_POINTING_WINDOW_MAX] = max(status[ST_POINTING_WINDOW_MAX], angle)
 
         finished = done or status[ST_FAILURE] != FAIL_NONE
         if record:
@@ -876,8 +978,12 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
         if orbit_model:
             _engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
         exhausted = _integrate(
-            vehicle, thrusters, thrust, max_step, dt, body, act, status, masks, qbar, t, level, orb.torque, orbit_model
-        )
+            mission, vehicle, thrusters, thrust, max_step, dt, body, act, wh, status, masks, qbar, t, level, orb.torque,
+            orbit_model,
+        )  # fmt: skip
+        if n_wheels > 0:
+            peak = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
+            status[ST_WHEEL_MOMENTUM_PEAK] = max(status[ST_WHEEL_MOMENTUM_PEAK], peak)
         if orbit_model:
             _translate(mission, vehicle, body.x, orb, status, summary, t, dt)
         summary[S_PER_MODE + mode] += dt
@@ -907,6 +1013,25 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     summary[S_QBAR_END] = sensed.now[modes.NOW_QBAR]
     summary[S_RK4_STEPS] = status[ST_RK4_STEPS]
     summary[S_HISTORY_ROWS] = rows
+    for i in range(3):
+        summary[S_POINTING_END + i] = math.nan
+        summary[S_POINTING_RMS + i] = math.nan
+    summary[S_POINTING_MAX] = math.nan
+    if has_reference:
+        _pointing(body.x[0:4], guide.q_ref, sensed.work4, pointing)
+        for i in range(3):
+            summary[S_POINTING_END + i] = pointing[i] * _ARCSEC
+    count = status[ST_POINTING_WINDOW_COUNT]
+    if count > 0.0:
+        for i in range(3):
+            summary[S_POINTING_RMS + i] = math.sqrt(status[ST_POINTING_WINDOW_SUM2 + i] / count) * _ARCSEC
+        summary[S_POINTING_MAX] = status[ST_POINTING_WINDOW_MAX] * _ARCSEC
+    if n_wheels > 0:
+        summary[S_WHEEL_MOMENTUM_PEAK] = status[ST_WHEEL_MOMENTUM_PEAK]
+        summary[S_WHEEL_MOMENTUM_END] = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
+        summary[S_WHEEL_TORQUE_PEAK] = status[ST_WHEEL_TORQUE_PEAK]
+        summary[S_WHEEL_SATURATED_TIME] = status[ST_WHEEL_SATURATED]
+        summary[S_MOMENTUM_RESIDUAL] = wheels.momentum_residual(body.x, wh)
     if orbit_model:
         summary[S_ENGINE_PROPELLANT_USED] = vehicle[V_MASS] - orb.state[6]
         if status[ST_POINTING_COUNT] > 0.0:

@@ -84,6 +84,7 @@ W_TORQUE_MAX = WHEEL.add("torque_max_n_m")  # motor torque limit
 W_MOMENTUM_MAX = WHEEL.add("momentum_max_n_m_s")  # |I_w Omega| limit (speed limiter), Omega relative to the body
 W_COULOMB = WHEEL.add("coulomb_friction_n_m")  # 001 eq. 1: tau_e
 W_VISCOUS = WHEEL.add("viscous_friction_n_m_s")  # 001 eq. 1: tau_v, N m per rad/s
+W_COULOMB_WIDTH = WHEEL.add("coulomb_width_rad_s")  # Coulomb friction linear within +-this speed (0: sign)
 W_FAILED = WHEEL.add("failed")  # 1: the motor gives no torque (friction still acts)
 W_MOMENTUM0 = WHEEL.add("initial_momentum_n_m_s")  # I_w Omega at t = 0, relative to the body
 WHEEL_SIZE = WHEEL.size

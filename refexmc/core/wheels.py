@@ -1,0 +1,321 @@
+"""Reaction wheels (001 sec. 4, 8-10): coupled body-wheel dynamics, friction, distribution, limits.
+
+State: the body's ``x = [q, omega]`` (core.dynamics) and, per wheel, its axial angular momentum in
+inertial space ``h_i = I_w (Omega_i + a_i . omega)`` (``Omega_i``: rotor speed relative to the body,
+``a_i``: spin axis, a column of 001's W). With ``J`` the vehicle's inertia (rotors included) and
+``J_b = J - sum_i I_w a_i a_i^T`` the total angular momentum is ``L = J_b omega + sum_i a_i h_i``.
+
+    dh_i/dt = tau_m,i + tau_f,i(Omega_i)                               motor + friction (001 eq. 1)
+    J_b domega/dt = -omega x L - sum_i a_i dh_i/dt + tau_ext           (001 eq. 5-6)
+
+001 eq. 5-6 is this with u = -sum_i a_i dh_i/dt - omega x sum_i a_i h_i, the wheels' torque on the
+body; the inertial ``R(q) L`` changes only by ``R(q) tau_ext``, which the integrator also
+accumulates (three more state components, ``IMPULSE``) so that every run checks it.
+
+The flight software commands ``u`` (the controller) and the wheels realise it:
+``tau_m = -D (u + omega x sum_i a_i h_i)`` (001 sec. 9.1, eq. 6), D the distribution matrix
+(pseudo-inverse of W). Each command is held over the control period (torque-commanded wheels).
+"""
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from refexmc._jit import jit_noalloc
+from refexmc.core import dynamics, quaternion
+from refexmc.core.layout import (
+    W_AXIS,
+    W_COULOMB,
+    W_COULOMB_WIDTH,
+    W_FAILED,
+    W_MOMENTUM0,
+    W_MOMENTUM_MAX,
+    W_SPIN_INERTIA,
+    W_TORQUE_MAX,
+    W_VISCOUS,
+)
+
+IMPULSE = 3  # the state array of the wheels is [h_1 .. h_n, p_x, p_y, p_z]: p = int R(q) tau_ext dt
+
+
+class Plant(NamedTuple):
+    """The wheels of one flight: their table, state, held commands, and what integrating needs."""
+
+    table: np.ndarray  # one layout.WHEEL row per wheel
+    h: np.ndarray  # axial momenta (inertial), then the inertial external impulse (IMPULSE)
+    motor: np.ndarray  # motor torques held over the control period (N m)
+    demand: np.ndarray  # the distribution's demand before limits (N m)
+    inertia: np.ndarray  # J, 3x3 (rotors included): the gravity gradient's
+    inertia_b: np.ndarray  # J - sum I_w a a^T
+    inertia_b_inv: np.ndarray
+    gravity: np.ndarray  # [k = sum mu / r^3, direction (unit, inertial)] of 001 eq. 11; k = 0: none
+    xwork: np.ndarray  # (5, 7) RK4 scratch
+    hwork: np.ndarray  # (5, len(h)) RK4 scratch
+    scratch: np.ndarray  # (5, 3)
+    momentum: np.ndarray  # (3, 3): total angular momentum (inertial) at t = 0, at the end; scratch
+
+
+def plant(table):
+    """Work arrays for the wheels of ``table`` (zero rows: none), as core.flight.run_flight makes
+    them; :func:`start` fills them."""
+    n = table.shape[0]
+    return Plant(
+        table,
+        np.zeros(n + IMPULSE),
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros((3, 3)),
+        np.zeros((3, 3)),
+        np.zeros((3, 3)),
+        np.zeros(4),
+        np.zeros((5, 7)),
+        np.zeros((5, n + IMPULSE)),
+        np.zeros((5, 3)),
+        np.zeros((3, 3)),
+    )
+
+
+@jit_noalloc
+def body_inertia(inertia, wheels, out):
+    """``out = J - sum_i I_w a_i a_i^T``: the inertia that multiplies omega in L (rotor spin apart)."""
+    for r in range(3):
+        for c in range(3):
+            out[r, c] = inertia[r, c]
+    for i in range(wheels.shape[0]):
+        iw = wheels[i, W_SPIN_INERTIA]
+        for r in range(3):
+            for c in range(3):
+                out[r, c] -= iw * wheels[i, W_AXIS + r] * wheels[i, W_AXIS + c]
+
+
+@jit_noalloc
+def relative_momentum(wheels, i, h, omega):
+    """``I_w Omega_i``: wheel ``i``'s momentum relative to the body (what its speed limit bounds)."""
+    a = wheels[i, W_AXIS : W_AXIS + 3]
+    return h[i] - wheels[i, W_SPIN_INERTIA] * (a[0] * omega[0] + a[1] * omega[1] + a[2] * omega[2])
+
+
+@jit_noalloc
+def start(plant, inertia, x, gg_coefficient, gg_direction):
+    """Initial state at body state ``x``: each wheel's momentum from its relative momentum in the
+    table, the impulse zero, no motor torque; the inertias, the gravity gradient, and the total
+    angular momentum at t = 0."""
+    table, h = plant.table, plant.h
+    n = table.shape[0]
+    for r in range(3):
+        for c in range(3):
+            plant.inertia[r, c] = inertia[r, c]
+    body_inertia(inertia, table, plant.inertia_b)
+    dynamics.invert_3x3(plant.inertia_b, plant.inertia_b_inv)
+    plant.gravity[0] = gg_coefficient
+    for r in range(3):
+        plant.gravity[1 + r] = gg_direction[r]
+    for i in range(n):
+        h[i] = table[i, W_MOMENTUM0] + table[i, W_SPIN_INERTIA] * _along(table, i, x[4:7])
+        plant.motor[i] = 0.0
+        plant.demand[i] = 0.0
+    for k in range(IMPULSE):
+        h[n + k] = 0.0
+    angular_momentum(x, plant, plant.momentum[0:2])
+
+
+@jit_noalloc
+def _along(table, i, v):
+    """``a_i . v``."""
+    return table[i, W_AXIS] * v[0] + table[i, W_AXIS + 1] * v[1] + table[i, W_AXIS + 2] * v[2]
+
+
+@jit_noalloc
+def friction(wheels, i, relative):
+    """001 eq. 1: -tau_e sign(Omega) - tau_v Omega, from the relative momentum I_w Omega, the sign
+    made linear within +-``coulomb_width_rad_s`` (001 sec. 4.1: eq. 1 does not hold near zero
+    speed; a continuous law keeps RK4 at its order through a zero crossing)."""
+    speed = relative / wheels[i, W_SPIN_INERTIA]
+    width = wheels[i, W_COULOMB_WIDTH]
+    viscous = -wheels[i, W_VISCOUS] * speed
+    if speed >= width:
+        return viscous - wheels[i, W_COULOMB]
+    if speed <= -width:
+        return viscous + wheels[i, W_COULOMB]
+    return viscous - wheels[i, W_COULOMB] * speed / width
+
+
+@jit_noalloc
+def angular_momentum(x, plant, out):
+    """Total angular momentum in inertial axes, ``R(q) (J_b omega + sum_i a_i h_i)``, in ``out[0]``
+    (``out[1]``: scratch)."""
+    body = out[1]
+    w = x[4:7]
+    jb, table, h = plant.inertia_b, plant.table, plant.h
+    for r in range(3):
+        body[r] = jb[r, 0] * w[0] + jb[r, 1] * w[1] + jb[r, 2] * w[2]
+    for i in range(table.shape[0]):
+        for r in range(3):
+            body[r] += table[i, W_AXIS + r] * h[i]
+    quaternion.rotate(x[0:4], body, out[0])
+
+
+@jit_noalloc
+def momentum_residual(x, plant):
+    """|L(t) - L(0) - p(t)| / max |L|: how far the integrated state is from conserving the total
+    angular momentum against the external impulse p (0 without wheels)."""
+    n = plant.table.shape[0]
+    if n == 0:
+        return 0.0
+    angular_momentum(x, plant, plant.momentum[1:3])
+    change, size = 0.0, 0.0
+    for i in range(3):
+        change += (plant.momentum[1, i] - plant.momentum[0, i] - plant.h[n + i]) ** 2
+        size = max(size, abs(plant.momentum[0, i]), abs(plant.momentum[1, i]))
+    return math.sqrt(change) / size if size > 0.0 else 0.0
+
+
+@jit_noalloc
+def gravity_gradient(q, coefficient, direction, inertia, scratch, out):
+    """Gravity-gradient torque about the CoM (body axes) of bodies along ``direction`` (unit,
+    inertial): ``3 k c x J c``, ``c`` that direction in body axes, ``k = sum mu / r^3`` (001 eq. 11;
+    001 prints the opposite sign, see docs/irassi.md). Adds into ``out``; ``scratch`` (2, 3)."""
+    c = scratch[0]
+    jc = scratch[1]
+    quaternion.rotate_inverse(q, direction, c)
+    for r in range(3):
+        jc[r] = inertia[r, 0] * c[0] + inertia[r, 1] * c[1] + inertia[r, 2] * c[2]
+    k3 = 3.0 * coefficient
+    out[0] += k3 * (c[1] * jc[2] - c[2] * jc[1])
+    out[1] += k3 * (c[2] * jc[0] - c[0] * jc[2])
+    out[2] += k3 * (c[0] * jc[1] - c[1] * jc[0])
+
+
+@jit_noalloc
+def derivative(x, h, torque, plant, dx, dh):
+    """``dx, dh`` of the coupled state for the held motor torques and the external torque
+    ``torque`` (body axes) plus the gravity gradient at this attitude."""
+    wheels, motor, scratch = plant.table, plant.motor, plant.scratch
+    inertia_b, inertia_b_inv, gravity = plant.inertia_b, plant.inertia_b_inv, plant.gravity
+    n = wheels.shape[0]
+    qx, qy, qz, qw = x[0], x[1], x[2], x[3]
+    wx, wy, wz = x[4], x[5], x[6]
+    dx[0] = 0.5 * (qw * wx - qz * wy + qy * wz)
+    dx[1] = 0.5 * (qz * wx + qw * wy - qx * wz)
+    dx[2] = 0.5 * (-qy * wx + qx * wy + qw * wz)
+    dx[3] = -0.5 * (qx * wx + qy * wy + qz * wz)
+    tau = scratch[2]
+    for r in range(3):
+        tau[r] = torque[r]
+    if gravity[0] != 0.0:
+        gravity_gradient(x[0:4], gravity[0], gravity[1:4], plant.inertia, scratch[0:2], tau)
+    # L = J_b omega + sum a_i h_i ; m = tau_ext - omega x L - sum a_i dh_i/dt
+    lx = inertia_b[0, 0] * wx + inertia_b[0, 1] * wy + inertia_b[0, 2] * wz
+    ly = inertia_b[1, 0] * wx + inertia_b[1, 1] * wy + inertia_b[1, 2] * wz
+    lz = inertia_b[2, 0] * wx + inertia_b[2, 1] * wy + inertia_b[2, 2] * wz
+    mx, my, mz = tau[0], tau[1], tau[2]
+    for i in range(n):
+        a0, a1, a2 = wheels[i, W_AXIS], wheels[i, W_AXIS + 1], wheels[i, W_AXIS + 2]
+        hi = h[i]
+        lx += a0 * hi
+        ly += a1 * hi
+        lz += a2 * hi
+        relative = hi - wheels[i, W_SPIN_INERTIA] * (a0 * wx + a1 * wy + a2 * wz)
+        dh[i] = motor[i] + friction(wheels, i, relative)
+        mx -= a0 * dh[i]
+        my -= a1 * dh[i]
+        mz -= a2 * dh[i]
+    mx -= wy * lz - wz * ly
+    my -= wz * lx - wx * lz
+    mz -= wx * ly - wy * lx
+    dx[4] = inertia_b_inv[0, 0] * mx + inertia_b_inv[0, 1] * my + inertia_b_inv[0, 2] * mz
+    dx[5] = inertia_b_inv[1, 0] * mx + inertia_b_inv[1, 1] * my + inertia_b_inv[1, 2] * mz
+    dx[6] = inertia_b_inv[2, 0] * mx + inertia_b_inv[2, 1] * my + inertia_b_inv[2, 2] * mz
+    quaternion.rotate(x[0:4], tau, scratch[3])  # the external impulse, inertial axes
+    for k in range(IMPULSE):
+        dh[n + k] = scratch[3][k]
+
+
+@jit_noalloc
+def rk4_step(x, step, torque_start, torque_end, plant):
+    """Advance the body state ``x`` and the wheels' state ``plant.h`` in place by ``step`` seconds
+    (classical RK4), the external torque linear from ``torque_start`` to ``torque_end`` over the
+    step, the motor torques held. The quaternion is renormalised afterwards (as core.dynamics)."""
+    h = plant.h
+    nh = h.shape[0]
+    xw, hw = plant.xwork, plant.hwork
+    k1x, k2x, k3x, k4x, sx = xw[0], xw[1], xw[2], xw[3], xw[4]
+    k1h, k2h, k3h, k4h, sh = hw[0], hw[1], hw[2], hw[3], hw[4]
+    tau = plant.scratch[4]
+    for i in range(3):
+        tau[i] = torque_start[i]
+    derivative(x, h, tau, plant, k1x, k1h)
+    for i in range(3):
+        tau[i] = 0.5 * (torque_start[i] + torque_end[i])
+    for i in range(7):
+        sx[i] = x[i] + 0.5 * step * k1x[i]
+    for i in range(nh):
+        sh[i] = h[i] + 0.5 * step * k1h[i]
+    derivative(sx, sh, tau, plant, k2x, k2h)
+    for i in range(7):
+        sx[i] = x[i] + 0.5 * step * k2x[i]
+    for i in range(nh):
+        sh[i] = h[i] + 0.5 * step * k2h[i]
+    derivative(sx, sh, tau, plant, k3x, k3h)
+    for i in range(3):
+        tau[i] = torque_end[i]
+    for i in range(7):
+        sx[i] = x[i] + step * k3x[i]
+    for i in range(nh):
+        sh[i] = h[i] + step * k3h[i]
+    derivative(sx, sh, tau, plant, k4x, k4h)
+    for i in range(7):
+        x[i] += step / 6.0 * (k1x[i] + 2.0 * k2x[i] + 2.0 * k3x[i] + k4x[i])
+    for i in range(nh):
+        h[i] += step / 6.0 * (k1h[i] + 2.0 * k2h[i] + 2.0 * k3h[i] + k4h[i])
+    norm = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+    for i in range(4):
+        x[i] /= norm
+
+
+@jit_noalloc
+def command(distribution, plant, rate_meas, omega, torque_cmd):
+    """Motor torques for the body torque ``torque_cmd`` (001 eq. 6, sec. 9.1):
+    ``demand = -D (u + omega x sum_i a_i h_i)``, then the limits: the whole vector scaled so that
+    no working wheel exceeds its torque limit (the body torque keeps its direction), and a wheel at
+    its momentum limit (the drive's speed limiter, on the true rate ``omega``) not driven further.
+    A failed wheel gives no torque; the flight software does not know unless D leaves it out. The
+    flight software reads the wheel momenta (tachometers) exactly and the body rate as measured.
+    Returns (largest |demand|, True when a limit acted)."""
+    wheels, h, demand, motor = plant.table, plant.h, plant.demand, plant.motor
+    n = wheels.shape[0]
+    hb0, hb1, hb2 = 0.0, 0.0, 0.0
+    for i in range(n):
+        hb0 += wheels[i, W_AXIS] * h[i]
+        hb1 += wheels[i, W_AXIS + 1] * h[i]
+        hb2 += wheels[i, W_AXIS + 2] * h[i]
+    w0, w1, w2 = rate_meas[0], rate_meas[1], rate_meas[2]
+    v0 = torque_cmd[0] + (w1 * hb2 - w2 * hb1)
+    v1 = torque_cmd[1] + (w2 * hb0 - w0 * hb2)
+    v2 = torque_cmd[2] + (w0 * hb1 - w1 * hb0)
+    peak = 0.0
+    scale = 1.0
+    for i in range(n):
+        d = -(distribution[i, 0] * v0 + distribution[i, 1] * v1 + distribution[i, 2] * v2)
+        demand[i] = d
+        peak = max(peak, abs(d))
+        if wheels[i, W_FAILED] == 0.0 and abs(d) * scale > wheels[i, W_TORQUE_MAX]:
+            scale = wheels[i, W_TORQUE_MAX] / abs(d)
+    limited = scale < 1.0
+    for i in range(n):
+        motor[i] = 0.0 if wheels[i, W_FAILED] != 0.0 else demand[i] * scale
+        relative = relative_momentum(wheels, i, h, omega)
+        if abs(relative) >= wheels[i, W_MOMENTUM_MAX] and motor[i] * relative > 0.0:
+            motor[i] = 0.0
+            limited = True
+    return peak, limited
+
+
+@jit_noalloc
+def largest_relative_momentum(wheels, h, omega):
+    """The largest |I_w Omega_i| over the wheels (0 without wheels)."""
+    peak = 0.0
+    for i in range(wheels.shape[0]):
+        peak = max(peak, abs(relative_momentum(wheels, i, h, omega)))
+    return peak

@@ -1,0 +1,277 @@
+"""Reaction-wheel kernels (core.wheels) and the sliding-mode controller (core.control, 001 eq. 12)
+against their slow twins in tests/naive.py, solve_ivp, scipy Rotation, closed forms and the
+conservation of angular momentum."""
+
+import math
+
+import naive
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.spatial.transform import Rotation
+
+from refexmc.core import control, quaternion, wheels
+from refexmc.core import layout as L
+
+# 001 sec. 11.1 (IRASSI principal inertia) and Table 3 (JWST / Rockwell Collins wheel)
+INERTIA = np.diag([2059.5, 5954.2, 5974.3])
+SPIN_INERTIA, COULOMB, VISCOUS = 0.1295, 0.005, 2.1241e-5
+COULOMB_WIDTH = 2.0 * math.pi / 60.0  # 1 rpm (estimate): I_w width / tau_e = 2.7 s, resolved by 1 s RK4 steps
+
+
+def pyramid_axes(beta_deg=54.7356):
+    """001 sec. 8.1's W4 with a = d = sin(beta), b = c = cos(beta): four unit spin axes."""
+    a, b = math.sin(math.radians(beta_deg)), math.cos(math.radians(beta_deg))
+    return np.array([[b, b, b, b], [0.0, a, 0.0, -a], [a, 0.0, -a, 0.0]])
+
+
+def wheel_table(axes, torque_max=math.inf, momentum_max=math.inf, failed=(), momentum0=None):
+    n = axes.shape[1]
+    table = np.zeros((n, L.WHEEL_SIZE))
+    for i in range(n):
+        table[i, L.W_AXIS : L.W_AXIS + 3] = axes[:, i]
+        table[i, L.W_SPIN_INERTIA] = SPIN_INERTIA
+        table[i, L.W_TORQUE_MAX] = torque_max
+        table[i, L.W_MOMENTUM_MAX] = momentum_max
+        table[i, L.W_COULOMB] = COULOMB
+        table[i, L.W_VISCOUS] = VISCOUS
+        table[i, L.W_COULOMB_WIDTH] = COULOMB_WIDTH
+        table[i, L.W_FAILED] = 1.0 if i in failed else 0.0
+        table[i, L.W_MOMENTUM0] = 0.0 if momentum0 is None else momentum0[i]
+    return table
+
+
+def naive_wheels(table):
+    axes = table[:, L.W_AXIS : L.W_AXIS + 3].T.copy()
+    return naive.NaiveWheels(
+        axes,
+        table[:, L.W_SPIN_INERTIA].copy(),
+        table[:, L.W_COULOMB].copy(),
+        table[:, L.W_VISCOUS].copy(),
+        table[:, L.W_COULOMB_WIDTH].copy(),
+        table[:, L.W_TORQUE_MAX].copy(),
+        table[:, L.W_MOMENTUM_MAX].copy(),
+        table[:, L.W_FAILED] != 0.0,
+    )
+
+
+def started(table, x, gg=0.0, direction=(0.0, 0.0, 1.0), inertia=INERTIA):
+    plant = wheels.plant(table)
+    wheels.start(plant, np.asarray(inertia, float), x, gg, np.asarray(direction, float))
+    return plant
+
+
+def random_state(rng):
+    q = Rotation.random(random_state=rng).as_quat()
+    return np.concatenate([q, rng.normal(0.0, 0.02, 3)])
+
+
+def test_derivative_equals_the_naive_twin():
+    """Every component of d/dt [q, omega, h, p] on random states, motors and torques; the two share
+    no code (closed-form matrix algebra vs the kernel's unrolled sums). 1e-12 relative: rounding."""
+    rng = np.random.default_rng(14)
+    table = wheel_table(pyramid_axes())
+    for _ in range(50):
+        x = random_state(rng)
+        plant = started(
+            table, x, gg=1.57e-13 * rng.uniform(1, 1e6), direction=Rotation.random(random_state=rng).as_matrix()[:, 0]
+        )
+        plant.h[:4] = rng.normal(0.0, 20.0, 4)
+        plant.motor[:] = rng.normal(0.0, 0.1, 4)
+        torque = rng.normal(0.0, 1e-3, 3)
+        dx, dh = np.zeros(7), np.zeros(7)
+        wheels.derivative(x, plant.h, torque, plant, dx, dh)
+        ndx, ndh = naive.wheel_state_rate(
+            x, plant.h, plant.motor, torque, naive_wheels(table), INERTIA, plant.gravity[0], plant.gravity[1:4]
+        )
+        np.testing.assert_allclose(dx, ndx, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(dh, ndh, rtol=1e-12, atol=1e-15)
+
+
+def test_rk4_follows_solve_ivp():
+    """200 s of a tumbling body with friction, held motor torques, a body torque and a strong
+    gravity gradient: kernel RK4 at 0.05 s against DOP853 at rtol 1e-12 on the naive derivative.
+    RK4's global error ~ (omega h)^4 ~ (0.05 * 0.05)^4: 1e-9 covers it with margin."""
+    table = wheel_table(pyramid_axes(), momentum0=[5.0, -3.0, 8.0, 1.0])
+    x = np.concatenate([Rotation.from_rotvec([0.3, -0.2, 0.5]).as_quat(), [0.01, -0.02, 0.015]])
+    gg, direction = 1e-6, np.array([0.6, 0.0, 0.8])
+    plant = started(table, x, gg, direction)
+    plant.motor[:] = [0.05, -0.02, 0.01, 0.03]
+    torque = np.array([1e-3, -2e-3, 5e-4])
+    y0 = np.concatenate([x, plant.h])
+    ref = naive_wheels(table)
+
+    def rhs(_, y):
+        dx, dh = naive.wheel_state_rate(y[:7], y[7:], plant.motor, torque, ref, INERTIA, gg, direction)
+        return np.concatenate([dx, dh])
+
+    solution = solve_ivp(rhs, (0.0, 200.0), y0, method="DOP853", rtol=1e-12, atol=1e-14)
+    for _ in range(4000):
+        wheels.rk4_step(x, 0.05, torque, torque, plant)
+    end = solution.y[:, -1]
+    assert quaternion.angle_between(x[:4], end[:4] / np.linalg.norm(end[:4])) < 1e-9
+    np.testing.assert_allclose(x[4:7], end[4:7], atol=1e-9 * np.abs(end[4:7]).max())
+    np.testing.assert_allclose(plant.h, end[7:], rtol=1e-9, atol=1e-9)
+
+
+def test_angular_momentum_is_conserved_without_external_torque():
+    """No external torque: the inertial total angular momentum (computed here with scipy's
+    Rotation, not the kernel) stays put through 22 h of wheel commands changing every second and
+    Coulomb friction switching signs; 1e-9 relative (RK4 at 1 s, rates ~1e-3 rad/s)."""
+    rng = np.random.default_rng(7)
+    table = wheel_table(pyramid_axes())
+    x = np.concatenate([Rotation.from_euler("ZYX", [14, 14, 14], degrees=True).as_quat(), [1e-4, -2e-4, 5e-5]])
+    plant = started(table, x)
+    ref = naive_wheels(table)
+
+    def total():
+        n = ref.axes.shape[1]
+        inertia_b = INERTIA - sum(SPIN_INERTIA * np.outer(ref.axes[:, i], ref.axes[:, i]) for i in range(n))
+        body = inertia_b @ x[4:7] + ref.axes @ plant.h[:n]
+        return Rotation.from_quat(x[:4]).apply(body)
+
+    start = total()
+    zero = np.zeros(3)
+    for step in range(79200):
+        if step % 60 == 0:
+            plant.motor[:] = rng.normal(0.0, 2e-3, 4)  # 0.5 N m s per wheel per minute at most
+        wheels.rk4_step(x, 1.0, zero, zero, plant)
+    end = total()
+    assert np.linalg.norm(end - start) <= 1e-9 * max(np.linalg.norm(start), np.linalg.norm(end))
+    assert np.abs(plant.h[4:]).max() == 0.0
+    assert wheels.momentum_residual(x, plant) <= 1e-9
+
+
+def test_external_impulse_accounts_for_the_change_of_angular_momentum():
+    """With 001's constant torque and a gravity gradient the inertial momentum changes by the
+    impulse the integrator accumulates; the impulse itself matches DOP853 on the naive equations
+    (2 h at 1 s steps; rates stay below ~1e-2 rad/s, so RK4's error is far below 1e-9 relative)."""
+    table = wheel_table(pyramid_axes())
+    x = np.concatenate([Rotation.from_euler("ZYX", [30, -20, 1], degrees=True).as_quat(), [2e-3, -1e-3, 1e-3]])
+    gg, direction = 1e-8, np.array([0.0, 0.0, 1.0])  # exaggerated (the L2 value is 1.6e-13 s^-2): ~1e-4 N m
+    torque = np.full(3, 1.18e-3)  # 001 eq. 10: u_const
+    plant = started(table, x, gg, direction)
+    plant.motor[:] = [1e-3, -2e-3, 0.5e-3, 1e-3]
+    y0 = np.concatenate([x, plant.h])
+    ref = naive_wheels(table)
+
+    def rhs(_, y):
+        return np.concatenate(naive.wheel_state_rate(y[:7], y[7:], plant.motor, torque, ref, INERTIA, gg, direction))
+
+    solution = solve_ivp(rhs, (0.0, 7200.0), y0, method="DOP853", rtol=1e-12, atol=1e-15)
+    for _ in range(7200):
+        wheels.rk4_step(x, 1.0, torque, torque, plant)
+    impulse = plant.h[4:]
+    assert np.linalg.norm(impulse) > 5.0  # the test is not about nothing: u_const over 2 h is 14.7 N m s
+    np.testing.assert_allclose(impulse, solution.y[11:, -1], rtol=1e-9)
+    assert wheels.momentum_residual(x, plant) <= 1e-9
+
+
+def test_gravity_gradient_closed_form_and_sign():
+    """Along a principal axis there is no torque; at 45 deg between x and y it is 3 k (J_yy - J_xx)
+    / 2 about z (the physical sign: the torque turns the minimum axis toward the line to the
+    bodies; 001 eq. 11 prints the opposite sign)."""
+    k = 1.57e-13
+    out = np.zeros(3)
+    scratch = np.zeros((2, 3))
+    identity = np.array([0.0, 0.0, 0.0, 1.0])
+    for axis in np.eye(3):
+        out[:] = 0.0
+        wheels.gravity_gradient(identity, k, axis, INERTIA, scratch, out)
+        assert np.abs(out).max() == 0.0
+    out[:] = 0.0
+    wheels.gravity_gradient(identity, k, np.array([1.0, 1.0, 0.0]) / math.sqrt(2.0), INERTIA, scratch, out)
+    assert out[2] == pytest.approx(3.0 * k * (INERTIA[1, 1] - INERTIA[0, 0]) / 2.0, rel=1e-14)
+    # rotated: c = R^T d with scipy's rotation
+    rotation = Rotation.from_rotvec([0.2, -0.4, 0.7])
+    d = np.array([0.3, -0.5, 0.81]) / np.linalg.norm([0.3, -0.5, 0.81])
+    c = rotation.inv().apply(d)
+    out[:] = 0.0
+    wheels.gravity_gradient(rotation.as_quat(), k, d, INERTIA, scratch, out)
+    np.testing.assert_allclose(out, 3.0 * k * np.cross(c, INERTIA @ c), rtol=1e-12)
+
+
+def _command(table, distribution, h, rate_meas, omega, torque_cmd):
+    plant = wheels.plant(table)
+    plant.h[: table.shape[0]] = h
+    peak, limited = wheels.command(distribution, plant, rate_meas, omega, torque_cmd)
+    return plant.motor.copy(), plant.demand.copy(), peak, limited
+
+
+def test_unlimited_wheels_realise_the_commanded_body_torque():
+    """-W tau_m - omega x W h = u (001 eq. 6): the wheels apply the controller's torque."""
+    rng = np.random.default_rng(3)
+    axes = pyramid_axes()
+    table = wheel_table(axes)
+    distribution = np.linalg.pinv(axes)
+    for _ in range(20):
+        h, omega, u = rng.normal(0, 30, 4), rng.normal(0, 1e-3, 3), rng.normal(0, 0.1, 3)
+        motor, demand, peak, limited = _command(table, distribution, h, omega, omega, u)
+        np.testing.assert_allclose(-axes @ motor - np.cross(omega, axes @ h), u, atol=1e-15)
+        assert not limited and peak == pytest.approx(np.abs(demand).max())
+        nmotor, ndemand = naive.wheel_commands(distribution, naive_wheels(table), h, omega, omega, u)
+        np.testing.assert_allclose(motor, nmotor, rtol=1e-14, atol=1e-18)
+
+
+def test_limits_scale_the_vector_stop_a_full_wheel_and_a_failed_one():
+    rng = np.random.default_rng(4)
+    axes = pyramid_axes()
+    distribution = np.linalg.pinv(axes)
+    u = np.array([3.0, -1.0, 2.0])  # far beyond 0.2 N m wheels
+    table = wheel_table(axes, torque_max=0.2, momentum_max=68.0)
+    motor, demand, peak, limited = _command(table, distribution, np.zeros(4), np.zeros(3), np.zeros(3), u)
+    assert limited and np.abs(motor).max() == pytest.approx(0.2, rel=1e-14)
+    np.testing.assert_allclose(motor / np.abs(motor).max(), demand / np.abs(demand).max(), rtol=1e-13)
+    body = -axes @ motor  # the body torque keeps its direction
+    assert np.dot(body, u) / (np.linalg.norm(body) * np.linalg.norm(u)) == pytest.approx(1.0, abs=1e-14)
+    # wheel 0 at +68 N m s relative: not driven further up, still allowed down
+    h = np.array([68.0, 0.0, 0.0, 0.0])
+    for sign in (1.0, -1.0):
+        motor, demand, _, _ = _command(table, distribution, h, np.zeros(3), np.zeros(3), -sign * axes[:, 0] * 0.01)
+        if sign > 0:
+            assert demand[0] > 0.0 and motor[0] == 0.0
+        else:
+            assert demand[0] < 0.0 and motor[0] == pytest.approx(demand[0])
+    # a failed wheel gives nothing; the others are as commanded (undetected: D unchanged)
+    failed = wheel_table(axes, failed=(2,))
+    for _ in range(5):
+        u = rng.normal(0, 0.05, 3)
+        motor, demand, _, _ = _command(failed, distribution, np.zeros(4), np.zeros(3), np.zeros(3), u)
+        assert motor[2] == 0.0 and demand[2] != 0.0
+        np.testing.assert_allclose(motor[[0, 1, 3]], demand[[0, 1, 3]])
+        nmotor, _ = naive.wheel_commands(distribution, naive_wheels(failed), np.zeros(4), np.zeros(3), np.zeros(3), u)
+        np.testing.assert_allclose(motor, nmotor, rtol=1e-14, atol=1e-18)
+
+
+def test_sliding_mode_equals_the_naive_twin_and_saturates():
+    """001 eq. 12 on random errors, inside and outside the boundary layer."""
+    rng = np.random.default_rng(12)
+    smc = np.array([[0.05, 0.05, 0.05], [0.002, 0.002, 0.002], [1e-4, 1e-4, 1e-4]])
+    out = np.zeros(3)
+    for scale in (1e-7, 1e-5, 1e-2):
+        for _ in range(20):
+            q_error = Rotation.from_rotvec(rng.normal(0, scale, 3)).as_quat()
+            q_error *= np.sign(q_error[3])
+            rate_error = rng.normal(0, scale, 3)
+            rate_meas = rate_error + rng.normal(0, 1e-3, 3)
+            accel = rng.normal(0, 1e-5, 3)
+            control.torque_command(
+                L.CONTROLLER_SMC,
+                q_error,
+                rate_error,
+                rate_meas,
+                accel,
+                np.zeros(3),
+                np.zeros(3),
+                smc,
+                INERTIA,
+                True,
+                out,
+            )
+            expected = naive.sliding_mode_torque(q_error, rate_error, rate_meas, accel, *smc, INERTIA)
+            np.testing.assert_allclose(out, expected, rtol=1e-12, atol=1e-15)
+    # far outside the layer the switching term is J G per axis: no attitude error, a unit rate error
+    signs, zero, no_error = np.array([1.0, -1.0, 1.0]), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
+    control.torque_command(L.CONTROLLER_SMC, no_error, signs, zero, zero, zero, zero, smc, INERTIA, True, out)
+    expected = -np.diag(INERTIA) * smc[1] * signs - INERTIA @ (smc[0] * 0.5 * signs)  # -J G sign - J Lambda dq_e
+    np.testing.assert_allclose(out, expected, rtol=1e-12)
