@@ -636,8 +636,8 @@ def load_campaign(path):
     dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     mode_names = [mode["name"] for mode in mission["modes"]]
-    trajectory = vehicle.get("trajectory", "planar_drag")
-    columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, trajectory)
+    options = requirements.column_options(vehicle, mission)
+    columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     published.check_published(campaign.get("published", []), columns, path, lines)
     if campaign["failures"]["mode"] == "enumerate":
