@@ -319,6 +319,15 @@ def _inspect_torque(vehicle, text, level, as_json):
         click.echo(json.dumps(result, indent=2))
         return
     alloc = result["allocation"]
+    if "wheels" in result:
+        lines = [f"distribution ({alloc['method']}) of torque {values} N m: motor torque commands -D torque"]
+        for i, (u, limited) in enumerate(zip(alloc["commands"], alloc["limited_commands"], strict=True)):
+            note = f", limited to {limited:.6g}" if limited != u else ""
+            lines.append(f"  wheel {i + 1:2d}  {u:12.6g} N m{note}")
+        realised = ", ".join(f"{v:.6g}" for v in alloc["realised_torque_n_m"])
+        lines.append(f"  realised body torque [N m]: {realised}")
+        click.echo("\n".join(lines))
+        return
     lines = [f"allocation ({alloc['method']}, {alloc['level']} thrust) of torque {values} N m"]
     for i, u in enumerate(alloc["commands"]):
         if u > 0.0:
@@ -336,19 +345,34 @@ def format_design(name, info):
     def vec(values, fmt):
         return "  ".join(format(v, fmt) for v in values)
 
-    lines = [f"vehicle {name}", f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}"]
-    lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
-    lines.append(f"  controller {info['controller']}, gains {info['gains_source']}")
+    lines = [f"vehicle {name}"]
+    if "lever_arms_m" in info:
+        lines.append(f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}")
+        lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
+    lines.append(f"  controller {info['controller']}, gains {info['gains_source']}, actuation {info['actuation']}")
+    if "smc" in info:
+        smc = info["smc"]
+        lines.append(f"    slope Lambda [1/s]          {vec(smc['slope_s'], '8.4g')}")
+        lines.append(f"    gain G [rad/s^2]            {vec(smc['gain_rad_s2'], '8.4g')}")
+        lines.append(f"    boundary layer [rad/s]      {vec(smc['boundary_layer_rad_s'], '8.4g')}")
     for level in info["levels"]:
-        lines.append(f"  {level} thrust")
-        lines.append(f"    omega_dot_max [rad/s^2]     {vec(info['omega_dot_max_rad_s2'][level], '8.4f')}")
-        lines.append(f"    tau_max [N m]               {vec(info['torque_max_n_m'][level], '8.3f')}")
-        lines.append(f"    Kp                          {vec(info['gains'][level]['kp'], '8.3f')}")
-        lines.append(f"    Kd                          {vec(info['gains'][level]['kd'], '8.3f')}")
-        lines.append(
-            f"    valves: a {info['hardware_min_on_ms']:g} ms pulse gives {info['pulse_equivalent_ms'][level]:.2f} ms "
-            f"of full thrust; impulse-matching correction {info['pulse_correction_matching_ms'][level]:.2f} ms"
-        )
+        thrust = level in info.get("rcs_levels", ())
+        lines.append(f"  {level} thrust" if thrust else f"  {level} (reaction wheels)")
+        accel, torque = ("8.4f", "8.3f") if thrust else ("10.4g", "10.4g")  # wheels: ~1e-4 rad/s^2
+        lines.append(f"    omega_dot_max [rad/s^2]     {vec(info['omega_dot_max_rad_s2'][level], accel)}")
+        lines.append(f"    tau_max [N m]               {vec(info['torque_max_n_m'][level], torque)}")
+        if info["controller"] != "smc":
+            lines.append(f"    Kp                          {vec(info['gains'][level]['kp'], '8.3f')}")
+            lines.append(f"    Kd                          {vec(info['gains'][level]['kd'], '8.3f')}")
+        if level in info.get("pulse_equivalent_ms", {}):
+            lines.append(
+                f"    valves: a {info['hardware_min_on_ms']:g} ms pulse gives {info['pulse_equivalent_ms'][level]:.2f} "
+                f"ms of full thrust; impulse-matching correction {info['pulse_correction_matching_ms'][level]:.2f} ms"
+            )
+    if "wheels" in info:
+        lines += _format_wheels(info["wheels"], vec)
+    if "pwpf_t_on_ms" not in info:
+        return "\n".join(lines)
     lines.append(
         f"  PWPF: t_on {info['pwpf_t_on_ms']:g} ms, t_off {info['pwpf_t_off_ms']:g} ms, "
         f"correction {info['pwpf_correction_ms']:g} ms, tau_min {100 * info['tau_min_fraction']:.1f} %, "
@@ -358,8 +382,7 @@ def format_design(name, info):
         f"  hardware switching limits: min pulse {info['hardware_min_on_ms']:g} ms, "
         f"min rest {info['hardware_min_off_ms']:g} ms"
     )
-    for level in info["levels"]:
-        matching = info["pulse_correction_matching_ms"][level]
+    for level, matching in info["pulse_correction_matching_ms"].items():
         if abs(info["pwpf_correction_ms"] - matching) > CORRECTION_WARNING_MS:
             lines.append(
                 f"  WARNING: the PWPF correction {info['pwpf_correction_ms']:g} ms differs from the {level}-thrust "
@@ -367,12 +390,28 @@ def format_design(name, info):
                 "(000 sec. 5: the pulses then deliver a different impulse than the modulator assumes)"
             )
     if "allocation" not in info:
-        lines.append(f"  actuation {info['actuation']}: LP allocation (004 eq. 2-5); see --torque")
+        if info["actuation"] == "lp_pwm":
+            lines.append(f"  actuation {info['actuation']}: LP allocation (004 eq. 2-5); see --torque")
         return "\n".join(lines)
     lines.append("  allocation (axis command -> thrusters):")
     for key, ids in info["allocation"].items():
         lines.append(f"    {key:8s} {', '.join(map(str, ids))}")
     return "\n".join(lines)
+
+
+def _format_wheels(wheels, vec):
+    lines = [
+        f"  reaction wheels: {len(wheels['axes'])}, {wheels['wheel_torque_max_n_m']:g} N m and "
+        f"{wheels['wheel_momentum_max_n_m_s']:g} N m s each ({wheels['speed_max_rpm']:.0f} rpm); "
+        f"distribution {wheels['distribution']} (001 sec. 9.1)"
+    ]
+    lines.append("    wheel  axis (body)                    distribution row D")
+    for i, (axis, row) in enumerate(zip(wheels["axes"], wheels["distribution_matrix"], strict=True)):
+        lines.append(f"    {i + 1:5d}  {vec(axis, '8.4f')}   {vec(row, '8.4f')}")
+    for k, null in enumerate(zip(*wheels["null_space"], strict=True)):
+        lines.append(f"    null space {k + 1}: {vec(null, '8.4f')} (wheel torques that turn no body axis)")
+    lines.append(f"    largest body torque [N m]   {vec(wheels['torque_max_n_m'], '8.4g')}")
+    return lines
 
 
 if __name__ == "__main__":

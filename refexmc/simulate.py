@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from refexmc.config.requirements import ORBIT_COLUMNS, mode_time_columns
+from refexmc.config.requirements import ORBIT_COLUMNS, POINTING_COLUMNS, WHEEL_COLUMNS, mode_time_columns
 from refexmc.core import layout as L
 from refexmc.core.flight import run_flight
 
@@ -24,12 +24,14 @@ def failure_name(code, mode_name=None):
 class FlightResult:
     """One flight's outputs, named."""
 
-    def __init__(self, summary, pulse_counts, history, mode_names, orbit=False):
+    def __init__(self, summary, pulse_counts, history, mode_names, orbit=False, pointing=False, wheels=False):
         self.summary = summary  # layout.SUMMARY then per-mode values
         self.pulse_counts = pulse_counts  # valve open commands sent, per thruster
         self.history = history  # rows x layout.HISTORY_SIZE
         self.mode_names = list(mode_names)
         self.orbit = orbit  # the orbit trajectory: entry-state values (config.requirements.ORBIT_COLUMNS)
+        self.pointing = pointing  # a pointing window: config.requirements.POINTING_COLUMNS
+        self.wheels = wheels  # reaction wheels: config.requirements.WHEEL_COLUMNS
 
     def value(self, name):
         """A summary value by name; ``t_mode_s`` and ``t1_mode_s`` give one value per mode."""
@@ -70,6 +72,14 @@ class FlightResult:
             for k, name in enumerate(ORBIT_COLUMNS[:5]):
                 row[name] = float(entry[k])
             for name in ORBIT_COLUMNS[5:]:
+                row[name] = float(self.value(name))
+        if self.pointing:
+            end, rms = self.value("pointing_end_arcsec"), self.value("pointing_rms_arcsec")
+            values = [*end, *rms, self.value("pointing_max_arcsec")]
+            for name, value in zip(POINTING_COLUMNS, values, strict=True):
+                row[name] = float(value)
+        if self.wheels:
+            for name in WHEEL_COLUMNS:
                 row[name] = float(self.value(name))
         row["modes_completed"] = int(self.value("modes_completed"))
         for i, count in enumerate(self.pulse_counts):
@@ -159,4 +169,6 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
     run_flight(inputs, np.int64(nav_seed), np.int64(every), summary, pulses, history)
     rows = int(summary[L.S_HISTORY_ROWS])
     orbit = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_ORBIT
-    return FlightResult(summary, pulses, history[:rows], mode_names, orbit)
+    pointing = bool(np.isfinite(inputs.mission[L.M_POINTING_FROM]))
+    wheels = inputs.wheels.shape[0] > 0
+    return FlightResult(summary, pulses, history[:rows], mode_names, orbit, pointing, wheels)

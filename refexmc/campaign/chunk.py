@@ -24,8 +24,8 @@ class RunPlan:
         self.nominal_inputs = pack(campaign["vehicle"], campaign["mission"])
         self.n_thrusters = self.nominal_inputs.thrusters.shape[0]
         self.mode_names = mode_names(campaign["mission"])
-        trajectory = campaign["vehicle"].get("trajectory", "planar_drag")
-        self.value_columns = requirements.run_value_columns(self.mode_names, trajectory)
+        options = requirements.column_options(campaign["vehicle"], campaign["mission"])
+        self.value_columns = requirements.run_value_columns(self.mode_names, **options)
         self._warm_up()
 
     def _warm_up(self):

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from refexmc.config import dispersions
-from refexmc.config.derived import inertia_problem, level_names
+from refexmc.config.derived import inertia_problem, level_names, thruster_count
 from refexmc.config.load import failure_sets
 
 _TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
@@ -146,7 +146,7 @@ class Sampler:
         self.sampling = campaign["sampling"]
         self.offset = 1 if campaign["nominal_first"] else 0
         self.n_dispersed = campaign["runs"] - self.offset
-        self.n_thrusters = len(self.vehicle["rcs"]["thrusters"])
+        self.n_thrusters = thruster_count(self.vehicle)
         self.levels = level_names(self.vehicle)
         self.specs = dispersions.check(campaign["dispersions"], self.vehicle, self.mission, None, {})
         self.nominal = {path: dispersions.nominal(path, self.vehicle, self.mission) for path in self.specs}

@@ -190,14 +190,13 @@ def manifest(campaign_file, campaign, chunk_size, status, started, finished=None
 def output_names(campaign):
     """The names the outputs take from the campaign's files: ``modes`` (display names in flight
     order, the history's ``mode`` values) and ``columns`` (the runs table's numeric columns)."""
-    from refexmc.config import dispersions, requirements  # config: what the files declare
+    from refexmc.config import derived, dispersions, requirements  # config: what the files declare
 
     vehicle, mission = campaign["vehicle"], campaign["mission"]
     modes = [mode["name"] for mode in mission["modes"]]
     parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
-    columns = requirements.runs_metric_columns(
-        modes, len(vehicle["rcs"]["thrusters"]), parameters, vehicle.get("trajectory", "planar_drag")
-    )
+    options = requirements.column_options(vehicle, mission)
+    columns = requirements.runs_metric_columns(modes, derived.thruster_count(vehicle), parameters, **options)
     return {"modes": modes, "columns": {"runs": columns}}
 
 

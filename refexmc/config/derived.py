@@ -1,17 +1,95 @@
 """Design quantities derived from the nominal vehicle config, never typed in.
 
 omega_dot_max (000 eq. 1), tau_max, gains (eq. 38, 34), f_min (eq. 44), the allocation table,
-and what the valve transients make of a pulse (000 sec. 5, Fig. 6, Table 2).
+what the valve transients make of a pulse (000 sec. 5, Fig. 6, Table 2), and the reaction wheels'
+distribution matrix (001 sec. 9.1) with the torque and acceleration it can command per body axis.
 """
 
 import itertools
 
 import numpy as np
 
+from refexmc.config.schema import WHEELS_LEVEL
+
+
+def flies_wheels(vehicle):
+    """True when the flight software actuates reaction wheels (``flight_software.actuation: wheels``)."""
+    return vehicle["flight_software"]["actuation"] == "wheels"
+
+
+def rcs_level_names(vehicle):
+    """The rcs thrust levels, in the order of its ``rcs.thrust_n`` (000: low, high); none without an rcs."""
+    return list(vehicle["rcs"]["thrust_n"]) if "rcs" in vehicle else []
+
 
 def level_names(vehicle):
-    """The vehicle's thrust levels, in the order of its ``rcs.thrust_n`` (000: low, high)."""
-    return list(vehicle["rcs"]["thrust_n"])
+    """The rows of the levels table, the levels a mode may fly: the rcs thrust levels (000: low,
+    high), or the one level ``wheels`` of a vehicle whose flight software actuates reaction wheels."""
+    return [WHEELS_LEVEL] if flies_wheels(vehicle) else rcs_level_names(vehicle)
+
+
+def thruster_count(vehicle):
+    """Number of thrusters (0 without an rcs)."""
+    return len(vehicle["rcs"]["thrusters"]) if "rcs" in vehicle else 0
+
+
+def wheel_count(vehicle):
+    """Number of reaction wheels (0 without a wheel assembly)."""
+    return len(vehicle["wheels"]["units"]) if "wheels" in vehicle else 0
+
+
+def wheel_axes(vehicle):
+    """001's W: 3 x N, column i the unit spin axis of wheel i in body axes (001 sec. 8.1)."""
+    axes = np.array([unit["axis"] for unit in vehicle["wheels"]["units"]], dtype=float).reshape(-1, 3)
+    return (axes / np.linalg.norm(axes, axis=1, keepdims=True)).T
+
+
+def wheel_distribution(vehicle, excluded=()):
+    """The flight software's distribution matrix D (N x 3, wheel torques = D body torque): the
+    pseudo-inverse W^+ = W^T (W W^T)^-1 of the wheels it uses (001 sec. 9.1); the rows of the
+    ``excluded`` wheels (1-based ids: failures it knows of) are zero."""
+    w = wheel_axes(vehicle)
+    used = [i for i in range(w.shape[1]) if (i + 1) not in set(excluded)]
+    out = np.zeros((w.shape[1], 3))
+    if used:
+        out[used] = np.linalg.pinv(w[:, used])
+    return out
+
+
+def wheel_torque_max(vehicle, excluded=()):
+    """Largest body torque per axis the distribution commands with no wheel beyond its torque
+    limit: tau_max / max_i |D[i, k]| (N m); 0 about an axis the used wheels cannot reach."""
+    distribution = wheel_distribution(vehicle, excluded)
+    largest = np.abs(distribution).max(axis=0)
+    limit = vehicle["wheels"]["torque_max_n_m"]
+    return np.where(largest > 0.0, limit / np.where(largest > 0.0, largest, 1.0), 0.0)
+
+
+def wheel_accel_max(vehicle, excluded=()):
+    """omega_dot_max per body axis of the wheels: :func:`wheel_torque_max` / J_ii (rad/s^2), the
+    acceleration the slew guidance plans with (times guidance_accel_margin)."""
+    inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    return wheel_torque_max(vehicle, excluded) / np.diag(inertia)
+
+
+def wheel_null_space(vehicle):
+    """Orthonormal basis (N x (N - 3)) of the wheel torques that make no body torque (001 sec. 8.1: n_4)."""
+    w = wheel_axes(vehicle)
+    _, _, vt = np.linalg.svd(w)
+    basis = vt[np.linalg.matrix_rank(w) :]
+    for row in basis:  # the sign SVD happens to give is arbitrary: make the first clear entry positive
+        if row[np.argmax(np.abs(row) > 1e-9)] < 0.0:
+            row *= -1.0
+    return basis.T
+
+
+def wheel_problem(vehicle):
+    """Why the wheel axes cannot control the attitude (they do not span three dimensions), or None."""
+    w = wheel_axes(vehicle)
+    rank = np.linalg.matrix_rank(w)
+    if rank < 3:
+        return f"expected wheel axes that span the three body axes, got rank {rank}"
+    return None
 
 
 def unit_directions(vehicle):
@@ -54,11 +132,29 @@ def gains(vehicle, level):
 
 
 def gains_flown(vehicle, level):
-    """(kp, kd) of a thrust level, body x, y, z: given in the vehicle file, else :func:`gains`."""
+    """(kp, kd) of a level, body x, y, z: given in the vehicle file, else :func:`gains` of an rcs
+    level; the wheels level without given gains has none (the smc controller takes its own)."""
     given = vehicle["flight_software"].get("gains")
     if given is not None:
         return np.asarray(given["kp"][level], dtype=float), np.asarray(given["kd"][level], dtype=float)
+    if level == WHEELS_LEVEL and flies_wheels(vehicle):
+        return np.zeros(3), np.zeros(3)
     return gains(vehicle, level)
+
+
+def level_torque_max(vehicle, level, excluded_wheels=()):
+    """Largest body torque per axis of a level (N m): 000 eq. 41's tau_max of an rcs level, or
+    what the wheels' distribution can command (:func:`wheel_torque_max`)."""
+    if level == WHEELS_LEVEL and flies_wheels(vehicle):
+        return wheel_torque_max(vehicle, excluded_wheels)
+    return torque_max(vehicle, level)
+
+
+def level_accel_max(vehicle, level, excluded_wheels=()):
+    """omega_dot_max per body axis of a level (rad/s^2): 000 eq. 1, or :func:`wheel_accel_max`."""
+    if level == WHEELS_LEVEL and flies_wheels(vehicle):
+        return wheel_accel_max(vehicle, excluded_wheels)
+    return omega_dot_max(vehicle, level)
 
 
 def f_min_fraction(vehicle):
@@ -117,10 +213,10 @@ def allocation_table(vehicle):
     of its x-y entry plus its yaw thrusters (000 sec. 5: yaw has its own thrusters), unless the
     config lists it. Raises KeyError naming a missing single- or two-axis entry.
     """
-    n = len(vehicle["rcs"]["thrusters"])
+    n = thruster_count(vehicle)
     table = np.zeros((27, n), dtype=np.int64)
     if "allocation" not in vehicle["flight_software"]:
-        return table  # actuation lp_pwm: no table
+        return table  # actuation lp_pwm or wheels: no table
     entries = vehicle["flight_software"]["allocation"]
     for w in itertools.product((-1, 0, 1), repeat=3):
         key = axis_command_key(w)
@@ -140,26 +236,64 @@ def allocation_table(vehicle):
 
 def design(vehicle):
     """Everything ``refexmc inspect`` shows, as plain Python types."""
+    fsw = vehicle["flight_software"]
     out = {
-        "lever_arms_m": lever_arms(vehicle).tolist(),
-        "thrusters_per_axis": list(vehicle["flight_software"]["thrusters_per_axis"]),
+        "controller": fsw["controller"],
+        "actuation": fsw["actuation"],
+        "levels": level_names(vehicle),
         "omega_dot_max_rad_s2": {},
         "torque_max_n_m": {},
         "gains": {},
-        "gains_source": "given" if "gains" in vehicle["flight_software"] else "derived (000 eq. 38, 34)",
-        "controller": vehicle["flight_software"]["controller"],
+    }
+    if fsw["controller"] == "smc":
+        out["gains_source"] = "smc (001 eq. 12)"
+        out["smc"] = {key: list(value) for key, value in fsw["smc"].items()}
+    else:
+        out["gains_source"] = "given" if "gains" in fsw else "derived (000 eq. 38, 34)"
+    for level in level_names(vehicle):
+        out["omega_dot_max_rad_s2"][level] = level_accel_max(vehicle, level).tolist()
+        out["torque_max_n_m"][level] = level_torque_max(vehicle, level).tolist()
+        kp, kd = gains_flown(vehicle, level)
+        out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
+    if "wheels" in vehicle:
+        out["wheels"] = _wheel_design(vehicle)
+    if "rcs" in vehicle:
+        out.update(_rcs_design(vehicle))
+    return out
+
+
+def _wheel_design(vehicle):
+    wheels = vehicle["wheels"]
+    return {
+        "distribution": wheels["distribution"],
+        "axes": wheel_axes(vehicle).T.tolist(),
+        "distribution_matrix": wheel_distribution(vehicle).tolist(),
+        "null_space": wheel_null_space(vehicle).tolist(),
+        "torque_max_n_m": wheel_torque_max(vehicle).tolist(),
+        "accel_max_rad_s2": wheel_accel_max(vehicle).tolist(),
+        "wheel_torque_max_n_m": wheels["torque_max_n_m"],
+        "wheel_momentum_max_n_m_s": wheels["momentum_max_n_m_s"],
+        "speed_max_rpm": wheels["momentum_max_n_m_s"] / wheels["spin_inertia_kg_m2"] * 30.0 / np.pi,
+    }
+
+
+def _rcs_design(vehicle):
+    """The thruster design (000): lever arms, omega_dot_max and gains per thrust level, PWPF, switching
+    limits, the allocation table."""
+    fsw = vehicle["flight_software"]
+    out = {
+        "lever_arms_m": lever_arms(vehicle).tolist(),
+        "thrusters_per_axis": list(fsw["thrusters_per_axis"]),
+        "rcs_levels": rcs_level_names(vehicle),
         "pulse_equivalent_ms": {},
         "pulse_correction_matching_ms": {},
     }
-    out["levels"] = level_names(vehicle)
-    for level in level_names(vehicle):
-        out["omega_dot_max_rad_s2"][level] = omega_dot_max(vehicle, level).tolist()
-        out["torque_max_n_m"][level] = torque_max(vehicle, level).tolist()
-        kp, kd = gains_flown(vehicle, level)
-        out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
+    for level in rcs_level_names(vehicle):
         out["pulse_equivalent_ms"][level] = pulse_equivalent_ms(vehicle, level)
         out["pulse_correction_matching_ms"][level] = pulse_correction_matching_ms(vehicle, level)
-    pwpf = vehicle["flight_software"]["pwpf"]
+        if flies_wheels(vehicle):  # the thrusters are not flown; their design is still shown
+            out.setdefault("rcs_omega_dot_max_rad_s2", {})[level] = omega_dot_max(vehicle, level).tolist()
+    pwpf = fsw["pwpf"]
     limits = vehicle["rcs"]["switching_limits_ms"]
     out["f_min_fraction"] = f_min_fraction(vehicle)
     out["tau_min_fraction"] = pwpf["tau_min_fraction"]
@@ -168,8 +302,7 @@ def design(vehicle):
     out["pwpf_correction_ms"] = pwpf["correction_ms"]
     out["hardware_min_on_ms"] = limits["min_on"]
     out["hardware_min_off_ms"] = limits["min_off"]
-    out["actuation"] = vehicle["flight_software"]["actuation"]
-    if "allocation" not in vehicle["flight_software"]:
+    if "allocation" not in fsw:
         return out
     table = allocation_table(vehicle)
     out["allocation"] = {}
@@ -208,6 +341,8 @@ def allocate_torque(vehicle, torque, level=None):
     """
     from refexmc.core import lp_allocation
 
+    if flies_wheels(vehicle):
+        return _distribute_torque(vehicle, torque)
     level = level or level_names(vehicle)[0]
     thrust = vehicle["rcs"]["thrust_n"][level]
     arms = torque_arms(vehicle)  # n x 3, N m per N
@@ -240,6 +375,46 @@ def allocate_torque(vehicle, torque, level=None):
             for t, d in zip(vehicle["rcs"]["thrusters"], unit_directions(vehicle), strict=True)
         ],
     }
+
+
+def _distribute_torque(vehicle, torque):
+    """The wheels' share of a body torque (N m): motor torque commands -D torque (each wheel's
+    torque on its rotor, the body taking the reaction; 001 sec. 9.1, the gyroscopic term left
+    out), each limited to the wheels' torque limit, and the body torque that realises."""
+    torque = np.asarray(torque, dtype=float)
+    limit = vehicle["wheels"]["torque_max_n_m"]
+    commands = -wheel_distribution(vehicle) @ torque
+    limited = np.clip(commands, -limit, limit)
+    return {
+        "allocation": {
+            "method": vehicle["wheels"]["distribution"],
+            "level": WHEELS_LEVEL,
+            "torque_n_m": torque.tolist(),
+            "commands": commands.tolist(),
+            "limited_commands": limited.tolist(),
+            "realised_torque_n_m": (-wheel_axes(vehicle) @ limited).tolist(),
+        },
+        "wheels": [
+            {"axis": axis.tolist(), "max_torque_n_m": limit, "name": unit.get("name")}
+            for axis, unit in zip(wheel_axes(vehicle).T, vehicle["wheels"]["units"], strict=True)
+        ],
+    }
+
+
+def gravity_gradient_coefficient(bodies):
+    """sum mu_k / r_k^3 over the bodies (1/s^2) of 001 eq. 11 (the Sun and the Earth seen from L2)."""
+    return float(sum(body["mu_m3_s2"] / body["distance_m"] ** 3 for body in bodies))
+
+
+def separation_rotation_vector(separation):
+    """The initial attitude's rotation vector (rad): ``attitude_error_deg``, or the rotation of
+    ``attitude_euler_deg`` in ``euler_sequence`` (scipy Rotation, as the inertial target). Both are
+    from body x along the velocity, wings level (no trajectory: from the inertial axes)."""
+    if "attitude_euler_deg" not in separation:
+        return np.radians(separation["attitude_error_deg"])
+    from scipy.spatial.transform import Rotation  # only for Euler attitudes: scipy costs 0.4 s to import
+
+    return Rotation.from_euler(separation["euler_sequence"], separation["attitude_euler_deg"], degrees=True).as_rotvec()
 
 
 def rotate_by_rotation_vector(vector, rotvec_deg):

@@ -205,19 +205,22 @@ def columns(path, vehicle):
 
 
 def nominal(path, vehicle, mission):
-    """Nominal value of ``path`` in its user units, one entry per component."""
-    rcs = vehicle["rcs"]
-    n_thr = len(rcs["thrusters"])
+    """Nominal value of ``path`` in its user units, one entry per component (KeyError: the vehicle
+    or mission does not have it). The separation attitude of a mission that gives it as Euler
+    angles is their rotation vector."""
     if path == "inertia_kg_m2":
         j = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
         return np.array([j[a, b] for a, b in _INERTIA_INDEX])
     if path == "rcs.thrust_scale":
-        return np.ones(n_thr)
+        return np.ones(len(vehicle["rcs"]["thrusters"]))
     if path == "atmosphere.density_scale":
         return np.ones(1)
     if path.startswith("rcs.valve_time_constants_ms."):
         _, _, level, name = path.split(".")
-        return np.full(n_thr, float(rcs["valve_time_constants_ms"][level][name]))
+        rcs = vehicle["rcs"]
+        return np.full(len(rcs["thrusters"]), float(rcs["valve_time_constants_ms"][level][name]))
+    if path == "separation.attitude_error_deg" and "attitude_euler_deg" in mission["separation"]:
+        return np.degrees(derived.separation_rotation_vector(mission["separation"]))
     root = mission if path.split(".")[0] in ("separation", "navigation") else vehicle
     value = root
     for key in path.split("."):
@@ -233,6 +236,8 @@ def _undeclared(path, vehicle, mission):
         return f"'{path}' needs an atmosphere; the mission has none"
     if path in ("mass_kg", "aerodynamics.drag_area_m2", "aerodynamics.mistrim_cm") and trajectory == "none":
         return f"'{path}' acts through the trajectory; vehicle {vehicle['name']} has none (trajectory: none)"
+    if path.startswith("rcs.") and "rcs" in vehicle and derived.flies_wheels(vehicle):
+        return f"'{path}': vehicle {vehicle['name']} flies reaction wheels (actuation wheels); its thrusters never fire"
     try:
         nominal(path, vehicle, mission)
     except KeyError:

@@ -12,7 +12,7 @@ import numpy as np
 import yaml
 
 from refexmc.config import published, requirements, schema
-from refexmc.config.derived import allocation_table, inertia_problem
+from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
 from refexmc.config.errors import ConfigError
 
 
@@ -193,11 +193,68 @@ def validate(data, schema_def, file, lines, prefix=()):
 
 
 def check_vehicle(vehicle, file, lines, prefix=()):
-    """Checks the schema cannot express: thruster numbering, allocation ids, physical inertia."""
+    """Checks the schema cannot express: an actuator for the actuation, the keys each actuator and
+    controller take, thruster and wheel numbering, allocation ids, wheel axes, physical inertia."""
 
     def fail(message, *path):
-        raise ConfigError(message, file=file, line=lines.get(path) or lines.get(()), path=prefix + path)
+        line = next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
+        raise ConfigError(message, file=file, line=line, path=prefix + path)
 
+    fsw = vehicle["flight_software"]
+    if "rcs" not in vehicle and "wheels" not in vehicle:
+        fail("expected an actuator: 'rcs', 'wheels' or both")
+    hardware = schema.ACTUATION_HARDWARE[fsw["actuation"]]
+    if hardware not in vehicle:
+        fail(f"actuation {fsw['actuation']} needs the vehicle's '{hardware}'", "flight_software", "actuation")
+    if "rcs" in vehicle:
+        for key in schema.RCS_DESIGN_KEYS:
+            if key not in fsw:
+                fail(f"'{key}' is required with an rcs (the thruster design, 000)", "flight_software")
+        _check_rcs(vehicle, fail)
+    else:
+        for key in (*schema.RCS_DESIGN_KEYS, "allocation"):
+            if key in fsw:
+                fail(f"'{key}' is a thruster design key; the vehicle has no rcs", "flight_software", key)
+    if "wheels" in vehicle:
+        _check_wheels(vehicle, fail)
+    controller = fsw["controller"]
+    if controller == "smc":
+        if "smc" not in fsw:
+            fail("controller smc needs its gains (flight_software.smc)", "flight_software", "controller")
+        if "gains" in fsw:
+            fail("controller smc takes no 'gains' (its gains are flight_software.smc)", "flight_software", "gains")
+    elif "smc" in fsw:
+        fail(f"'smc' is used by controller smc only; the controller is {controller}", "flight_software", "smc")
+    elif fsw["actuation"] == "wheels" and "gains" not in fsw:
+        fail(
+            f"controller {controller} with actuation wheels needs given gains for the level "
+            f"'{schema.WHEELS_LEVEL}' (flight_software.gains)",
+            "flight_software",
+            "controller",
+        )
+    levels = level_names(vehicle)
+    named = [("rcs", "valve_time_constants_ms")] if "rcs" in vehicle else []
+    if "gains" in fsw:
+        named += [("flight_software", "gains", "kp"), ("flight_software", "gains", "kd")]
+    for path in named:
+        node = vehicle
+        for key in path:
+            node = node[key]
+        expected = list(vehicle["rcs"]["thrust_n"]) if path[0] == "rcs" else levels
+        if list(node) != expected:
+            what = (
+                f"the level of actuation wheels ({schema.WHEELS_LEVEL})"
+                if expected == [schema.WHEELS_LEVEL]
+                else f"the thrust levels of rcs.thrust_n in its order ({', '.join(expected)})"
+            )
+            fail(f"expected {what}, got {', '.join(node)}", *path)
+    message = inertia_problem(vehicle["inertia_kg_m2"])
+    if message:
+        fail(message, "inertia_kg_m2")
+
+
+def _check_rcs(vehicle, fail):
+    """Thruster numbering and names, the actuation's switching limits, the allocation table."""
     thrusters = vehicle["rcs"]["thrusters"]
     names = {}
     for i, thruster in enumerate(thrusters):
@@ -231,26 +288,45 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         for k, tid in enumerate(ids):
             if tid > len(thrusters):
                 fail(f"expected a thruster id 1..{len(thrusters)}, got {tid}", "flight_software", "allocation", key, k)
-    levels = list(vehicle["rcs"]["thrust_n"])
-    named = [("rcs", "valve_time_constants_ms")]
-    if "gains" in vehicle["flight_software"]:
-        named += [("flight_software", "gains", "kp"), ("flight_software", "gains", "kd")]
-    for path in named:
-        node = vehicle
-        for key in path:
-            node = node[key]
-        if list(node) != levels:
-            fail(
-                f"expected the thrust levels of rcs.thrust_n in its order ({', '.join(levels)}), got {', '.join(node)}",
-                *path,
-            )
     try:
         allocation_table(vehicle)
     except KeyError as missing:
         fail(f"expected an entry for the axis command '{missing.args[0]}'", "flight_software", "allocation")
-    message = inertia_problem(vehicle["inertia_kg_m2"])
+
+
+def _check_wheels(vehicle, fail):
+    """Wheel numbering and names, non-zero axes that span the body axes, initial momenta within the limit."""
+    wheels = vehicle["wheels"]
+    units = wheels["units"]
+    names = {}
+    for i, unit in enumerate(units):
+        if "name" in unit:
+            if unit["name"] in names:
+                fail(
+                    f"wheel name '{unit['name']}' is used twice (also wheel {names[unit['name']]})",
+                    "wheels",
+                    "units",
+                    i,
+                    "name",
+                )
+            names[unit["name"]] = i + 1
+        if unit["id"] != i + 1:
+            fail(f"expected wheel ids 1..{len(units)} in order, got {unit['id']}", "wheels", "units", i, "id")
+        if np.linalg.norm(unit["axis"]) == 0.0:
+            fail("expected a non-zero spin axis", "wheels", "units", i, "axis")
+        momentum = unit.get("initial_momentum_n_m_s", 0.0)
+        if abs(momentum) > wheels["momentum_max_n_m_s"]:
+            fail(
+                f"expected |initial momentum| <= momentum_max_n_m_s ({wheels['momentum_max_n_m_s']:g} N m s), "
+                f"got {momentum:g}",
+                "wheels",
+                "units",
+                i,
+                "initial_momentum_n_m_s",
+            )
+    message = wheel_problem(vehicle)
     if message:
-        fail(message, "inertia_kg_m2")
+        fail(message, "wheels", "units")
 
 
 def check_modes(modes, fail):
@@ -299,9 +375,27 @@ def check_modes(modes, fail):
 
 
 def check_mission(mission, file, lines, prefix=()):
-    """Checks the schema cannot express: the mode program, ascending atmosphere, non-zero sun direction."""
+    """Checks the schema cannot express: the mode program, ascending atmosphere, non-zero sun and
+    gravity-gradient directions, one initial attitude, a pointing window inside the flight."""
 
-    check_modes(mission["modes"], _failing_at(file, lines, prefix))
+    fail = _failing_at(file, lines, prefix)
+    check_modes(mission["modes"], fail)
+    separation = mission["separation"]
+    if ("attitude_error_deg" in separation) == ("attitude_euler_deg" in separation):
+        fail("expected either 'attitude_error_deg' or 'attitude_euler_deg' (with 'euler_sequence')", "separation")
+    if ("euler_sequence" in separation) != ("attitude_euler_deg" in separation):
+        if "euler_sequence" in separation:
+            fail("'euler_sequence' goes with 'attitude_euler_deg'", "separation", "euler_sequence")
+        fail("'attitude_euler_deg' needs 'euler_sequence' (e.g. ZYX)", "separation", "attitude_euler_deg")
+    gravity = mission.get("disturbances", {}).get("gravity_gradient")
+    if gravity is not None and np.linalg.norm(gravity["direction"]) == 0.0:
+        fail("expected a non-zero vector", "disturbances", "gravity_gradient", "direction")
+    start = mission.get("pointing_statistics_from_s")
+    if start is not None and start >= mission["max_flight_time_s"]:
+        fail(
+            f"expected a time before max_flight_time_s ({mission['max_flight_time_s']:g} s), got {start:g}",
+            "pointing_statistics_from_s",
+        )
     bases = [row["base_altitude_km"] for row in mission.get("atmosphere", [])]
     if any(b2 <= b1 for b1, b2 in zip(bases, bases[1:], strict=False)):
         raise ConfigError(
@@ -322,8 +416,15 @@ def check_mission(mission, file, lines, prefix=()):
 def check_flight(vehicle, mission, fail_mission, fail_vehicle):
     """What a vehicle and a mission need of each other: a trajectory model and its inputs, given
     gains for the pd controller. ``fail_*(message, *key_path)`` raise in the file concerned."""
-    levels = list(vehicle["rcs"]["thrust_n"])
+    levels = level_names(vehicle)
     for m, mode in enumerate(mission["modes"]):
+        if "thrust" in mode and vehicle["flight_software"]["actuation"] == "wheels":
+            fail_mission(
+                f"vehicle {vehicle['name']} flies reaction wheels (actuation wheels); a mode takes no 'thrust'",
+                "modes",
+                m,
+                "thrust",
+            )
         if mode.get("thrust", levels[0]) not in levels:
             fail_mission(
                 f"thrust level '{mode['thrust']}' is not one of the vehicle's: {', '.join(levels)}",
@@ -466,6 +567,8 @@ def _check_failures(failures, thrusters, path, lines):
         raise ConfigError(message, file=path, line=lines.get(key) or lines.get(("failures",)), path=key)
 
     mode = failures["mode"]
+    if mode != "none" and n_thrusters == 0:
+        fail(f"failures mode {mode} fails thrusters; the vehicle has none", "mode")
     for key in ("thrusters", "count_probabilities", "sizes"):
         if key in failures and key not in FAILURE_KEYS[mode]:
             fail(f"'{key}' is not used with mode {mode}", key)
@@ -528,13 +631,13 @@ def load_campaign(path):
         "vehicle": vehicle,
         "mission": mission,
     }
-    n_thrusters = len(vehicle["rcs"]["thrusters"])
-    _check_failures(campaign["failures"], vehicle["rcs"]["thrusters"], path, lines)
+    n_thrusters = thruster_count(vehicle)
+    _check_failures(campaign["failures"], vehicle.get("rcs", {}).get("thrusters", []), path, lines)
     dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     mode_names = [mode["name"] for mode in mission["modes"]]
-    trajectory = vehicle.get("trajectory", "planar_drag")
-    columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, trajectory)
+    options = requirements.column_options(vehicle, mission)
+    columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     published.check_published(campaign.get("published", []), columns, path, lines)
     if campaign["failures"]["mode"] == "enumerate":

@@ -33,30 +33,71 @@ NO_ENGINE = {
     "misalignment_deg": [0.0, 0.0, 0.0],
 }
 NO_BURN_GUIDANCE = {"rate_hz": 1.0, "position_gain_s2": 0.0, "velocity_gain_s": 0.0}
+NO_RCS = {"derating": [1.0], "isp_s": 1.0, "propellant_kg": 0.0}  # a vehicle with reaction wheels only
+NO_SMC = {"slope_s": [0.0] * 3, "gain_rad_s2": [0.0] * 3, "boundary_layer_rad_s": [0.0] * 3}
+NO_PWPF = {"tau_min_fraction": 0.0, "t_on_ms": 0.0, "t_off_ms": 0.0, "correction_ms": 0.0}
+CONTROLLERS = {
+    "pd_feedback_linearisation": L.CONTROLLER_PD_FEEDBACK_LINEARISATION,
+    "pd": L.CONTROLLER_PD,
+    "smc": L.CONTROLLER_SMC,
+}
+ACTUATIONS = {"pwpf_table": L.ACTUATION_PWPF_TABLE, "lp_pwm": L.ACTUATION_LP_PWM, "wheels": L.ACTUATION_WHEELS}
 
 
-level_names = derived.level_names  # a level's row in the levels table is its place in thrust_n
+# a level's row in the levels table is its place in thrust_n; a vehicle with actuation wheels has
+# the one level "wheels"
+level_names = derived.level_names
 
 
-def pack_levels(vehicle):
-    """Thrust-level table (layout.LEVEL rows): the truth thrust and the flight software's design."""
+def pack_levels(vehicle, excluded_wheels=()):
+    """Level table (layout.LEVEL rows): the truth thrust and the flight software's design. The
+    ``wheels`` level of actuation wheels has no thrust, the torque and acceleration the wheels'
+    distribution commands per body axis (without the ``excluded_wheels``), and given gains or none."""
     names = level_names(vehicle)
     out = np.zeros((len(names), L.LEVEL_SIZE))
     for row, level in zip(out, names, strict=True):
         kp, kd = derived.gains_flown(vehicle, level)
-        _put(row, L.LEVEL, "thrust_n", vehicle["rcs"]["thrust_n"][level])
-        _put(row, L.LEVEL, "thrust_design_n", vehicle["rcs"]["thrust_n"][level])
+        thrust = 0.0 if derived.flies_wheels(vehicle) else vehicle["rcs"]["thrust_n"][level]
+        _put(row, L.LEVEL, "thrust_n", thrust)
+        _put(row, L.LEVEL, "thrust_design_n", thrust)
         _put(row, L.LEVEL, "kp", kp)
         _put(row, L.LEVEL, "kd", kd)
-        _put(row, L.LEVEL, "torque_max_n_m", derived.torque_max(vehicle, level))
-        _put(row, L.LEVEL, "accel_max_rad_s2", derived.omega_dot_max(vehicle, level))
+        _put(row, L.LEVEL, "torque_max_n_m", derived.level_torque_max(vehicle, level, excluded_wheels))
+        _put(row, L.LEVEL, "accel_max_rad_s2", derived.level_accel_max(vehicle, level, excluded_wheels))
     return out
+
+
+def pack_wheels(vehicle, failed=()):
+    """Wheel table (layout.WHEEL), one row per wheel (none without wheels); ``failed`` are 1-based ids."""
+    if "wheels" not in vehicle:
+        return np.zeros((0, L.WHEEL_SIZE))
+    wheels = vehicle["wheels"]
+    axes = derived.wheel_axes(vehicle).T
+    out = np.zeros((len(wheels["units"]), L.WHEEL_SIZE))
+    for i, (row, unit) in enumerate(zip(out, wheels["units"], strict=True)):
+        _put(row, L.WHEEL, "axis", axes[i])
+        _put(row, L.WHEEL, "spin_inertia_kg_m2", wheels["spin_inertia_kg_m2"])
+        _put(row, L.WHEEL, "torque_max_n_m", wheels["torque_max_n_m"])
+        _put(row, L.WHEEL, "momentum_max_n_m_s", wheels["momentum_max_n_m_s"])
+        _put(row, L.WHEEL, "coulomb_friction_n_m", wheels["friction"]["coulomb_n_m"])
+        _put(row, L.WHEEL, "viscous_friction_n_m_s", wheels["friction"]["viscous_n_m_s"])
+        _put(row, L.WHEEL, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
+        _put(row, L.WHEEL, "initial_momentum_n_m_s", unit.get("initial_momentum_n_m_s", 0.0))
+    return out
+
+
+def pack_wheel_distribution(vehicle, excluded=()):
+    """The flight software's distribution matrix (wheels x 3, 001 sec. 9.1) without the ``excluded``
+    wheels (1-based ids: failures it knows of, their rows zero); no rows without wheels."""
+    if "wheels" not in vehicle:
+        return np.zeros((0, 3))
+    return derived.wheel_distribution(vehicle, excluded)
 
 
 def pack_vehicle(vehicle):
     """Truth vehicle array (layout.VEHICLE)."""
     out = np.zeros(L.VEHICLE_SIZE)
-    rcs = vehicle["rcs"]
+    rcs = vehicle.get("rcs", NO_RCS)
     aero = vehicle.get("aerodynamics", NO_AERODYNAMICS)
     derating = list(rcs["derating"])
     derating += [derating[-1]] * (L.DERATING_MAX_VALVES - len(derating))
@@ -81,10 +122,13 @@ def pack_vehicle(vehicle):
 
 def pack_thrusters(vehicle, failed=()):
     """Thruster table (layout.THRUSTER, then the time constants per level), one row per thruster;
-    ``failed`` are 1-based ids."""
+    ``failed`` are 1-based ids; no rows without an rcs. The time constants are those of the rcs
+    levels (with actuation wheels the thrusters are carried, not fired)."""
+    if "rcs" not in vehicle:
+        return np.zeros((0, L.thruster_size(len(level_names(vehicle)))))
     rcs = vehicle["rcs"]
     n = len(rcs["thrusters"])
-    levels = level_names(vehicle)
+    levels = derived.rcs_level_names(vehicle)
     out = np.zeros((n, L.thruster_size(len(levels))))
     directions = derived.unit_directions(vehicle)
     for i, thruster in enumerate(rcs["thrusters"]):
@@ -103,7 +147,9 @@ def pack_thrusters(vehicle, failed=()):
 def pack_fsw(vehicle):
     """Flight-software design array (layout.FSW), derived from the nominal vehicle."""
     fsw_cfg = vehicle["flight_software"]
-    pwpf = fsw_cfg["pwpf"]
+    pwpf = fsw_cfg.get("pwpf", NO_PWPF)
+    limits = vehicle["rcs"]["switching_limits_ms"] if "rcs" in vehicle else {"min_on": 0.0, "min_off": 0.0}
+    smc = fsw_cfg.get("smc", NO_SMC)
     out = np.zeros(L.FSW_SIZE)
     _put(out, L.FSW, "control_period_s", 1.0 / fsw_cfg["control_rate_hz"])
     _put(out, L.FSW, "inertia_kg_m2", vehicle["inertia_kg_m2"])
@@ -112,18 +158,19 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "pwpf_on_s", pwpf["t_on_ms"] / 1e3)
     _put(out, L.FSW, "pwpf_off_s", pwpf["t_off_ms"] / 1e3)
     _put(out, L.FSW, "pwpf_correction_s", pwpf["correction_ms"] / 1e3)
-    _put(out, L.FSW, "min_on_s", vehicle["rcs"]["switching_limits_ms"]["min_on"] / 1e3)
-    _put(out, L.FSW, "min_off_s", vehicle["rcs"]["switching_limits_ms"]["min_off"] / 1e3)
-    controllers = {"pd_feedback_linearisation": L.CONTROLLER_PD_FEEDBACK_LINEARISATION, "pd": L.CONTROLLER_PD}
-    actuations = {"pwpf_table": L.ACTUATION_PWPF_TABLE, "lp_pwm": L.ACTUATION_LP_PWM}
-    _put(out, L.FSW, "controller_id", controllers[fsw_cfg["controller"]])
-    _put(out, L.FSW, "actuation_id", actuations[fsw_cfg["actuation"]])
+    _put(out, L.FSW, "min_on_s", limits["min_on"] / 1e3)
+    _put(out, L.FSW, "min_off_s", limits["min_off"] / 1e3)
+    _put(out, L.FSW, "controller_id", CONTROLLERS[fsw_cfg["controller"]])
+    _put(out, L.FSW, "actuation_id", ACTUATIONS[fsw_cfg["actuation"]])
     engine = vehicle.get("main_engine", NO_ENGINE)
     burn = fsw_cfg.get("burn_guidance", NO_BURN_GUIDANCE)
     _put(out, L.FSW, "engine_axis", derived.engine_direction(engine))
     _put(out, L.FSW, "guidance_period_s", 1.0 / burn["rate_hz"])
     _put(out, L.FSW, "guidance_position_gain_s2", burn["position_gain_s2"])
     _put(out, L.FSW, "guidance_velocity_gain_s", burn["velocity_gain_s"])
+    _put(out, L.FSW, "smc_slope_s", smc["slope_s"])
+    _put(out, L.FSW, "smc_gain_rad_s2", smc["gain_rad_s2"])
+    _put(out, L.FSW, "smc_boundary_layer_rad_s", smc["boundary_layer_rad_s"])
     return out
 
 
@@ -136,12 +183,15 @@ def pack_mission(mission, trajectory="planar_drag", plan=None):
     earth = mission.get("earth", {"radius_m": 0.0, "mu_m3_s2": 0.0})
     rad = np.radians
     handover = mission.get("handover_max_angle_deg")
+    disturbances = mission.get("disturbances", {})
+    gravity = disturbances.get("gravity_gradient", {"bodies": [], "direction": [0.0, 0.0, 1.0]})
+    gravity_direction = np.asarray(gravity["direction"], dtype=float)
     values = {
         "separation_altitude_m": sep.get("altitude_m", 0.0),
         "separation_speed_m_s": sep.get("speed_m_s", 0.0),
         "separation_flight_path_angle_rad": rad(sep.get("flight_path_angle_deg", 0.0)),
         "separation_rates_rad_s": rad(sep["rates_deg_s"]),
-        "separation_attitude_rotvec_rad": rad(sep["attitude_error_deg"]),
+        "separation_attitude_rotvec_rad": derived.separation_rotation_vector(sep),
         "sun_direction": sun / np.linalg.norm(sun),
         "earth_radius_m": earth["radius_m"],
         "earth_mu_m3_s2": earth["mu_m3_s2"],
@@ -151,8 +201,10 @@ def pack_mission(mission, trajectory="planar_drag", plan=None):
         "trajectory_step_s": mission["integrator"]["trajectory_step_s"],
         "trajectory_model_id": TRAJECTORY_MODELS[trajectory],
         "earth_rotation_rate_rad_s": earth.get("rotation_rate_rad_s", 0.0),
-        "gravity_gradient_direction": [0.0, 0.0, 1.0],
-        "pointing_statistics_from_s": math.inf,
+        "gravity_gradient_coefficient_s2": derived.gravity_gradient_coefficient(gravity["bodies"]),
+        "gravity_gradient_direction": gravity_direction / np.linalg.norm(gravity_direction),
+        "constant_torque_n_m": disturbances.get("constant_torque_n_m", [0.0, 0.0, 0.0]),
+        "pointing_statistics_from_s": mission.get("pointing_statistics_from_s", math.inf),
     }
     if plan is not None:
         values["orbit_state"] = plan.state0[:6]
@@ -268,9 +320,11 @@ def _cached_plan(key):
     return deorbit.plan(vehicle, mission, 1.0 / fsw["control_rate_hz"], 1.0 / fsw["burn_guidance"]["rate_hz"])
 
 
-def pack(vehicle, mission, failed_thrusters=(), plan=None):
+def pack(vehicle, mission, failed_thrusters=(), plan=None, failed_wheels=(), detected_wheels=()):
     """All run inputs for the nominal (undispersed) vehicle and mission; ``plan``: the deorbit
-    plan when already computed (:func:`deorbit_plan`)."""
+    plan when already computed (:func:`deorbit_plan`). ``failed_thrusters``, ``failed_wheels``:
+    1-based ids of what does not work; ``detected_wheels``: 1-based ids of wheels the flight
+    software knows to have failed and leaves out of its distribution (and of the levels' limits)."""
     plan = plan or deorbit_plan(vehicle, mission)
     burn_attitude = None if plan is None else derived.burn_start_attitude(vehicle, plan)
     mode_table, exit_table = pack_modes(mission, level_names(vehicle), burn_attitude)
@@ -278,7 +332,7 @@ def pack(vehicle, mission, failed_thrusters=(), plan=None):
     return RunInputs(
         vehicle=pack_vehicle(vehicle),
         thrusters=pack_thrusters(vehicle, failed_thrusters),
-        levels=pack_levels(vehicle),
+        levels=pack_levels(vehicle, detected_wheels),
         fsw=pack_fsw(vehicle),
         mission=pack_mission(mission, vehicle.get("trajectory", "planar_drag"), plan),
         modes=mode_table,
@@ -287,6 +341,6 @@ def pack(vehicle, mission, failed_thrusters=(), plan=None):
         atmosphere=pack_atmosphere(mission),
         allocation=derived.allocation_table(vehicle),
         nominal=nominal,
-        wheels=np.zeros((0, L.WHEEL_SIZE)),
-        wheel_distribution=np.zeros((0, 3)),
+        wheels=pack_wheels(vehicle, failed_wheels),
+        wheel_distribution=pack_wheel_distribution(vehicle, detected_wheels),
     )

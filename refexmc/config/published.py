@@ -24,7 +24,9 @@ from refexmc.config.requirements import (
     DERIVED_COLUMNS,
     NOT_METRIC_COLUMNS,
     ORBIT_COLUMNS,
+    POINTING_COLUMNS,
     SUGGESTED_STATS,
+    WHEEL_COLUMNS,
     parse_percentile_stat,
     valid_stat,
 )
@@ -84,6 +86,10 @@ def check_published(entries, columns, file=None, lines=None, prefix=("published"
             guess = difflib.get_close_matches(column, columns, n=1, cutoff=0.6)
             if column in ORBIT_COLUMNS:
                 hint = "it is a column of vehicles with the orbit trajectory only"
+            elif column in POINTING_COLUMNS:
+                hint = "it is a column of missions with a pointing window (pointing_statistics_from_s) only"
+            elif column in WHEEL_COLUMNS:
+                hint = "it is a column of vehicles with reaction wheels only"
             elif guess:
                 hint = f"did you mean '{guess[0]}'?"
             else:

@@ -6,7 +6,8 @@ METRIC is either a campaign-level metric (``CAMPAIGN_METRICS``) or ``<column>.<s
 
 - ``<column>``: a numeric column of the ``runs`` table (``fuel_remaining``, ``fuel_used_kg``,
   ``t_end_s``, ``t_<mode>_s``, ``theta_t_handover_deg``, ``modes_completed``, ``pulses_<k>``,
-  ``p.<path>``; with the orbit trajectory ``ORBIT_COLUMNS``), or the derived ``pulses_total``
+  ``p.<path>``; with the orbit trajectory ``ORBIT_COLUMNS``, with a mission's pointing window
+  ``POINTING_COLUMNS``, with reaction wheels ``WHEEL_COLUMNS``), or the derived ``pulses_total``
   (sum of the thrusters' pulse counts);
 - ``<stat>``, judged by the report over every stored run: a failed flight or an errored run
   counts as failing the requirement (docs/report.md says how for each statistic):
@@ -174,17 +175,62 @@ ORBIT_COLUMNS = (
 )
 
 
-def run_value_columns(mode_names, trajectory="planar_drag"):
+# runs of a mission with a pointing window (``pointing_statistics_from_s``, 001 sec. 11): the true
+# attitude against the reference, per body axis at the end, per axis RMS and the largest total
+# angle over the window (arcsec)
+POINTING_COLUMNS = (
+    "pointing_end_x_arcsec",
+    "pointing_end_y_arcsec",
+    "pointing_end_z_arcsec",
+    "pointing_rms_x_arcsec",
+    "pointing_rms_y_arcsec",
+    "pointing_rms_z_arcsec",
+    "pointing_max_arcsec",
+)
+# runs of a vehicle with reaction wheels (001): the largest |I_w Omega| of any wheel over the flight
+# and at its end, the largest motor torque asked for (before limits), the time some wheel was held
+# at a limit, and the relative angular momentum residual (a check of the integration)
+WHEEL_COLUMNS = (
+    "wheel_momentum_peak_n_m_s",
+    "wheel_momentum_end_n_m_s",
+    "wheel_torque_demand_peak_n_m",
+    "wheel_saturated_s",
+    "angular_momentum_residual",
+)
+
+
+def column_options(vehicle, mission):
+    """What decides a campaign's optional runs columns: ``trajectory`` (``orbit``: ORBIT_COLUMNS),
+    ``pointing`` (the mission has a pointing window: POINTING_COLUMNS), ``wheels`` (the vehicle
+    has reaction wheels: WHEEL_COLUMNS); keyword arguments of :func:`run_value_columns`."""
+    return {
+        "trajectory": vehicle.get("trajectory", "planar_drag"),
+        "pointing": "pointing_statistics_from_s" in mission,
+        "wheels": "wheels" in vehicle,
+    }
+
+
+def run_value_columns(mode_names, trajectory="planar_drag", pointing=False, wheels=False):
     """The float columns of a runs row, in table order (NaN in an errored run's row);
-    ``trajectory``: the vehicle's trajectory model (``orbit`` adds ``ORBIT_COLUMNS``)."""
+    ``trajectory``: the vehicle's trajectory model (``orbit`` adds ``ORBIT_COLUMNS``); ``pointing``,
+    ``wheels``: add ``POINTING_COLUMNS``, ``WHEEL_COLUMNS`` (:func:`column_options`)."""
     columns = ["fuel_remaining", "fuel_used_kg", "t_end_s", *mode_time_columns(mode_names), "theta_t_handover_deg"]
-    return columns + list(ORBIT_COLUMNS) if trajectory == "orbit" else columns
+    if trajectory == "orbit":
+        columns += ORBIT_COLUMNS
+    if pointing:
+        columns += POINTING_COLUMNS
+    if wheels:
+        columns += WHEEL_COLUMNS
+    return columns
 
 
-def runs_metric_columns(mode_names, n_thrusters, parameter_columns=(), trajectory="planar_drag"):
+def runs_metric_columns(
+    mode_names, n_thrusters, parameter_columns=(), trajectory="planar_drag", pointing=False, wheels=False
+):
     """The numeric columns of a campaign's runs table (``refexmc.campaign.storage.runs_row``)."""
     pulses = [f"pulses_{k + 1}" for k in range(n_thrusters)]
-    return [*run_value_columns(mode_names, trajectory), "modes_completed", *pulses, *parameter_columns]
+    values = run_value_columns(mode_names, trajectory, pointing, wheels)
+    return [*values, "modes_completed", *pulses, *parameter_columns]
 
 
 def check_requirements(requirements, columns, file=None, lines=None):

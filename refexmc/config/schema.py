@@ -91,8 +91,64 @@ THRUSTER = obj(
 
 AXIS_COMMAND_PATTERN = "^([+-]x)?([+-]y)?([+-]z)?$"
 
+WHEEL = obj(
+    "one reaction wheel",
+    {
+        "id": integer("wheel number, 1..N in order", minimum=1),
+        "name": {
+            "type": "string",
+            "pattern": "^[A-Za-z][A-Za-z0-9_-]*$",
+            "description": "optional name, unique",
+        },
+        "axis": vector("spin axis in body axes, a column of 001's W (normalised on load) [-]"),
+        "initial_momentum_n_m_s": number(
+            "I_w Omega at t = 0, Omega relative to the body, along the axis; default 0 [N m s]"
+        ),
+    },
+    optional=("name", "initial_momentum_n_m_s"),
+)
+MAX_WHEELS = 16
+# the distribution law of the flight software (001 sec. 9): name -> what it is
+WHEEL_DISTRIBUTIONS = {
+    "pseudo_inverse": "D = W^+ = W^T (W W^T)^-1 over the wheels it uses (001 sec. 9.1): least squares wheel torques",
+}
+
+WHEELS = obj(
+    "reaction wheel assembly (001 sec. 4, 8, 9): identical wheels, one axis each",
+    {
+        "distribution": string(
+            "torque distribution of the flight software: "
+            + "; ".join(f"{k}: {v}" for k, v in WHEEL_DISTRIBUTIONS.items()),
+            enum=list(WHEEL_DISTRIBUTIONS),
+        ),
+        "spin_inertia_kg_m2": number("rotor inertia about its spin axis [kg m^2]", **POSITIVE),
+        "torque_max_n_m": number("motor torque limit per wheel [N m]", **POSITIVE),
+        "momentum_max_n_m_s": number("momentum limit |I_w Omega| per wheel (speed limiter) [N m s]", **POSITIVE),
+        "friction": obj(
+            "bearing friction on each rotor, 001 eq. 1: -tau_e sign(Omega) - tau_v Omega",
+            {
+                "coulomb_n_m": number("Coulomb friction tau_e [N m]", minimum=0.0),
+                "viscous_n_m_s": number("viscous friction tau_v [N m s/rad]", minimum=0.0),
+            },
+        ),
+        "units": {
+            "type": "array",
+            "description": "the wheels, ids 1..N in order; their axes must span the three body axes",
+            "items": WHEEL,
+            "minItems": 3,
+            "maxItems": MAX_WHEELS,
+        },
+    },
+)
+
+# flight_software keys of the thruster design: required with an rcs, refused without one
+RCS_DESIGN_KEYS = ("damping_ratio", "deadband_angle_deg", "thrusters_per_axis", "pwpf")
+# actuation -> the vehicle block it drives
+ACTUATION_HARDWARE = {"pwpf_table": "rcs", "lp_pwm": "rcs", "wheels": "wheels"}
+WHEELS_LEVEL = "wheels"  # the one level of a vehicle that flies reaction wheels (levels table row 0)
+
 VEHICLE = obj(
-    "vehicle, RCS and flight-software design",
+    "vehicle: mass properties, actuators (rcs, wheels or both) and flight-software design",
     {
         "name": string("vehicle name"),
         "trajectory": string(
@@ -102,8 +158,8 @@ VEHICLE = obj(
             enum=["planar_drag", "orbit", "none"],
         ),
         "mass_kg": number("vehicle mass [kg]", **POSITIVE),
-        "length_m": number("vehicle length [m]", **POSITIVE),
-        "span_m": number("wing span [m]", **POSITIVE),
+        "length_m": number("vehicle length (documentation) [m]", **POSITIVE),
+        "span_m": number("wing span (documentation) [m]", **POSITIVE),
         "inertia_kg_m2": {
             "type": "array",
             "description": "inertia tensor about the CoM, body axes [kg m^2]",
@@ -167,16 +223,30 @@ VEHICLE = obj(
                 },
             },
         ),
+        "wheels": WHEELS,
         "flight_software": obj(
             "flight-software design parameters",
             {
                 "control_rate_hz": number("controller and modulator rate [Hz]", **POSITIVE),
                 "controller": string(
-                    "control law: pd_feedback_linearisation (000 eq. 30, 35) or pd (004 eq. 1)",
-                    enum=["pd_feedback_linearisation", "pd"],
+                    "control law: pd_feedback_linearisation (000 eq. 30, 35), pd (004 eq. 1) or smc (sliding "
+                    "mode with a boundary layer, 001 eq. 12; flight_software.smc)",
+                    enum=["pd_feedback_linearisation", "pd", "smc"],
+                ),
+                "smc": obj(
+                    "sliding-mode controller (001 eq. 12): sigma = omega_e + Lambda q_e,vec, "
+                    "u = J (-Lambda q_e,vec_dot + omega_d_dot) + omega x J omega - J G sat(sigma, epsilon)",
+                    {
+                        "slope_s": vector("Lambda, slope of the sliding surface per body axis [1/s]", **POSITIVE),
+                        "gain_rad_s2": vector("G, switching gain per body axis [rad/s^2]", **POSITIVE),
+                        "boundary_layer_rad_s": vector(
+                            "epsilon, boundary-layer width of sat(sigma, epsilon) per body axis [rad/s]", **POSITIVE
+                        ),
+                    },
                 ),
                 "gains": obj(
-                    "given gains per thrust level, body x, y, z (default: derived, 000 eq. 38 and 34). "
+                    "given gains per thrust level (with actuation wheels: the level 'wheels'), body x, y, z "
+                    "(default: derived from the rcs, 000 eq. 38 and 34). "
                     "pd: kp [N m], kd [N m s/rad]; pd_feedback_linearisation: kp [1/s^2], kd [1/s]",
                     {
                         "kp": per_level("proportional gain per thrust level", vector("body x, y, z [-]", minimum=0.0)),
@@ -184,19 +254,22 @@ VEHICLE = obj(
                     },
                 ),
                 "actuation": string(
-                    "torque-to-thruster chain: pwpf_table (PWPF per axis and the allocation table, 000 eq. 41-48, "
+                    "torque-to-actuator chain: pwpf_table (PWPF per axis and the allocation table, 000 eq. 41-48, "
                     "Table 3) or lp_pwm (fuel-optimal LP allocation, 004 eq. 2-5, realised by pulse-width "
-                    "modulation in the control period)",
-                    enum=["pwpf_table", "lp_pwm"],
+                    "modulation in the control period), both with the rcs; wheels (motor torques -D (u + omega x "
+                    "H_wheels) with the wheels' distribution D, 001 sec. 9.1, held over the control period)",
+                    enum=["pwpf_table", "lp_pwm", "wheels"],
                 ),
-                "damping_ratio": number("zeta of 000 eq. 34 [-]", **POSITIVE),
-                "deadband_angle_deg": number("phi_e,db of 000 eq. 38 [deg]", exclusive_minimum=0.0, maximum=10.0),
-                "thrusters_per_axis": vector("n_t of 000 eq. 1 [-]", minimum=1),
+                "damping_ratio": number("zeta of 000 eq. 34 (derived rcs gains) [-]", **POSITIVE),
+                "deadband_angle_deg": number(
+                    "phi_e,db of 000 eq. 38 (derived rcs gains) [deg]", exclusive_minimum=0.0, maximum=10.0
+                ),
+                "thrusters_per_axis": vector("n_t of 000 eq. 1 (rcs) [-]", minimum=1),
                 "guidance_accel_margin": number(
                     "fraction of omega_dot_max the guidance uses (000 eq. 13) [-]", exclusive_minimum=0.0, maximum=1.0
                 ),
                 "pwpf": obj(
-                    "pulse modulator (000 eq. 41-48)",
+                    "pulse modulator (000 eq. 41-48; rcs)",
                     {
                         "tau_min_fraction": number("tau_min / tau_max [-]", minimum=0.0, maximum=1.0),
                         "t_on_ms": number("algorithm minimum pulse [ms]", **POSITIVE),
@@ -223,10 +296,10 @@ VEHICLE = obj(
                     },
                 },
             },
-            optional=("gains", "allocation", "burn_guidance"),
+            optional=("gains", "allocation", "burn_guidance", "smc", *RCS_DESIGN_KEYS),
         ),
     },
-    optional=("trajectory", "aerodynamics", "main_engine"),
+    optional=("trajectory", "length_m", "span_m", "aerodynamics", "main_engine", "rcs", "wheels"),
 )
 
 # --- the mode program (refexmc.core.modes): kinds, targets and exit predicates by name -------
@@ -370,7 +443,8 @@ MODE = obj(
         "thrust": {
             "type": "string",
             "pattern": LEVEL_NAME_PATTERN,
-            "description": "thrust level flown in the mode, a level of the vehicle's thrust_n (default: its first)",
+            "description": "thrust level flown in the mode, a level of the vehicle's thrust_n (default: its "
+            "first); not with actuation wheels",
         },
         "t1_design_s": number("shortest slew duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
         "rate_deg_s": vector("spin-up: final body rate [deg/s]"),
@@ -443,10 +517,26 @@ MISSION = obj(
                 "rates_deg_s": vector("body rates [deg/s]", minimum=-90.0, maximum=90.0),
                 "attitude_error_deg": vector(
                     "rotation vector from body x along velocity, wings level (no trajectory: from the "
-                    "inertial axes) [deg]"
+                    "inertial axes) [deg]; or attitude_euler_deg"
                 ),
+                "attitude_euler_deg": vector(
+                    "the same attitude as Euler angles in euler_sequence, instead of attitude_error_deg [deg]"
+                ),
+                "euler_sequence": {
+                    "type": "string",
+                    "pattern": "^([XYZ]{3}|[xyz]{3})$",
+                    "description": "sequence of attitude_euler_deg, scipy Rotation convention: XYZ intrinsic, "
+                    "xyz extrinsic",
+                },
             },
-            optional=("altitude_m", "speed_m_s", "flight_path_angle_deg"),
+            optional=(
+                "altitude_m",
+                "speed_m_s",
+                "flight_path_angle_deg",
+                "attitude_error_deg",
+                "attitude_euler_deg",
+                "euler_sequence",
+            ),
         ),
         "sun_direction": vector("sun direction, inertial frame (normalised on load) [-]"),
         "atmosphere": {
@@ -494,6 +584,38 @@ MISSION = obj(
             },
             optional=("gps_position_bias_m", "gps_position_noise_m", "gps_velocity_bias_m_s", "gps_velocity_noise_m_s"),
         ),
+        "disturbances": obj(
+            "external disturbance torques (001 sec. 10.2, eq. 10-11)",
+            {
+                "gravity_gradient": obj(
+                    "gravity gradient of distant bodies on one line (001 eq. 11): coefficient sum mu/r^3 "
+                    "times n x J n, n the line's direction in body axes",
+                    {
+                        "bodies": {
+                            "type": "array",
+                            "description": "the attracting bodies; the coefficient is sum mu/r^3",
+                            "minItems": 1,
+                            "items": obj(
+                                "one body",
+                                {
+                                    "name": string("body name (documentation)"),
+                                    "mu_m3_s2": number("gravitational parameter [m^3/s^2]", **POSITIVE),
+                                    "distance_m": number("distance from the spacecraft [m]", **POSITIVE),
+                                },
+                            ),
+                        },
+                        "direction": vector(
+                            "direction of the bodies from the spacecraft, inertial frame (normalised on load) [-]"
+                        ),
+                    },
+                ),
+                "constant_torque_n_m": vector("constant torque u_const in body axes (001 eq. 10) [N m]"),
+            },
+            optional=("gravity_gradient", "constant_torque_n_m"),
+        ),
+        "pointing_statistics_from_s": number(
+            "pointing RMS and largest error over t >= this (runs columns pointing_*_arcsec) [s]", minimum=0.0
+        ),
         "integrator": obj(
             "numerical integration",
             {
@@ -506,7 +628,15 @@ MISSION = obj(
             },
         ),
     },
-    optional=("handover_max_angle_deg", "earth", "sun_direction", "atmosphere", "orbit"),
+    optional=(
+        "handover_max_angle_deg",
+        "earth",
+        "sun_direction",
+        "atmosphere",
+        "orbit",
+        "disturbances",
+        "pointing_statistics_from_s",
+    ),
 )
 
 _reference = {

@@ -1,7 +1,7 @@
 """Which end of each runs column is the bad one: the one place the report declares it.
 
-``upper``: larger is worse (durations, angle errors, valve pulses, propellant used); the
-statistics tables show upper percentiles and upper bounds. ``lower``: smaller is worse
+``upper``: larger is worse (durations, angle errors, valve pulses, propellant used, wheel momentum
+and torque); the statistics tables show upper percentiles and upper bounds. ``lower``: smaller is worse
 (propellant remaining, modes completed); they show lower percentiles and lower bounds.
 The first rule whose pattern (``fnmatch``) matches a column decides; docs/report.md lists them.
 """
@@ -15,6 +15,11 @@ TAIL_RULES = (  # (column pattern, worse tail, what the column is)
     ("theta_t_handover_deg", "upper", "total angle error at hand-over"),
     ("burn_pointing_*_deg", "upper", "engine pointing error during a burn (RMS, largest)"),
     ("engine_propellant_used_kg", "upper", "main-engine propellant used"),
+    ("pointing_*_arcsec", "upper", "pointing error in the pointing window (end per axis, RMS per axis, largest)"),
+    ("wheel_momentum_*_n_m_s", "upper", "largest wheel momentum (over the flight, at its end)"),
+    ("wheel_torque_demand_peak_n_m", "upper", "largest wheel motor torque asked for"),
+    ("wheel_saturated_s", "upper", "time some wheel was held at its torque or momentum limit"),
+    ("angular_momentum_residual", "upper", "relative angular momentum residual (integration check)"),
     ("t_end_s", "upper", "flight duration"),
     ("t_*_s", "upper", "time spent in a mode"),
     ("pulses_*", "upper", "valve pulses (per thruster, and pulses_total)"),
