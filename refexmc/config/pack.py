@@ -81,6 +81,7 @@ def pack_wheels(vehicle, failed=()):
         _put(row, L.WHEEL, "momentum_max_n_m_s", wheels["momentum_max_n_m_s"])
         _put(row, L.WHEEL, "coulomb_friction_n_m", wheels["friction"]["coulomb_n_m"])
         _put(row, L.WHEEL, "viscous_friction_n_m_s", wheels["friction"]["viscous_n_m_s"])
+        _put(row, L.WHEEL, "coulomb_width_rad_s", wheels["friction"]["coulomb_width_rpm"] * math.pi / 30.0)
         _put(row, L.WHEEL, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
         _put(row, L.WHEEL, "initial_momentum_n_m_s", unit.get("initial_momentum_n_m_s", 0.0))
     return out

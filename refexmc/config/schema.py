@@ -129,6 +129,11 @@ WHEELS = obj(
             {
                 "coulomb_n_m": number("Coulomb friction tau_e [N m]", minimum=0.0),
                 "viscous_n_m_s": number("viscous friction tau_v [N m s/rad]", minimum=0.0),
+                "coulomb_width_rpm": number(
+                    "speed within which the Coulomb term is linear, -tau_e Omega / width (eq. 1's sign "
+                    "regularised: 001 sec. 4.1 notes eq. 1 fails near zero speed) [rpm]",
+                    **POSITIVE,
+                ),
             },
         ),
         "units": {
