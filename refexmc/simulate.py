@@ -88,10 +88,13 @@ class FlightResult:
 
     def non_finite_reason(self):
         """Why the result is not usable (a non-finite state), or None."""
-        for name in ("fuel_remaining", "fuel_used_kg", "t_end_s"):
+        # without propellant (reaction wheels only) the fraction remaining is 0/0: NaN by definition
+        fraction = ("fuel_remaining",) if not self.wheels or self.value("fuel_used_kg") > 0.0 else ()
+        for name in (*fraction, "fuel_used_kg", "t_end_s"):
             if not np.isfinite(self.value(name)):
                 return f"non-finite {name} in the summary"
-        finite = np.column_stack([self.column(n) for n in ("t_s", "omega_m_deg_s", "fuel_remaining", "altitude_m")])
+        signals = ("t_s", "omega_m_deg_s", *fraction, "altitude_m")
+        finite = np.column_stack([self.column(n) for n in signals])
         if not np.isfinite(finite).all():
             row = int(np.argmax(~np.isfinite(finite).all(axis=1)))
             return f"non-finite state at t = {self.column('t_s')[row]:.3f} s"
