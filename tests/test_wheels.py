@@ -36,6 +36,8 @@ def wheel_table(axes, torque_max=math.inf, momentum_max=math.inf, failed=(), mom
         table[i, L.W_COULOMB] = COULOMB
         table[i, L.W_VISCOUS] = VISCOUS
         table[i, L.W_COULOMB_WIDTH] = COULOMB_WIDTH
+        table[i, L.W_COULOMB_DESIGN] = COULOMB
+        table[i, L.W_VISCOUS_DESIGN] = VISCOUS
         table[i, L.W_FAILED] = 1.0 if i in failed else 0.0
         table[i, L.W_MOMENTUM0] = 0.0 if momentum0 is None else momentum0[i]
     return table
@@ -191,10 +193,10 @@ def test_gravity_gradient_closed_form_and_sign():
     np.testing.assert_allclose(out, 3.0 * k * np.cross(c, INERTIA @ c), rtol=1e-12)
 
 
-def _command(table, distribution, h, rate_meas, omega, torque_cmd):
+def _command(table, distribution, h, rate_meas, omega, torque_cmd, compensate=False):
     plant = wheels.plant(table)
     plant.h[: table.shape[0]] = h
-    peak, limited = wheels.command(distribution, plant, rate_meas, omega, torque_cmd)
+    peak, limited = wheels.command(distribution, plant, rate_meas, omega, torque_cmd, compensate)
     return plant.motor.copy(), plant.demand.copy(), peak, limited
 
 
@@ -275,3 +277,28 @@ def test_sliding_mode_equals_the_naive_twin_and_saturates():
     control.torque_command(L.CONTROLLER_SMC, no_error, signs, zero, zero, zero, zero, smc, INERTIA, True, out)
     expected = -np.diag(INERTIA) * smc[1] * signs - INERTIA @ (smc[0] * 0.5 * signs)  # -J G sign - J Lambda dq_e
     np.testing.assert_allclose(out, expected, rtol=1e-12)
+
+
+def test_friction_compensation_cancels_the_design_friction():
+    """With compensation the motor adds -friction(design coefficients, measured speed): with the
+    truth equal to the design the net wheel torque is the uncompensated command (dh/dt of the
+    naive twin), on both sides of zero speed and inside the linear zone."""
+    rng = np.random.default_rng(9)
+    axes = pyramid_axes()
+    table = wheel_table(axes)
+    distribution = np.linalg.pinv(axes)
+    for relative in ([30.0, -20.0, 0.005, -0.001], [0.0, 0.0, 0.0, 0.0], rng.normal(0, 10, 4)):
+        omega, u = rng.normal(0, 1e-3, 3), rng.normal(0, 0.05, 3)
+        h = np.asarray(relative) + SPIN_INERTIA * (axes.T @ omega)
+        plain, _, _, _ = _command(table, distribution, h, omega, omega, u)
+        compensated, _, _, _ = _command(table, distribution, h, omega, omega, u, compensate=True)
+        x = np.concatenate([[0.0, 0.0, 0.0, 1.0], omega])
+        _, dh = naive.wheel_state_rate(
+            x, np.concatenate([h, np.zeros(3)]), compensated, np.zeros(3), naive_wheels(table), INERTIA
+        )
+        np.testing.assert_allclose(dh[:4], plain, rtol=1e-12, atol=1e-15)
+        # dispersed truth: the compensation uses the design columns, not the truth
+        truth = table.copy()
+        truth[:, L.W_COULOMB] *= 1.5
+        again, _, _, _ = _command(truth, distribution, h, omega, omega, u, compensate=True)
+        np.testing.assert_array_equal(again, compensated)

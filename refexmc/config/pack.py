@@ -82,6 +82,8 @@ def pack_wheels(vehicle, failed=()):
         _put(row, L.WHEEL, "coulomb_friction_n_m", wheels["friction"]["coulomb_n_m"])
         _put(row, L.WHEEL, "viscous_friction_n_m_s", wheels["friction"]["viscous_n_m_s"])
         _put(row, L.WHEEL, "coulomb_width_rad_s", wheels["friction"]["coulomb_width_rpm"] * math.pi / 30.0)
+        _put(row, L.WHEEL, "coulomb_friction_design_n_m", wheels["friction"]["coulomb_n_m"])  # never dispersed
+        _put(row, L.WHEEL, "viscous_friction_design_n_m_s", wheels["friction"]["viscous_n_m_s"])
         _put(row, L.WHEEL, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
         _put(row, L.WHEEL, "initial_momentum_n_m_s", unit.get("initial_momentum_n_m_s", 0.0))
     return out
@@ -172,6 +174,7 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "smc_slope_s", smc["slope_s"])
     _put(out, L.FSW, "smc_gain_rad_s2", smc["gain_rad_s2"])
     _put(out, L.FSW, "smc_boundary_layer_rad_s", smc["boundary_layer_rad_s"])
+    _put(out, L.FSW, "wheel_friction_compensation", 1.0 if fsw_cfg.get("wheel_friction_compensation") else 0.0)
     return out
 
 

@@ -265,6 +265,12 @@ VEHICLE = obj(
                     "H_wheels) with the wheels' distribution D, 001 sec. 9.1, held over the control period)",
                     enum=["pwpf_table", "lp_pwm", "wheels"],
                 ),
+                "wheel_friction_compensation": {
+                    "type": "boolean",
+                    "description": "actuation wheels: each motor command also cancels the friction of 001 eq. 1 "
+                    "with the vehicle file's (design) coefficients at the wheel's measured speed "
+                    "(default false)",
+                },
                 "damping_ratio": number("zeta of 000 eq. 34 (derived rcs gains) [-]", **POSITIVE),
                 "deadband_angle_deg": number(
                     "phi_e,db of 000 eq. 38 (derived rcs gains) [deg]", exclusive_minimum=0.0, maximum=10.0
@@ -301,7 +307,7 @@ VEHICLE = obj(
                     },
                 },
             },
-            optional=("gains", "allocation", "burn_guidance", "smc", *RCS_DESIGN_KEYS),
+            optional=("gains", "allocation", "burn_guidance", "smc", "wheel_friction_compensation", *RCS_DESIGN_KEYS),
         ),
     },
     optional=("trajectory", "length_m", "span_m", "aerodynamics", "main_engine", "rcs", "wheels"),

@@ -54,6 +54,7 @@ from refexmc.core.layout import (
     F_SMC_GAIN,
     F_SMC_LAYER,
     F_SMC_SLOPE,
+    F_WHEEL_FRICTION_COMPENSATION,
     FAIL_HANDOVER_ANGLE,
     FAIL_MODE_TIMEOUT,
     FAIL_NON_FINITE,
@@ -634,10 +635,10 @@ def _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, puls
 
 
 @jit_noalloc
-def _drive_wheels(distribution, wh, rate_meas, omega, torque_cmd, status, dt):
+def _drive_wheels(distribution, wh, rate_meas, omega, torque_cmd, compensate, status, dt):
     """Motor torques for this control period (core.wheels.command; ``torque_cmd`` is zero when
     the mode is locked or the run is over) and the wheel statistics."""
-    peak, limited = wheels.command(distribution, wh, rate_meas, omega, torque_cmd)
+    peak, limited = wheels.command(distribution, wh, rate_meas, omega, torque_cmd, compensate)
     status[ST_WHEEL_TORQUE_PEAK] = max(status[ST_WHEEL_TORQUE_PEAK], peak)
     if limited:
         status[ST_WHEEL_SATURATED] += dt
@@ -956,7 +957,10 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
             pulse_counts,
         )
         if n_wheels > 0:
-            _drive_wheels(inputs.wheel_distribution, wh, sensed.rate_meas, body.x[4:7], act.torque_cmd, status, dt)
+            compensate = fsw[F_WHEEL_FRICTION_COMPENSATION] != 0.0
+            _drive_wheels(
+                inputs.wheel_distribution, wh, sensed.rate_meas, body.x[4:7], act.torque_cmd, compensate, status, dt
+            )
         if t >= pointing_from and has_reference:  # true attitude against the reference (001: PE)
             angle = _pointing(body.x[0:4], guide.q_ref, sensed.work4, pointing)
             for i in range(3):

@@ -85,6 +85,8 @@ W_MOMENTUM_MAX = WHEEL.add("momentum_max_n_m_s")  # |I_w Omega| limit (speed lim
 W_COULOMB = WHEEL.add("coulomb_friction_n_m")  # 001 eq. 1: tau_e
 W_VISCOUS = WHEEL.add("viscous_friction_n_m_s")  # 001 eq. 1: tau_v, N m per rad/s
 W_COULOMB_WIDTH = WHEEL.add("coulomb_width_rad_s")  # Coulomb friction linear within +-this speed (0: sign)
+W_COULOMB_DESIGN = WHEEL.add("coulomb_friction_design_n_m")  # what the flight software assumes (nominal)
+W_VISCOUS_DESIGN = WHEEL.add("viscous_friction_design_n_m_s")
 W_FAILED = WHEEL.add("failed")  # 1: the motor gives no torque (friction still acts)
 W_MOMENTUM0 = WHEEL.add("initial_momentum_n_m_s")  # I_w Omega at t = 0, relative to the body
 WHEEL_SIZE = WHEEL.size
@@ -111,6 +113,7 @@ F_GUIDANCE_VELOCITY_GAIN = FSW.add("guidance_velocity_gain_s")  # k_v (1/s)
 F_SMC_SLOPE = FSW.add("smc_slope_s", 3)  # 001 eq. 12: Lambda, sliding-surface slope (1/s)
 F_SMC_GAIN = FSW.add("smc_gain_rad_s2", 3)  # G (rad/s^2)
 F_SMC_LAYER = FSW.add("smc_boundary_layer_rad_s", 3)  # epsilon of sat(sigma, epsilon) (rad/s)
+F_WHEEL_FRICTION_COMPENSATION = FSW.add("wheel_friction_compensation")  # 1: motor commands add the design friction
 FSW_SIZE = FSW.size
 
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35

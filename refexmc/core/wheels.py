@@ -27,6 +27,7 @@ from refexmc.core import dynamics, quaternion
 from refexmc.core.layout import (
     W_AXIS,
     W_COULOMB,
+    W_COULOMB_DESIGN,
     W_COULOMB_WIDTH,
     W_FAILED,
     W_MOMENTUM0,
@@ -34,6 +35,7 @@ from refexmc.core.layout import (
     W_SPIN_INERTIA,
     W_TORQUE_MAX,
     W_VISCOUS,
+    W_VISCOUS_DESIGN,
 )
 
 IMPULSE = 3  # the state array of the wheels is [h_1 .. h_n, p_x, p_y, p_z]: p = int R(q) tau_ext dt
@@ -128,17 +130,22 @@ def _along(table, i, v):
 
 @jit_noalloc
 def friction(wheels, i, relative):
-    """001 eq. 1: -tau_e sign(Omega) - tau_v Omega, from the relative momentum I_w Omega, the sign
-    made linear within +-``coulomb_width_rad_s`` (001 sec. 4.1: eq. 1 does not hold near zero
-    speed; a continuous law keeps RK4 at its order through a zero crossing)."""
+    """The true friction torque on wheel ``i`` (see :func:`friction_law`)."""
     speed = relative / wheels[i, W_SPIN_INERTIA]
-    width = wheels[i, W_COULOMB_WIDTH]
-    viscous = -wheels[i, W_VISCOUS] * speed
+    return friction_law(speed, wheels[i, W_COULOMB], wheels[i, W_VISCOUS], wheels[i, W_COULOMB_WIDTH])
+
+
+@jit_noalloc
+def friction_law(speed, coulomb, viscous, width):
+    """001 eq. 1: -tau_e sign(Omega) - tau_v Omega at wheel speed ``speed`` (rad/s), the sign made
+    linear within +-``width`` (001 sec. 4.1: eq. 1 does not hold near zero speed; a continuous law
+    keeps RK4 at its order through a zero crossing)."""
+    drag = -viscous * speed
     if speed >= width:
-        return viscous - wheels[i, W_COULOMB]
+        return drag - coulomb
     if speed <= -width:
-        return viscous + wheels[i, W_COULOMB]
-    return viscous - wheels[i, W_COULOMB] * speed / width
+        return drag + coulomb
+    return drag - coulomb * speed / width
 
 
 @jit_noalloc
@@ -275,11 +282,13 @@ def rk4_step(x, step, torque_start, torque_end, plant):
 
 
 @jit_noalloc
-def command(distribution, plant, rate_meas, omega, torque_cmd):
+def command(distribution, plant, rate_meas, omega, torque_cmd, compensate):
     """Motor torques for the body torque ``torque_cmd`` (001 eq. 6, sec. 9.1):
     ``demand = -D (u + omega x sum_i a_i h_i)``, then the limits: the whole vector scaled so that
     no working wheel exceeds its torque limit (the body torque keeps its direction), and a wheel at
     its momentum limit (the drive's speed limiter, on the true rate ``omega``) not driven further.
+    With ``compensate`` the demand also cancels the friction the flight software assumes at the
+    wheel's speed (tachometer and measured body rate; the design coefficients of the table).
     A failed wheel gives no torque; the flight software does not know unless D leaves it out. The
     flight software reads the wheel momenta (tachometers) exactly and the body rate as measured.
     Returns (largest |demand|, True when a limit acted)."""
@@ -298,6 +307,10 @@ def command(distribution, plant, rate_meas, omega, torque_cmd):
     scale = 1.0
     for i in range(n):
         d = -(distribution[i, 0] * v0 + distribution[i, 1] * v1 + distribution[i, 2] * v2)
+        if compensate:
+            speed = relative_momentum(wheels, i, h, rate_meas) / wheels[i, W_SPIN_INERTIA]
+            width = wheels[i, W_COULOMB_WIDTH]
+            d -= friction_law(speed, wheels[i, W_COULOMB_DESIGN], wheels[i, W_VISCOUS_DESIGN], width)
         demand[i] = d
         peak = max(peak, abs(d))
         if wheels[i, W_FAILED] == 0.0 and abs(d) * scale > wheels[i, W_TORQUE_MAX]:
