@@ -204,7 +204,7 @@ def test_pack_irassi_missions(mission, target_deg):
     # the target: extrinsic xyz with 001's [phi, theta, psi] is the 3-2-1 sequence, intrinsic ZYX [psi, theta, phi]
     q = Rotation.from_quat(inputs.modes[0, L.MD_QUATERNION : L.MD_QUATERNION + 4])
     assert (q * Rotation.from_euler("ZYX", target_deg[::-1], degrees=True).inv()).magnitude() < EXACT
-    assert inputs.modes.shape == (1, L.MODE_SIZE) and inputs.modes[0, L.MD_LEVEL] == 0.0
+    assert inputs.modes.shape == (2, L.MODE_SIZE) and not inputs.modes[:, L.MD_LEVEL].any()  # manoeuvre, science
 
 
 def test_missions_without_the_new_keys_pack_as_before():
@@ -490,6 +490,7 @@ def test_runs_columns_of_a_wheel_campaign(tmp_path):
         "fuel_remaining",
         "fuel_used_kg",
         "t_end_s",
+        "t_manoeuvre_s",
         "t_science_s",
         "theta_t_handover_deg",
         *requirements.POINTING_COLUMNS,
