@@ -93,3 +93,29 @@ def test_uncompensated_friction_costs_an_order_of_magnitude(irassi):
     _, _, plain = _fly(irassi, "irassi-small-angle", friction_compensation=False)
     for axis in "xyz":
         assert plain[f"pointing_rms_{axis}_arcsec"] > 5.0 * compensated[f"pointing_rms_{axis}_arcsec"]
+
+
+@pytest.mark.parametrize("wheel", [1, 2, 3, 4])
+def test_a_failed_wheel_undetected_costs_what_the_closed_form_says_and_detected_nothing(irassi, wheel):
+    """One wheel gives no torque. Undetected, the wheels realise M u with M = W_failed D (D = W^+
+    over all four): the boundary layer then settles where M u = -u_d, at 2 epsilon / Lambda (J G)^-1
+    M^-1 u_d per axis (wheel 1: 4x on x and z). Detected, D = W^+ of the other three and
+    M = I: the nominal error."""
+    mission = load_mission(ROOT / "configs/missions/irassi-small-angle.yaml")
+    axes = derived.wheel_axes(irassi)
+    failed_axes = axes.copy()
+    failed_axes[:, wheel - 1] = 0.0
+    realised = failed_axes @ np.linalg.pinv(axes)
+    smc = irassi["flight_software"]["smc"]
+    u = np.asarray(mission["disturbances"]["constant_torque_n_m"])
+    scale = 2.0 * np.asarray(smc["boundary_layer_rad_s"]) / np.asarray(smc["slope_s"])
+    expected = np.abs(
+        scale * np.linalg.solve(realised, u) / (np.diag(irassi["inertia_kg_m2"]) * np.asarray(smc["gain_rad_s2"]))
+    )
+    for detected, target in ((False, expected), (True, _steady_error_rad(irassi, mission))):
+        inputs = pack(irassi, mission, failed_wheels=(wheel,), detected_wheels=(wheel,) if detected else ())
+        values = fly(inputs, 0, 1.0 / 600.0, mode_names(mission)).runs_values()
+        rms = np.array([values[f"pointing_rms_{a}_arcsec"] for a in "xyz"])
+        # an axis whose steady error vanishes is compared absolutely (1e-4 arcsec: its ripple)
+        np.testing.assert_allclose(rms, target / ARCSEC, rtol=2e-3, atol=1e-4)
+        assert values["angular_momentum_residual"] < 1e-9
