@@ -6,6 +6,8 @@ mode's start; ``core.modes``) -> actuate (controller, then PWPF + allocation tab
 per-thruster switching check, or LP allocation + pulse-width modulation; valve commands) ->
 record (a history row) -> integrate (the attitude over the period in segments that end on the
 thrust-profile breakpoints, each split into RK4 steps of at most ``integrator_max_step_s``).
+With reaction wheels, actuate hands the controller's torque to the wheels (``_drive_wheels``:
+core.wheels, held over the period) and integrate advances the wheels with the body.
 With the ``orbit`` trajectory, a burn mode first steers (``_steer``: core.deorbit at the guidance
 rate), and after the attitude the orbit is integrated over the same period (``_engine_period``,
 ``_translate``: core.orbit), the thrust direction following the body.
@@ -635,9 +637,13 @@ def _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, puls
 
 
 @jit_noalloc
-def _drive_wheels(distribution, wh, rate_meas, omega, torque_cmd, compensate, status, dt):
-    """Motor torques for this control period (core.wheels.command; ``torque_cmd`` is zero when
-    the mode is locked or the run is over) and the wheel statistics."""
+def _drive_wheels(distribution, wh, rate_meas, omega, torque_cmd, compensate, active, status, dt):
+    """Motor torques for this control period (core.wheels.command) and the wheel statistics; none
+    when ``active`` is False (a locked mode, the program done or the run failed)."""
+    if not active:
+        for i in range(wh.motor.shape[0]):
+            wh.motor[i] = 0.0
+        return
     peak, limited = wheels.command(distribution, wh, rate_meas, omega, torque_cmd, compensate)
     status[ST_WHEEL_TORQUE_PEAK] = max(status[ST_WHEEL_TORQUE_PEAK], peak)
     if limited:
@@ -959,8 +965,9 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
         if n_wheels > 0:
             compensate = fsw[F_WHEEL_FRICTION_COMPENSATION] != 0.0
             _drive_wheels(
-                inputs.wheel_distribution, wh, sensed.rate_meas, body.x[4:7], act.torque_cmd, compensate, status, dt
-            )
+                inputs.wheel_distribution, wh, sensed.rate_meas, body.x[4:7], act.torque_cmd, compensate, active,
+                status, dt,
+            )  # fmt: skip
         if t >= pointing_from and has_reference:  # true attitude against the reference (001: PE)
             angle = _pointing(body.x[0:4], guide.q_ref, sensed.work4, pointing)
             for i in range(3):
