@@ -24,6 +24,7 @@ _COMPONENTS = {
     "vector": "3, body axes: `.{}`".format("` `.".join(AXES)),
     "attitude": "3, rotation vector: `.{}`".format("` `.".join(AXES)),
     "thruster": "1 per thruster: `.1` ... `.N`",
+    "wheel": "1 per reaction wheel: `.1` ... `.N`",
     "derating": "1 per `rcs.derating` entry: `.1` ... `.K`",
     "inertia": "6 tensor entries: `.{}`".format("` `.".join(INERTIA_COMPONENTS)),
 }
@@ -49,6 +50,8 @@ def nominal_source(path):
         return "vehicle file, one value for every thruster"
     if path.split(".")[0] in ("separation", "navigation"):
         return "mission file"
+    if path == "wheels.initial_momentum_n_m_s":
+        return "vehicle file, `wheels.units[*]` (default 0)"
     return "vehicle file"
 
 

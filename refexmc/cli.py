@@ -237,6 +237,7 @@ def rerun(out, run_id, history_rate, dest):
     click.echo(
         f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, hand-over at t = {row['t_end_s']:.2f} s, "
         f"theta_t {row['theta_t_handover_deg']:.3f} deg, failed thrusters [{row['failed_thrusters']}]"
+        + (f", failed wheels [{row['failed_wheels']}]" if "failed_wheels" in row else "")
     )
     click.echo(f"  history: {result['path']}")
     if result["stored"] is None:

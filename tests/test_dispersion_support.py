@@ -41,6 +41,20 @@ def orbit_base():
     return load_campaign(ROOT / "campaigns/spore-deorbit-iss.yaml")
 
 
+WHEEL_PATHS = ("wheels.",)  # quantities of a vehicle with reaction wheels only
+
+
+@pytest.fixture(scope="module")
+def wheel_base():
+    return load_campaign(ROOT / "campaigns/irassi-fine-pointing.yaml")
+
+
+def _base_for(path, base, orbit_base, wheel_base):
+    if path.startswith(ORBIT_PATHS):
+        return orbit_base
+    return wheel_base if path.startswith(WHEEL_PATHS) else base
+
+
 def _accepted(base, path, spec):
     """The resolved spec, or None when the loader refuses it."""
     try:
@@ -96,8 +110,8 @@ def _sensible_specs(param):
 
 
 @pytest.mark.parametrize("path", INTERVAL_PATHS)
-def test_every_distribution_on_every_path_is_accepted_and_draws_physical_values(base, orbit_base, path):
-    base = orbit_base if path.startswith(ORBIT_PATHS) else base
+def test_every_distribution_on_every_path_is_accepted_and_draws_physical_values(base, orbit_base, wheel_base, path):
+    base = _base_for(path, base, orbit_base, wheel_base)
     param = dispersions.PARAMETERS[path]
     for dist, specs in _sensible_specs(param).items():
         for spec in specs:
@@ -260,7 +274,10 @@ def test_truncnorm_with_one_bound_is_checked_at_its_exact_extreme(base):
 CONFIG_PATHS = [
     p
     for p, param in dispersions.PARAMETERS.items()
-    if param.shape not in ("inertia", "attitude") and p not in ("rcs.thrust_scale", "atmosphere.density_scale")
+    if param.shape not in ("inertia", "attitude")
+    # dispersion-only paths, and the wheels' initial momenta (per unit in the file, bounded there by
+    # the momentum limit: tests/test_wheels_config.py)
+    and p not in ("rcs.thrust_scale", "atmosphere.density_scale", "wheels.initial_momentum_n_m_s")
 ]
 
 
@@ -277,10 +294,10 @@ def _set(config, path, value):
 
 
 @pytest.mark.parametrize("path", CONFIG_PATHS)
-def test_a_file_value_obeys_the_range_its_dispersions_are_checked_against(base, orbit_base, path):
+def test_a_file_value_obeys_the_range_its_dispersions_are_checked_against(base, orbit_base, wheel_base, path):
     """Just outside the registry's range (or non-finite) the schema refuses the vehicle or mission
     file's own value; at the range's edge it accepts it. One range, declared once."""
-    base = orbit_base if path.startswith(ORBIT_PATHS) else base
+    base = _base_for(path, base, orbit_base, wheel_base)
     param = dispersions.PARAMETERS[path]
     kind = "mission" if path.split(".")[0] in ("separation", "navigation") else "vehicle"
     schema_def = schema.MISSION if kind == "mission" else schema.VEHICLE

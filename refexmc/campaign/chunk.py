@@ -22,10 +22,12 @@ class RunPlan:
         self.campaign = campaign
         self.sampler = Sampler(campaign)
         self.nominal_inputs = pack(campaign["vehicle"], campaign["mission"])
+        self._wheel_failure_inputs = {(): self.nominal_inputs}
         self.n_thrusters = self.nominal_inputs.thrusters.shape[0]
         self.mode_names = mode_names(campaign["mission"])
         options = requirements.column_options(campaign["vehicle"], campaign["mission"])
         self.value_columns = requirements.run_value_columns(self.mode_names, **options)
+        self.wheels = options["wheels"]  # the runs table has a failed_wheels column
         self._warm_up()
 
     def _warm_up(self):
@@ -38,24 +40,41 @@ class RunPlan:
             with contextlib.suppress(Exception):  # that run raises again when flown: an error row
                 self.sampler.values(self.sampler.offset)
 
+    def inputs_with_failed_wheels(self, failed_wheels):
+        """The undispersed inputs with ``failed_wheels`` (1-based ids) failed, and left out of the
+        distribution when the campaign's wheel failures are detected; packed once per set."""
+        if failed_wheels not in self._wheel_failure_inputs:
+            detected = failed_wheels if self.sampler.wheel_failures_detected() else ()
+            self._wheel_failure_inputs[failed_wheels] = pack(
+                self.campaign["vehicle"],
+                self.campaign["mission"],
+                failed_wheels=failed_wheels,
+                detected_wheels=detected,
+            )
+        return self._wheel_failure_inputs[failed_wheels]
+
     def prepare(self, run_id):
-        """(nav seed, failed thrusters, p-columns, packed inputs) of run ``run_id``."""
+        """(nav seed, failures, p-columns, packed inputs) of run ``run_id``; failures: a
+        ``storage.Failures`` (failed thruster and wheel ids)."""
         values = self.sampler.values(run_id)
-        failed = self.sampler.failed(run_id)
-        inputs = self.sampler.inputs(self.nominal_inputs, values, failed)
+        failed_wheels = self.sampler.failed_wheels(run_id)
+        failed = storage.Failures(self.sampler.failed(run_id), failed_wheels)
+        inputs = self.sampler.inputs(self.inputs_with_failed_wheels(failed_wheels), values, failed.thrusters)
         return run_seed(self.campaign["seed"], run_id), failed, self.sampler.columns(values), inputs
 
     def error_row(self, run_id, reason):
         """The runs row of a run without a result of its own (it raised, hung, or crashed its worker).
 
-        Its seed, failed thrusters and ``p.<path>`` values are drawn again (cheap, deterministic),
+        Its seed, failed thrusters and wheels and ``p.<path>`` values are drawn again (cheap, deterministic),
         so that the row has every column of the table.
         """
         try:
             seed, failed, params, _ = self.prepare(run_id)
         except Exception:  # noqa: BLE001 - the row is still recorded, without its parameters
-            seed, failed, params = run_seed(self.campaign["seed"], run_id), (), {}
-        row = storage.runs_row(run_id, seed, failed, None, self.value_columns, self.n_thrusters, error=reason)
+            seed, failed, params = run_seed(self.campaign["seed"], run_id), storage.Failures(), {}
+        row = storage.runs_row(
+            run_id, seed, failed, None, self.value_columns, self.n_thrusters, error=reason, wheels=self.wheels
+        )
         row.update(params or dict.fromkeys(self.param_columns(), float("nan")))
         return row
 
@@ -69,7 +88,7 @@ class RunPlan:
             reason = f"{type(exc).__name__}: {exc}"
         if reason is not None:
             return self.error_row(run_id, reason), None, None
-        row = storage.runs_row(run_id, seed, failed, result, self.value_columns, self.n_thrusters)
+        row = storage.runs_row(run_id, seed, failed, result, self.value_columns, self.n_thrusters, wheels=self.wheels)
         row.update(params)
         return row, storage.history_table(run_id, result), result
 

@@ -1,4 +1,4 @@
-"""Each run's dispersed inputs and failed thrusters, drawn from (campaign seed, run id, path).
+"""Each run's dispersed inputs, failed thrusters and failed wheels, drawn from (campaign seed, run id, path).
 
 Keyed seeding: the uniforms behind parameter ``path`` of run ``i`` come from a generator seeded
 with ``SeedSequence([seed, i, key(path), 0])`` (random sampling), or from row ``i`` of a design
@@ -17,12 +17,12 @@ import math
 import numpy as np
 
 from refexmc.config import dispersions
-from refexmc.config.derived import inertia_problem, level_names, thruster_count
-from refexmc.config.load import failure_sets
+from refexmc.config.derived import inertia_problem, level_names, thruster_count, wheel_count
+from refexmc.config.load import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
 
 _TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
 _DESIGN_TAG = {"lhs": 1, "sobol": 2}
-FAILURES_KEY = "failures"
+FAILURES_KEY = THRUSTER_FAILURES.key  # the keyed stream of random failures: the campaign key
 INERTIA_MAX_ATTEMPTS = 1000
 
 
@@ -150,8 +150,14 @@ class Sampler:
         self.levels = level_names(self.vehicle)
         self.specs = dispersions.check(campaign["dispersions"], self.vehicle, self.mission, None, {})
         self.nominal = {path: dispersions.nominal(path, self.vehicle, self.mission) for path in self.specs}
-        failures = campaign["failures"]
-        self.failure_sets = failure_sets(failures["sizes"], self.n_thrusters) if failures["mode"] == "enumerate" else []
+        self.n_wheels = wheel_count(self.vehicle)
+        self.wheel_failures = campaign.get(WHEEL_FAILURES.key, NO_FAILURES)
+        self.failure_sets = self._enumerated(campaign["failures"], self.n_thrusters)
+        self.wheel_failure_sets = self._enumerated(self.wheel_failures, self.n_wheels)
+
+    @staticmethod
+    def _enumerated(failures, n_units):
+        return failure_sets(failures["sizes"], n_units) if failures["mode"] == "enumerate" else []
 
     def is_nominal(self, run_id):
         return self.offset == 1 and run_id == 0
@@ -182,23 +188,40 @@ class Sampler:
             out[path] = value
         return out
 
-    def failed(self, run_id):
-        """Failed thruster ids (1-based, ascending) of run ``run_id``."""
-        failures = self.campaign["failures"]
+    def _failed_units(self, failures, kind, n_units, sets, run_id):
+        """Failed unit ids (1-based, ascending) of run ``run_id`` under ``failures`` (thrusters or
+        wheels alike): random counts and sets come from the stream keyed by the campaign key."""
         mode = failures["mode"]
         if mode == "fixed":
-            return tuple(sorted(failures["thrusters"]))
+            return tuple(sorted(failures[kind.units_key]))
         if mode == "none" or self.is_nominal(run_id):
             return ()
         if mode == "enumerate":
-            return self.failure_sets[run_id - self.offset]
-        rng = keyed_rng(self.seed, run_id, FAILURES_KEY)
+            return sets[run_id - self.offset]
+        rng = keyed_rng(self.seed, run_id, kind.key)
         cumulative = np.cumsum(failures["count_probabilities"])
         count = min(int(np.searchsorted(cumulative, rng.random(), side="right")), len(cumulative) - 1)
-        return tuple(sorted(int(t) + 1 for t in rng.choice(self.n_thrusters, size=count, replace=False)))
+        return tuple(sorted(int(t) + 1 for t in rng.choice(n_units, size=count, replace=False)))
+
+    def failed(self, run_id):
+        """Failed thruster ids (1-based, ascending) of run ``run_id``."""
+        return self._failed_units(
+            self.campaign["failures"], THRUSTER_FAILURES, self.n_thrusters, self.failure_sets, run_id
+        )
+
+    def failed_wheels(self, run_id):
+        """Failed wheel ids (1-based, ascending) of run ``run_id``."""
+        return self._failed_units(self.wheel_failures, WHEEL_FAILURES, self.n_wheels, self.wheel_failure_sets, run_id)
+
+    def wheel_failures_detected(self):
+        """Whether the flight software knows the failed wheels (``wheel_failures.detected``)."""
+        return bool(self.wheel_failures.get("detected", False))
 
     def inputs(self, nominal_inputs, values, failed):
-        """The run's own copy of the packed inputs with ``values`` and ``failed`` applied."""
+        """The run's own copy of the packed inputs with ``values`` and ``failed`` applied. Failed
+        wheels are packed (``nominal_inputs`` is the pack of the run's wheel failures, which also
+        sets the levels and the distribution matrix of detected ones); only the wheel table is
+        dispersed, so that is the one wheel table copied."""
         inputs = nominal_inputs._replace(
             vehicle=nominal_inputs.vehicle.copy(),
             thrusters=nominal_inputs.thrusters.copy(),
@@ -206,6 +229,7 @@ class Sampler:
             mission=nominal_inputs.mission.copy(),
             nav=nominal_inputs.nav.copy(),
             atmosphere=nominal_inputs.atmosphere.copy(),
+            wheels=nominal_inputs.wheels.copy(),
         )
         for path, value in values.items():
             dispersions.apply(inputs, path, value, nominal_inputs.atmosphere, self.levels)

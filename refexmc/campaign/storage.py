@@ -10,6 +10,7 @@ from contextlib import suppress
 from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pyarrow as pa
@@ -75,8 +76,20 @@ def part_name(chunk_index):
     return f"part-{chunk_index:05d}.parquet"
 
 
-def runs_row(run_id, seed, failed, result, value_columns, n_thrusters, error=None):
-    """One row of the ``runs`` table (interface.md) as a dict.
+class Failures(NamedTuple):
+    """The failed units of one run: 1-based ids, ascending."""
+
+    thrusters: tuple = ()
+    wheels: tuple = ()
+
+
+def _ids(units):
+    return ",".join(str(u) for u in sorted(units))
+
+
+def runs_row(run_id, seed, failed, result, value_columns, n_thrusters, error=None, wheels=False):
+    """One row of the ``runs`` table (interface.md) as a dict; ``failed``: a :class:`Failures`
+    (or the failed thruster ids alone); ``wheels``: the vehicle has wheels (a ``failed_wheels`` column).
 
     ``result`` is a ``refexmc.simulate.FlightResult`` (None for an errored run, whose
     ``value_columns``, from ``config.requirements.run_value_columns``, are NaN).
@@ -87,8 +100,12 @@ def runs_row(run_id, seed, failed, result, value_columns, n_thrusters, error=Non
         "status": "error" if error else "ok",
         "success": False,
         "failure_reason": error,
-        "failed_thrusters": ",".join(str(t) for t in sorted(failed)),
     }
+    if not isinstance(failed, Failures):
+        failed = Failures(tuple(failed))
+    row["failed_thrusters"] = _ids(failed.thrusters)
+    if wheels:
+        row["failed_wheels"] = _ids(failed.wheels)
     if result is None:
         for name in value_columns:
             row[name] = float("nan")
@@ -102,7 +119,7 @@ def runs_row(run_id, seed, failed, result, value_columns, n_thrusters, error=Non
     return row
 
 
-STRING_COLUMNS = ("status", "failure_reason", "failed_thrusters")
+STRING_COLUMNS = ("status", "failure_reason", "failed_thrusters", "failed_wheels")
 
 
 def runs_table(rows):

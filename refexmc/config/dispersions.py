@@ -29,7 +29,7 @@ class Parameter(NamedTuple):
     path: str
     unit: str
     doc: str
-    shape: str  # scalar | vector | thruster | derating | inertia | attitude
+    shape: str  # scalar | vector | thruster | wheel | derating | inertia | attitude
     lower: float = -math.inf  # physical range of every component (config keys: from the schema)
     upper: float = math.inf
     lower_inclusive: bool = True
@@ -94,6 +94,16 @@ def _params():
         Parameter("navigation.gps_velocity_bias_m_s", "m/s", "GPS velocity bias, ECI axes", "vector"),
         Parameter("navigation.gps_velocity_noise_m_s", "m/s", "GPS velocity white noise, 1 sigma per axis", "scalar"),
         Parameter("atmosphere.density_scale", "-", "factor on every density of the atmosphere table", "scalar", 0.0),
+        Parameter("wheels.friction.coulomb_n_m", "N m", "Coulomb friction tau_e, every wheel the same value", "scalar"),
+        Parameter(
+            "wheels.friction.viscous_n_m_s", "N m s/rad", "viscous friction tau_v, every wheel the same value", "scalar"
+        ),
+        Parameter(
+            "wheels.initial_momentum_n_m_s",
+            "N m s",
+            "wheel momentum I_w Omega at t = 0, per wheel, independent draws (the flight software is not told)",
+            "wheel",
+        ),
     ]
     return {param.path: _with_schema_range(param) for param in p}
 
@@ -179,6 +189,8 @@ def components(path, vehicle):
         return AXES
     if shape == "thruster":
         return tuple(str(i + 1) for i in range(len(vehicle["rcs"]["thrusters"])))
+    if shape == "wheel":
+        return tuple(str(i + 1) for i in range(len(vehicle["wheels"]["units"])))
     if shape == "derating":
         return tuple(str(i + 1) for i in range(len(vehicle["rcs"]["derating"])))
     if shape == "inertia":
@@ -219,6 +231,8 @@ def nominal(path, vehicle, mission):
         _, _, level, name = path.split(".")
         rcs = vehicle["rcs"]
         return np.full(len(rcs["thrusters"]), float(rcs["valve_time_constants_ms"][level][name]))
+    if path == "wheels.initial_momentum_n_m_s":
+        return np.array([float(unit.get("initial_momentum_n_m_s", 0.0)) for unit in vehicle["wheels"]["units"]])
     if path == "separation.attitude_error_deg" and "attitude_euler_deg" in mission["separation"]:
         return np.degrees(derived.separation_rotation_vector(mission["separation"]))
     root = mission if path.split(".")[0] in ("separation", "navigation") else vehicle
@@ -289,6 +303,12 @@ _NAV_FIELDS = {
     "navigation.gps_velocity_noise_m_s": ("gps_velocity_noise_m_s", 1.0),
 }
 
+_WHEEL_COLUMNS = {  # every wheel the same value (scalar paths) or one value per wheel
+    "wheels.friction.coulomb_n_m": "coulomb_friction_n_m",
+    "wheels.friction.viscous_n_m_s": "viscous_friction_n_m_s",
+    "wheels.initial_momentum_n_m_s": "initial_momentum_n_m_s",
+}
+
 
 def apply(inputs, path, values, nominal_atmosphere, levels=("low", "high")):
     """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays;
@@ -321,6 +341,8 @@ def apply(inputs, path, values, nominal_atmosphere, levels=("low", "high")):
         inputs.thrusters[:, column] = values / 1e3
     elif path == "atmosphere.density_scale":
         inputs.atmosphere[:, 1] = nominal_atmosphere[:, 1] * values[0]
+    elif path in _WHEEL_COLUMNS:
+        inputs.wheels[:, L.WHEEL.slices[_WHEEL_COLUMNS[path]][0]] = values
     else:  # pragma: no cover - PARAMETERS and apply() are kept in step by tests
         raise KeyError(path)
 

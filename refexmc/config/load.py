@@ -6,6 +6,7 @@ import math
 import re
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import jsonschema
 import numpy as np
@@ -550,59 +551,83 @@ def _failing_at(file, lines, prefix):
     return fail
 
 
-FAILURE_KEYS = {"none": (), "fixed": ("thrusters",), "random": ("count_probabilities",), "enumerate": ("sizes",)}
+FAILURE_KEYS = {"none": (), "fixed": ("units",), "random": ("count_probabilities",), "enumerate": ("sizes",)}
+NO_FAILURES = {"mode": "none"}
 
 
-def failure_sets(sizes, n_thrusters):
-    """Every set of failed thrusters (1-based, ascending) of the given sizes, smallest sizes first."""
-    return [combo for k in sorted(sizes) for combo in itertools.combinations(range(1, n_thrusters + 1), k)]
+class FailureKind(NamedTuple):
+    """What a campaign's failure key fails: ``failures`` thrusters, ``wheel_failures`` wheels."""
+
+    key: str  # the campaign key
+    units_key: str  # its list of failed units (mode fixed)
+    word: str  # one unit, in messages
 
 
-def _check_failures(failures, thrusters, path, lines):
-    """Failure settings against the vehicle's thrusters; names in ``thrusters`` become ids."""
-    n_thrusters = len(thrusters)
+THRUSTER_FAILURES = FailureKind("failures", "thrusters", "thruster")
+WHEEL_FAILURES = FailureKind("wheel_failures", "wheels", "wheel")
+
+
+def failure_sets(sizes, n_units):
+    """Every set of failed units (1-based, ascending) of the given sizes, smallest sizes first."""
+    return [combo for k in sorted(sizes) for combo in itertools.combinations(range(1, n_units + 1), k)]
+
+
+def _check_failures(failures, units, path, lines, kind=THRUSTER_FAILURES):
+    """Failure settings against the vehicle's ``units`` (thrusters or wheels, with id and an
+    optional name); names in the fixed list become ids."""
+    n_units = len(units)
+    word = kind.word
 
     def fail(message, *sub):
-        key = ("failures", *sub)
-        raise ConfigError(message, file=path, line=lines.get(key) or lines.get(("failures",)), path=key)
+        key = (kind.key, *sub)
+        raise ConfigError(message, file=path, line=lines.get(key) or lines.get((kind.key,)), path=key)
 
     mode = failures["mode"]
-    if mode != "none" and n_thrusters == 0:
-        fail(f"failures mode {mode} fails thrusters; the vehicle has none", "mode")
-    for key in ("thrusters", "count_probabilities", "sizes"):
-        if key in failures and key not in FAILURE_KEYS[mode]:
+    if mode != "none" and n_units == 0:
+        fail(f"{kind.key} mode {mode} fails {word}s; the vehicle has none", "mode")
+    used = {kind.units_key if key == "units" else key for key in FAILURE_KEYS[mode]}
+    for key in (kind.units_key, "count_probabilities", "sizes"):
+        if key in failures and key not in used:
             fail(f"'{key}' is not used with mode {mode}", key)
-    for key in FAILURE_KEYS[mode]:
+    for key in used:
         if key not in failures:
             fail(f"mode {mode} needs '{key}'")
     if mode == "fixed":
-        ids = {t.get("name", t["id"]): t["id"] for t in thrusters}
-        ids.update({t["id"]: t["id"] for t in thrusters})
+        ids = {u.get("name", u["id"]): u["id"] for u in units}
+        ids.update({u["id"]: u["id"] for u in units})
         resolved = []
-        for k, tid in enumerate(failures["thrusters"]):
-            if isinstance(tid, str) and tid not in ids:
-                names = [t["name"] for t in thrusters if "name" in t]
-                guess = difflib.get_close_matches(tid, names, n=1)
+        for k, uid in enumerate(failures[kind.units_key]):
+            if isinstance(uid, str) and uid not in ids:
+                names = [u["name"] for u in units if "name" in u]
+                guess = difflib.get_close_matches(uid, names, n=1)
                 hint = (
                     f"; did you mean '{guess[0]}'?" if guess else f"; the vehicle names: {', '.join(names) or 'none'}"
                 )
-                fail(f"unknown thruster '{tid}'{hint}", "thrusters", k)
-            if isinstance(tid, int) and tid > n_thrusters:
-                fail(f"expected a thruster id 1..{n_thrusters}, got {tid}", "thrusters", k)
-            if ids[tid] in resolved:
-                fail(f"thruster {ids[tid]} is listed twice (by id and by name)", "thrusters", k)
-            resolved.append(ids[tid])
-        failures["thrusters"] = resolved  # ids from here on: runs table, sampling, resolved campaign
+                fail(f"unknown {word} '{uid}'{hint}", kind.units_key, k)
+            if isinstance(uid, int) and uid > n_units:
+                fail(f"expected a {word} id 1..{n_units}, got {uid}", kind.units_key, k)
+            if ids[uid] in resolved:
+                fail(f"{word} {ids[uid]} is listed twice (by id and by name)", kind.units_key, k)
+            resolved.append(ids[uid])
+        failures[kind.units_key] = resolved  # ids from here on: runs table, sampling, resolved campaign
     elif mode == "random":
         probabilities = failures["count_probabilities"]
-        if len(probabilities) > n_thrusters + 1:
-            fail(f"expected at most {n_thrusters + 1} probabilities (0..{n_thrusters} failed)", "count_probabilities")
+        if len(probabilities) > n_units + 1:
+            fail(f"expected at most {n_units + 1} probabilities (0..{n_units} failed)", "count_probabilities")
         if abs(sum(probabilities) - 1.0) > 1e-9:
             fail(f"expected probabilities summing to 1, got {sum(probabilities):g}", "count_probabilities")
     elif mode == "enumerate":
         for k, size in enumerate(failures["sizes"]):
-            if size > n_thrusters:
-                fail(f"expected a set size 1..{n_thrusters}, got {size}", "sizes", k)
+            if size > n_units:
+                fail(f"expected a set size 1..{n_units}, got {size}", "sizes", k)
+
+
+def enumerated_failures(campaign):
+    """The FailureKind whose mode is enumerate (the run count derives from its sets), or None."""
+    for kind in (THRUSTER_FAILURES, WHEEL_FAILURES):
+        if campaign.get(kind.key, NO_FAILURES)["mode"] == "enumerate":
+            return kind
+    return None
 
 
 def load_campaign(path):
@@ -631,8 +656,24 @@ def load_campaign(path):
         "vehicle": vehicle,
         "mission": mission,
     }
+    if (
+        "wheel_failures" in data
+    ):  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        campaign["wheel_failures"] = data["wheel_failures"]
     n_thrusters = thruster_count(vehicle)
     _check_failures(campaign["failures"], vehicle.get("rcs", {}).get("thrusters", []), path, lines)
+    wheel_units = vehicle.get("wheels", {}).get("units", [])
+    _check_failures(campaign.get("wheel_failures", NO_FAILURES), wheel_units, path, lines, WHEEL_FAILURES)
+    if (
+        campaign["failures"]["mode"] == "enumerate"
+        and campaign.get("wheel_failures", NO_FAILURES)["mode"] == "enumerate"
+    ):
+        raise ConfigError(
+            "failures and wheel_failures cannot both enumerate (one run per set of one kind)",
+            file=path,
+            line=lines.get(("wheel_failures", "mode")),
+            path=("wheel_failures", "mode"),
+        )
     dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     mode_names = [mode["name"] for mode in mission["modes"]]
@@ -640,11 +681,13 @@ def load_campaign(path):
     columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     published.check_published(campaign.get("published", []), columns, path, lines)
-    if campaign["failures"]["mode"] == "enumerate":
-        derived = len(failure_sets(campaign["failures"]["sizes"], n_thrusters)) + int(campaign["nominal_first"])
+    enumerated = enumerated_failures(campaign)
+    if enumerated is not None:
+        n_units = n_thrusters if enumerated is THRUSTER_FAILURES else len(wheel_units)
+        derived = len(failure_sets(campaign[enumerated.key]["sizes"], n_units)) + int(campaign["nominal_first"])
         if campaign["runs"] is not None and campaign["runs"] != derived:
             raise ConfigError(
-                f"failures mode enumerate gives {derived} runs; remove 'runs' or set it to {derived}",
+                f"{enumerated.key} mode enumerate gives {derived} runs; remove 'runs' or set it to {derived}",
                 file=path,
                 line=lines.get(("runs",)),
                 path=("runs",),
@@ -658,8 +701,9 @@ def load_campaign(path):
 def apply_overrides(campaign, runs=None, seed=None):
     """Command-line ``--runs``/``--seed`` over the file's values; ConfigError when not allowed."""
     if runs is not None:
-        if campaign["failures"]["mode"] == "enumerate":
-            raise ConfigError("--runs cannot be used with failures mode enumerate (the run count is derived)")
+        enumerated = enumerated_failures(campaign)
+        if enumerated is not None:
+            raise ConfigError(f"--runs cannot be used with {enumerated.key} mode enumerate (the run count is derived)")
         if runs < 1:
             raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
         campaign["runs"] = runs

@@ -655,6 +655,47 @@ _reference = {
     "description": "path relative to the campaign file, or an inline mapping",
 }
 
+
+def failures_schema(description, units_key, unit_item, units_description, **extra):
+    """The schema of a campaign's failure settings (``failures``: thrusters, ``wheel_failures``:
+    wheels): a mode, the failed units of mode fixed (under ``units_key``), the count
+    probabilities of mode random, the set sizes of mode enumerate, and ``extra`` properties."""
+    word = units_key.rstrip("s")
+    return {
+        "type": "object",
+        "description": description,
+        "properties": {
+            "mode": string(
+                "none | fixed (the same set every run) | random (count drawn per run) | "
+                "enumerate (one run per combination of the given sizes)",
+                enum=["none", "fixed", "random", "enumerate"],
+            ),
+            units_key: {
+                "type": "array",
+                "items": unit_item,
+                "uniqueItems": True,
+                "description": units_description,
+            },
+            "count_probabilities": {
+                "type": "array",
+                "items": number("probability", minimum=0.0, maximum=1.0),
+                "minItems": 1,
+                "description": "P(0 failed), P(1 failed), ... (mode random; sum 1)",
+            },
+            "sizes": {
+                "type": "array",
+                "items": integer(f"number of failed {word}s", minimum=1),
+                "minItems": 1,
+                "uniqueItems": True,
+                "description": "sizes of the failure sets enumerated (mode enumerate)",
+            },
+            **extra,
+        },
+        "required": ["mode"],
+        "additionalProperties": False,
+    }
+
+
 CAMPAIGN = obj(
     "a campaign",
     {
@@ -673,38 +714,23 @@ CAMPAIGN = obj(
             "distributions: refexmc.config.dispersions, docs/campaigns.md",
             "additionalProperties": {"type": "object", "description": "a distribution"},
         },
-        "failures": {
-            "type": "object",
-            "description": "thrusters that never open and use no propellant (000 sec. 5)",
-            "properties": {
-                "mode": string(
-                    "none | fixed (the same set every run) | random (count drawn per run) | "
-                    "enumerate (one run per combination of the given sizes)",
-                    enum=["none", "fixed", "random", "enumerate"],
-                ),
-                "thrusters": {
-                    "type": "array",
-                    "items": {"type": ["integer", "string"], "minimum": 1, "description": "thruster id or name"},
-                    "uniqueItems": True,
-                    "description": "failed thrusters by id or name (mode fixed)",
-                },
-                "count_probabilities": {
-                    "type": "array",
-                    "items": number("probability", minimum=0.0, maximum=1.0),
-                    "minItems": 1,
-                    "description": "P(0 failed), P(1 failed), ... (mode random; sum 1)",
-                },
-                "sizes": {
-                    "type": "array",
-                    "items": integer("number of failed thrusters", minimum=1),
-                    "minItems": 1,
-                    "uniqueItems": True,
-                    "description": "sizes of the failure sets enumerated (mode enumerate)",
-                },
+        "failures": failures_schema(
+            "thrusters that never open and use no propellant (000 sec. 5)",
+            "thrusters",
+            {"type": ["integer", "string"], "minimum": 1, "description": "thruster id or name"},
+            "failed thrusters by id or name (mode fixed)",
+        ),
+        "wheel_failures": failures_schema(
+            "reaction wheels whose motor gives no torque (friction still acts); vehicles with wheels only",
+            "wheels",
+            {"type": ["integer", "string"], "minimum": 1, "description": "wheel id or name"},
+            "failed wheels by id or name (mode fixed)",
+            detected={
+                "type": "boolean",
+                "description": "the flight software knows the failed wheels and leaves them out of its "
+                "distribution matrix and torque limits (001 sec. 9.1); default false (undetected)",
             },
-            "required": ["mode"],
-            "additionalProperties": False,
-        },
+        ),
         "run_time_limit_s": number(
             "wall-clock limit of one run [s]; a run that exceeds it is recorded as an error", exclusive_minimum=0.0
         ),
@@ -745,6 +771,7 @@ CAMPAIGN = obj(
         "sampling",
         "dispersions",
         "failures",
+        "wheel_failures",
         "run_time_limit_s",
         "output",
         "requirements",
