@@ -139,7 +139,7 @@ def format_run_summary(result):
         names = [mode["name"] for mode in result["campaign"]["mission"]["modes"]]
         times = ", ".join(f"{m} {row[f't_{m.lower()}_s']:.1f}" for m in names)
         lines.append(f"  time in mode [s]: {times}")
-    elif len(ok) > 1:
+    elif len(ok) > 1 and ok["fuel_remaining"].notna().any():  # wheels only: no propellant
         lines.append(
             f"  propellant remaining: min {100 * ok['fuel_remaining'].min():.1f} %, "
             f"median {100 * ok['fuel_remaining'].median():.1f} %"

@@ -1,6 +1,7 @@
 """Reaction-wheel failures and wheel dispersions in campaigns (issue 14): keyed draws, the sets of
 each mode, what ``detected`` does to the packed inputs, the runs column end to end, bad input."""
 
+import json
 import math
 from pathlib import Path
 
@@ -216,6 +217,20 @@ def test_a_small_irassi_campaign_with_wheel_failures_runs_and_reruns(tmp_path):
     assert rerun.exit_code == 0, rerun.output
     assert f"failed wheels [{expected[run_id]}]" in rerun.output
     assert "summary row identical to the stored one" in rerun.output
+    # the report groups the runs by failed-wheel set: its statistics are those of each group
+    report = CliRunner().invoke(main, ["report", str(out)])
+    assert report.exit_code in (0, 1), report.output
+    assert "failed wheels (detected (redistributed)), per set:" in report.output
+    summary = json.loads((out / "report" / "summary.json").read_text())
+    sets = summary["wheel_failure_sets"]
+    assert sets["detected"] is True
+    for row in sets["sets"]:
+        group = runs[runs["failed_wheels"] == row["failed_wheels"]]
+        assert row["runs"] == len(group) and row["successes"] == int(group["success"].sum())
+        assert row["wheel_momentum_peak_n_m_s.max"] == group["wheel_momentum_peak_n_m_s"].max()
+        median = np.median(group["pointing_rms_x_arcsec"])
+        assert row["pointing_rms_x_arcsec.median"] == pytest.approx(median, rel=1e-12)
+    assert sorted(r["failed_wheels"] for r in sets["sets"]) == sorted(set(expected))
 
 
 # --- bad input ---------------------------------------------------------------------------------------------

@@ -105,6 +105,16 @@ def failure_reasons_section(reasons):
     return table(["kind", "reason", "runs", "example run ids"], rows, ["fail"] * len(rows))
 
 
+def wheel_failure_sets_section(wheel_sets):
+    names = wheel_sets["statistics"]
+    rows = []
+    for s in wheel_sets["sets"]:
+        label = f"[{s['failed_wheels']}]" if s["failed_wheels"] else "none"
+        rows.append([e(label), str(s["runs"]), f"{s['successes']}/{s['runs']}", *(number(s[n]) for n in names)])
+    classes = ["pass" if s["successes"] == s["runs"] else "fail" for s in wheel_sets["sets"]]
+    return table(["failed wheels", "runs", "success", *names], rows, classes)
+
+
 def failure_sets_section(sets):
     rows = []
     for s in sets:
@@ -258,6 +268,9 @@ def page(summary, figures, sensitivity_labels):
             f"<h2>{e(title)}</h2>",
             f"<figure>{image(png_bytes, title)}<figcaption>{e(caption)}</figcaption></figure>",
         ]
+    if summary.get("wheel_failure_sets"):
+        kind = "detected: redistributed over the others" if summary["wheel_failure_sets"]["detected"] else "undetected"
+        body += [f"<h2>Failed wheels ({e(kind)})</h2>", wheel_failure_sets_section(summary["wheel_failure_sets"])]
     if summary["failure_sets"]:
         body += ["<h2>Failure sets</h2>", failure_sets_section(summary["failure_sets"])]
         table4 = summary.get("failure_sets_vs_000_table4")

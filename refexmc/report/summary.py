@@ -105,9 +105,11 @@ def success_section(campaign, level):
 
 
 def statistics_columns(campaign):
-    """The runs columns of the statistics tables, in display order: those with a declared tail."""
+    """The runs columns of the statistics tables, in display order: those with a declared tail; a
+    key column no run has a value in is one the mission does not produce (a hand-over angle without
+    a hand-over, a propellant fraction without propellant) and is left out."""
     runs = campaign.runs
-    columns = [c for c in KEY_COLUMNS if c in runs]
+    columns = [c for c in KEY_COLUMNS if c in runs and np.isfinite(runs[c].to_numpy(dtype=float)).any()]
     columns += [c for c in campaign.mode_time_columns if c in runs]
     columns += [c for c in runs.columns if c.startswith("pulses_") and c[7:].isdigit()]
     return [c for c in columns if tails.worse_tail(c) is not None]
@@ -214,6 +216,37 @@ def failure_sets(campaign):
         )
     rows.sort(key=lambda r: (r["size"], [int(t) for t in r["failed_thrusters"].split(",") if t]))
     return rows
+
+
+WHEEL_SET_COLUMNS = (  # (runs column, statistic) per failed-wheel set; those the table has
+    ("pointing_rms_x_arcsec", "median"),
+    ("pointing_rms_x_arcsec", "p99"),
+    ("pointing_rms_y_arcsec", "p99"),
+    ("pointing_rms_z_arcsec", "p99"),
+    ("pointing_max_arcsec", "p99"),
+    ("wheel_momentum_peak_n_m_s", "max"),
+    ("wheel_saturated_s", "median"),
+)
+
+
+def wheel_failure_sets(campaign):
+    """Per failed-wheel set (``failed_wheels``; "" = none): runs, successes and the pointing and
+    wheel statistics over its flown runs, so the penalty of a failure reads against the runs
+    without one; None when the sets do not vary."""
+    ok = campaign.ok
+    if "failed_wheels" not in ok or ok["failed_wheels"].nunique() < 2:
+        return None
+    columns = [(c, s) for c, s in WHEEL_SET_COLUMNS if c in ok]
+    rows = []
+    for key, group in ok.groupby("failed_wheels", sort=True):
+        n = len(group)
+        k = int(group["success"].astype(bool).sum())
+        row = {"failed_wheels": key, "runs": n, "successes": k, "success_rate_ci95": list(stats.clopper_pearson(k, n))}
+        for column, stat in columns:
+            row[f"{column}.{stat}"] = stats.column_stat(group[column].to_numpy(dtype=float), stat)
+        rows.append(row)
+    detected = bool((campaign.resolved.get("wheel_failures") or {}).get("detected", False))
+    return {"detected": detected, "statistics": [f"{c}.{s}" for c, s in columns], "sets": rows}
 
 
 def paper_table4_agreement(campaign, sets):
@@ -331,7 +364,7 @@ def against_nominal(campaign, nominal_row, column="fuel_used_kg"):
     if nominal_row is None or column not in campaign.ok:
         return None
     dispersed = campaign.ok[campaign.ok["run_id"] != nominal_row["run_id"]][column].dropna()
-    if dispersed.empty:
+    if dispersed.empty or not (dispersed > 0.0).any() and nominal_row[column] == 0.0:  # no propellant used
         return None
     more = int((dispersed > nominal_row[column]).sum())
     return {
@@ -385,6 +418,7 @@ def build(campaign):
         },
         "failure_sets": sets,
         "failure_sets_vs_000_table4": paper_table4_agreement(campaign, sets),
+        "wheel_failure_sets": wheel_failure_sets(campaign),
         "sensitivity": sensitivity(campaign) if campaign.parameter_columns and n_ok >= 3 else None,
         "convergence": convergence(campaign) if n_ok >= 2 else None,
         "worst_cases": worst_cases(campaign),

@@ -31,6 +31,20 @@ TAIL_TITLES = {"upper": "larger is worse (upper tail)", "lower": "smaller is wor
 TABLE_COLUMNS = KEY_COLUMNS  # those the summary has are shown, in this order
 
 
+def wheel_failure_lines(wheel_sets):
+    """The failed-wheel sets, one line each: runs, successes and the set's statistics."""
+    kind = "detected (redistributed)" if wheel_sets["detected"] else "undetected"
+    names = wheel_sets["statistics"]
+    width = max(len(n) for n in names) if names else 0
+    header = "  " + "set".ljust(8) + "runs  ok    " + "  ".join(n.rjust(width) for n in names)
+    lines = [f"failed wheels ({kind}), per set:", header]
+    for s in wheel_sets["sets"]:
+        label = f"[{s['failed_wheels']}]" if s["failed_wheels"] else "none"
+        values = "  ".join(number(s[n]).rjust(width) for n in names)
+        lines.append(f"  {label.ljust(8)}{str(s['runs']).rjust(4)}  {str(s['successes']).rjust(4)}  {values}")
+    return lines
+
+
 def number(value, digits=4):
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
@@ -143,6 +157,9 @@ def format_summary(summary, report_dir=None):
                 f"  against 000 Table 4: {table4['agree']} of {table4['compared']} single/double sets agree"
                 + (f"; differ: {'; '.join(f'[{d}]' for d in table4['disagree'])}" if table4["disagree"] else "")
             )
+    wheel_sets = summary.get("wheel_failure_sets")
+    if wheel_sets:
+        lines += wheel_failure_lines(wheel_sets)
     against = (summary.get("nominal") or {}).get("propellant_used_vs_dispersed")
     if against:
         lines.append(
