@@ -146,10 +146,11 @@ def write_between_markers(doc, generated):
     doc.write_text(f"{head}{BEGIN}\n{generated}{END}{tail}")
 
 
-def main(argv):
+def main(argv, generate=generate, doc=DOC):
+    """Print what ``generate()`` makes, or with ``--write`` put it between the markers of ``doc``."""
     generated = generate()
     if "--write" in argv:
-        write_between_markers(DOC, generated)
+        write_between_markers(doc, generated)
     else:
         sys.stdout.write(generated)
 

@@ -21,6 +21,7 @@ from gen_failure_sweep import (  # noqa: F401 (BEGIN, END: the markers of docs/s
     completes,
     failed_set,
     fly_sweep,
+    main,
     number,
     provenance,
     write_between_markers,
@@ -162,13 +163,5 @@ def generate(campaign_file=CAMPAIGN):
     return f"{provenance(script)}\n\n{summary(campaign, rows)}\n{table(campaign, rows)}"
 
 
-def main(argv):
-    generated = generate()
-    if "--write" in argv:
-        write_between_markers(DOC, generated)
-    else:
-        sys.stdout.write(generated)
-
-
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    main(sys.argv[1:], generate, DOC)

@@ -254,25 +254,24 @@ def check_vehicle(vehicle, file, lines, prefix=()):
         fail(message, "inertia_kg_m2")
 
 
+def _check_numbering(units, what, path, fail):
+    """Ids 1..N in order and unique names of the ``what`` (thruster, wheel) list at ``path``."""
+    names = {}
+    for i, unit in enumerate(units):
+        if "name" in unit:
+            if unit["name"] in names:
+                also = names[unit["name"]]
+                fail(f"{what} name '{unit['name']}' is used twice (also {what} {also})", *path, i, "name")
+            names[unit["name"]] = i + 1
+        if unit["id"] != i + 1:
+            fail(f"expected {what} ids 1..{len(units)} in order, got {unit['id']}", *path, i, "id")
+
+
 def _check_rcs(vehicle, fail):
     """Thruster numbering and names, the actuation's switching limits, the allocation table."""
     thrusters = vehicle["rcs"]["thrusters"]
-    names = {}
+    _check_numbering(thrusters, "thruster", ("rcs", "thrusters"), fail)
     for i, thruster in enumerate(thrusters):
-        if "name" in thruster:
-            if thruster["name"] in names:
-                fail(
-                    f"thruster name '{thruster['name']}' is used twice (also thruster {names[thruster['name']]})",
-                    "rcs",
-                    "thrusters",
-                    i,
-                    "name",
-                )
-            names[thruster["name"]] = i + 1
-        if thruster["id"] != i + 1:
-            fail(
-                f"expected thruster ids 1..{len(thrusters)} in order, got {thruster['id']}", "rcs", "thrusters", i, "id"
-            )
         if np.linalg.norm(thruster["direction"]) == 0.0:
             fail("expected a non-zero force direction", "rcs", "thrusters", i, "direction")
     if vehicle["flight_software"]["actuation"] == "lp_pwm" and vehicle["rcs"]["switching_limits_ms"]["min_off"] != 0.0:
@@ -299,20 +298,8 @@ def _check_wheels(vehicle, fail):
     """Wheel numbering and names, non-zero axes that span the body axes, initial momenta within the limit."""
     wheels = vehicle["wheels"]
     units = wheels["units"]
-    names = {}
+    _check_numbering(units, "wheel", ("wheels", "units"), fail)
     for i, unit in enumerate(units):
-        if "name" in unit:
-            if unit["name"] in names:
-                fail(
-                    f"wheel name '{unit['name']}' is used twice (also wheel {names[unit['name']]})",
-                    "wheels",
-                    "units",
-                    i,
-                    "name",
-                )
-            names[unit["name"]] = i + 1
-        if unit["id"] != i + 1:
-            fail(f"expected wheel ids 1..{len(units)} in order, got {unit['id']}", "wheels", "units", i, "id")
         if np.linalg.norm(unit["axis"]) == 0.0:
             fail("expected a non-zero spin axis", "wheels", "units", i, "axis")
         momentum = unit.get("initial_momentum_n_m_s", 0.0)

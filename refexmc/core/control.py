@@ -21,6 +21,19 @@ def control_errors(q_meas, rate_meas, q_ref, rate_ref, q_error, rate_error):
 
 
 @jit_inline
+def linearised(inertia, a0, a1, a2, rate, out):
+    """u = J a + omega x J omega: the torque that gives the body the angular acceleration ``a``
+    (000 eq. 30; 001 eq. 12's J (...) + omega x J omega)."""
+    wx, wy, wz = rate[0], rate[1], rate[2]
+    hx = inertia[0, 0] * wx + inertia[0, 1] * wy + inertia[0, 2] * wz
+    hy = inertia[1, 0] * wx + inertia[1, 1] * wy + inertia[1, 2] * wz
+    hz = inertia[2, 0] * wx + inertia[2, 1] * wy + inertia[2, 2] * wz
+    out[0] = inertia[0, 0] * a0 + inertia[0, 1] * a1 + inertia[0, 2] * a2 + (wy * hz - wz * hy)
+    out[1] = inertia[1, 0] * a0 + inertia[1, 1] * a1 + inertia[1, 2] * a2 + (wz * hx - wx * hz)
+    out[2] = inertia[2, 0] * a0 + inertia[2, 1] * a1 + inertia[2, 2] * a2 + (wx * hy - wy * hx)
+
+
+@jit_inline
 def pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled, out):
     """u = J v + omega x J omega with v = omega_dot_g - Kd omega_e - Kp q_e,vec (000 eq. 30, 35).
 
@@ -33,13 +46,7 @@ def pd_feedback_linearisation(q_error, rate_error, rate_meas, accel_ref, kp, kd,
         v0 -= kp[0] * q_error[0]
         v1 -= kp[1] * q_error[1]
         v2 -= kp[2] * q_error[2]
-    wx, wy, wz = rate_meas[0], rate_meas[1], rate_meas[2]
-    hx = inertia[0, 0] * wx + inertia[0, 1] * wy + inertia[0, 2] * wz
-    hy = inertia[1, 0] * wx + inertia[1, 1] * wy + inertia[1, 2] * wz
-    hz = inertia[2, 0] * wx + inertia[2, 1] * wy + inertia[2, 2] * wz
-    out[0] = inertia[0, 0] * v0 + inertia[0, 1] * v1 + inertia[0, 2] * v2 + (wy * hz - wz * hy)
-    out[1] = inertia[1, 0] * v0 + inertia[1, 1] * v1 + inertia[1, 2] * v2 + (wz * hx - wx * hz)
-    out[2] = inertia[2, 0] * v0 + inertia[2, 1] * v1 + inertia[2, 2] * v2 + (wx * hy - wy * hx)
+    linearised(inertia, v0, v1, v2, rate_meas, out)
 
 
 @jit_inline
@@ -84,13 +91,7 @@ def sliding_mode(q_error, rate_error, rate_meas, accel_ref, smc, inertia, attitu
     a0 -= gain[0] * sat(s0, layer[0])
     a1 -= gain[1] * sat(s1, layer[1])
     a2 -= gain[2] * sat(s2, layer[2])
-    bx, by, bz = rate_meas[0], rate_meas[1], rate_meas[2]
-    hx = inertia[0, 0] * bx + inertia[0, 1] * by + inertia[0, 2] * bz
-    hy = inertia[1, 0] * bx + inertia[1, 1] * by + inertia[1, 2] * bz
-    hz = inertia[2, 0] * bx + inertia[2, 1] * by + inertia[2, 2] * bz
-    out[0] = inertia[0, 0] * a0 + inertia[0, 1] * a1 + inertia[0, 2] * a2 + (by * hz - bz * hy)
-    out[1] = inertia[1, 0] * a0 + inertia[1, 1] * a1 + inertia[1, 2] * a2 + (bz * hx - bx * hz)
-    out[2] = inertia[2, 0] * a0 + inertia[2, 1] * a1 + inertia[2, 2] * a2 + (bx * hy - by * hx)
+    linearised(inertia, a0, a1, a2, rate_meas, out)
 
 
 @jit_inline

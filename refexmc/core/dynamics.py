@@ -13,15 +13,21 @@ STATE_SIZE = 7
 
 
 @jit_noalloc
-def derivative(x, torque, inertia, inertia_inv, out):
-    """``out = dx/dt`` for torque (N m, body axes); ``inertia``/``inertia_inv`` are 3x3."""
+def kinematics(x, out):
+    """``out[0:4] = dq/dt`` of the state ``x = [q, omega]``: 000 eq. 28, q_dot = 0.5 Xi(q) omega."""
     qx, qy, qz, qw = x[0], x[1], x[2], x[3]
     wx, wy, wz = x[4], x[5], x[6]
-    # 000 eq. 28: q_dot = 0.5 Xi(q) omega
     out[0] = 0.5 * (qw * wx - qz * wy + qy * wz)
     out[1] = 0.5 * (qz * wx + qw * wy - qx * wz)
     out[2] = 0.5 * (-qy * wx + qx * wy + qw * wz)
     out[3] = -0.5 * (qx * wx + qy * wy + qz * wz)
+
+
+@jit_noalloc
+def derivative(x, torque, inertia, inertia_inv, out):
+    """``out = dx/dt`` for torque (N m, body axes); ``inertia``/``inertia_inv`` are 3x3."""
+    kinematics(x, out)
+    wx, wy, wz = x[4], x[5], x[6]
     # 000 eq. 29: omega_dot = J^-1 (u - omega x J omega)
     hx = inertia[0, 0] * wx + inertia[0, 1] * wy + inertia[0, 2] * wz
     hy = inertia[1, 0] * wx + inertia[1, 1] * wy + inertia[1, 2] * wz

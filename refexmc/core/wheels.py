@@ -201,12 +201,8 @@ def derivative(x, h, torque, plant, dx, dh):
     wheels, motor, scratch = plant.table, plant.motor, plant.scratch
     inertia_b, inertia_b_inv, gravity = plant.inertia_b, plant.inertia_b_inv, plant.gravity
     n = wheels.shape[0]
-    qx, qy, qz, qw = x[0], x[1], x[2], x[3]
+    dynamics.kinematics(x, dx)
     wx, wy, wz = x[4], x[5], x[6]
-    dx[0] = 0.5 * (qw * wx - qz * wy + qy * wz)
-    dx[1] = 0.5 * (qz * wx + qw * wy - qx * wz)
-    dx[2] = 0.5 * (-qy * wx + qx * wy + qw * wz)
-    dx[3] = -0.5 * (qx * wx + qy * wy + qz * wz)
     tau = scratch[2]
     for r in range(3):
         tau[r] = torque[r]
