@@ -94,8 +94,7 @@ def body_inertia(inertia, wheels, out):
 @jit_noalloc
 def relative_momentum(wheels, i, h, omega):
     """``I_w Omega_i``: wheel ``i``'s momentum relative to the body (what its speed limit bounds)."""
-    a = wheels[i, W_AXIS : W_AXIS + 3]
-    return h[i] - wheels[i, W_SPIN_INERTIA] * (a[0] * omega[0] + a[1] * omega[1] + a[2] * omega[2])
+    return h[i] - wheels[i, W_SPIN_INERTIA] * _along(wheels, i, omega)
 
 
 @jit_noalloc
