@@ -422,3 +422,60 @@ def sliding_mode_torque(q_error, rate_error, rate_meas, accel_ref, slope, gain, 
     inertia = np.asarray(inertia, float)
     accel = -np.asarray(slope) * q_dot + np.asarray(accel_ref) - np.asarray(gain) * saturated
     return inertia @ accel + np.cross(rate_meas, inertia @ np.asarray(rate_meas))
+
+
+# --- keyed uniforms (refexmc.core.keyed_random): numpy's SeedSequence + PCG64 in Python ints ---
+_MASK32, _MASK64, _MASK128 = (1 << 32) - 1, (1 << 64) - 1, (1 << 128) - 1
+_PCG64_MULTIPLIER = (2549297995355413924 << 64) + 4865540595714422341
+
+
+def seed_sequence_pool(entropy):
+    """numpy's SeedSequence pool (4 words) of non-negative integers: hashmix, then mix every word
+    into every other, then the words beyond the pool (numpy/random/bit_generator.pyx)."""
+    words = []
+    for value in entropy:
+        words += [0] if value == 0 else [(value >> (32 * k)) & _MASK32 for k in range((value.bit_length() + 31) // 32)]
+    constant = [0x43B0D7E5]
+
+    def hashmix(value):
+        value = (value ^ constant[0]) & _MASK32
+        constant[0] = (constant[0] * 0x931E8875) & _MASK32
+        value = (value * constant[0]) & _MASK32
+        return value ^ (value >> 16)
+
+    def mix(x, y):
+        result = (0xCA01F9DD * x - 0x4973F715 * y) & _MASK32
+        return result ^ (result >> 16)
+
+    pool = [hashmix(words[i] if i < len(words) else 0) for i in range(4)]
+    for source in range(4):
+        for target in range(4):
+            if source != target:
+                pool[target] = mix(pool[target], hashmix(pool[source]))
+    for source in range(4, len(words)):
+        for target in range(4):
+            pool[target] = mix(pool[target], hashmix(words[source]))
+    return pool
+
+
+def keyed_doubles(entropy, n):
+    """``default_rng(SeedSequence(entropy)).random(n)``: generate_state(4, uint64) seeds PCG64
+    (srandom_r), each double is one 128-bit LCG step, its XSL-RR output, and (x >> 11) 2^-53."""
+    pool, constant, halves = seed_sequence_pool(entropy), 0x8B51F9DD, []
+    for i in range(8):
+        value = (pool[i % 4] ^ constant) & _MASK32
+        constant = (constant * 0x58F38DED) & _MASK32
+        value = (value * constant) & _MASK32
+        halves.append(value ^ (value >> 16))
+    seed = [halves[2 * k] | (halves[2 * k + 1] << 32) for k in range(4)]
+    increment = ((((seed[2] << 64) | seed[3]) << 1) | 1) & _MASK128
+    state = increment  # 0 * multiplier + increment
+    state = (state + ((seed[0] << 64) | seed[1])) & _MASK128
+    state = (state * _PCG64_MULTIPLIER + increment) & _MASK128
+    out = []
+    for _ in range(n):
+        state = (state * _PCG64_MULTIPLIER + increment) & _MASK128
+        x, rotation = ((state >> 64) ^ state) & _MASK64, state >> 122
+        x = ((x >> rotation) | (x << ((64 - rotation) % 64))) & _MASK64
+        out.append((x >> 11) * 2.0**-53)
+    return out

@@ -1,5 +1,6 @@
 """core.keyed_random against numpy: the keyed uniforms of a campaign are numpy's, bit for bit."""
 
+import naive
 import numpy as np
 import pytest
 
@@ -41,3 +42,14 @@ def test_keyed_uniforms_equal_the_keyed_generator():
             for attempt in (0, 1, 7):
                 expected = keyed_rng(20231121, run_id, name, attempt).random(6)
                 np.testing.assert_array_equal(keyed_uniforms(20231121, run_id, name, 6, attempt), expected)
+
+
+def test_the_kernel_equals_its_slow_twin():
+    """tests/naive.keyed_doubles (Python integers, no numpy random) on keys of 1-7 words."""
+    rng = np.random.default_rng(15)
+    out = np.empty(4)
+    for k in range(300):
+        entropy = [int(w) for w in rng.integers(0, 2**63, size=1 + k % 7, dtype=np.uint64)]
+        keyed_random.uniforms(keyed_random.entropy_words(entropy), out)
+        assert list(out) == naive.keyed_doubles(entropy, 4), entropy
+        assert list(np.random.SeedSequence(entropy).pool) == naive.seed_sequence_pool(entropy)
