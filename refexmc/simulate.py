@@ -175,3 +175,13 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
     pointing = bool(np.isfinite(inputs.mission[L.M_POINTING_FROM]))
     wheels = inputs.wheels.shape[0] > 0
     return FlightResult(summary, pulses, history[:rows], mode_names, orbit, pointing, wheels)
+
+
+def keyed_uniforms(entropy, count):
+    """``numpy.random.default_rng(SeedSequence(entropy)).random(count)``, bit for bit, in one numba
+    call (core.keyed_random): the campaign's keyed draws without building a generator each."""
+    from refexmc.core import keyed_random
+
+    out = np.empty(count)
+    keyed_random.uniforms(keyed_random.entropy_words(entropy), out)
+    return out

@@ -40,11 +40,9 @@ def keyed_rng(seed, run_id, name, attempt=0):
 def keyed_uniforms(seed, run_id, name, count, attempt=0):
     """``keyed_rng(seed, run_id, name, attempt).random(count)``, bit for bit, without building the
     generator (core.keyed_random: ~3 us instead of ~37 us per run and path)."""
-    from refexmc.core import keyed_random  # numba: imported where drawn (workers), not by the parent
+    from refexmc.simulate import keyed_uniforms as draw  # numba: imported where drawn (workers), not by the parent
 
-    out = np.empty(count)
-    keyed_random.uniforms(keyed_random.entropy_words((seed, run_id, path_key(name), attempt)), out)
-    return out
+    return draw((seed, run_id, path_key(name), attempt), count)
 
 
 @functools.lru_cache(maxsize=256)
