@@ -28,7 +28,7 @@ from refexmc.campaign import run as run_module
 from refexmc.cli import main
 
 CHUNKED = {run_module.CHUNK_SIZE_ENV: "5"}
-SIGNAL_RUNS = 120  # 24 chunks of 5: a signal after the first part lands mid-campaign
+SIGNAL_RUNS = 400  # 80 chunks of 5: a signal after the first part lands mid-campaign (120 finished first under Dask)
 
 
 def smoke(tmp_path, name="smoke.yaml"):
