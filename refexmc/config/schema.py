@@ -599,8 +599,8 @@ MISSION = obj(
             "external disturbance torques (001 sec. 10.2, eq. 10-11)",
             {
                 "gravity_gradient": obj(
-                    "gravity gradient of distant bodies on one line (001 eq. 11): coefficient sum mu/r^3 "
-                    "times n x J n, n the line's direction in body axes",
+                    "gravity gradient of distant bodies on one line (001 eq. 11): 3 (sum mu/r^3) "
+                    "n x J n, n the line's direction in body axes (physical sign; docs/irassi.md)",
                     {
                         "bodies": {
                             "type": "array",
