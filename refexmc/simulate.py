@@ -185,3 +185,15 @@ def keyed_uniforms(entropy, count):
     out = np.empty(count)
     keyed_random.uniforms(keyed_random.entropy_words(entropy), out)
     return out
+
+
+def keyed_uniforms_for_runs(leading, run_ids, path_key, attempt, count):
+    """Row i: :func:`keyed_uniforms` of the entropy ``(*leading, run_ids[i], path_key, attempt)``;
+    one numba call for a chunk's runs (core.keyed_random.uniforms_for_runs)."""
+    from refexmc.core import keyed_random
+
+    out = np.empty((len(run_ids), count))
+    words = keyed_random.entropy_words(leading)
+    ids = np.asarray(run_ids, dtype=np.int64)
+    keyed_random.uniforms_for_runs(words, ids, np.uint64(path_key), np.int64(attempt), out)
+    return out

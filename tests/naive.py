@@ -479,3 +479,20 @@ def keyed_doubles(entropy, n):
         x = ((x >> rotation) | (x << ((64 - rotation) % 64))) & _MASK64
         out.append((x >> 11) * 2.0**-53)
     return out
+
+
+def dispersed_inertia(nominal_components, moments_sigma_fraction, axes_sigma_deg, u):
+    """One inertia draw, one tensor at a time (refexmc.campaign.sampling.dispersed_inertia_rows):
+    principal moments of the nominal tensor scaled by (1 + sigma z), its principal axes turned by
+    the rotation vector axes_sigma z; z the standard normal quantiles of the 6 uniforms ``u``."""
+    from scipy import special
+    from scipy.spatial.transform import Rotation
+
+    xx, yy, zz, xy, xz, yz = nominal_components
+    moments, axes = np.linalg.eigh(np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]))
+    z = special.ndtri(u)
+    moments = moments * (1.0 + moments_sigma_fraction * z[:3])
+    turn = Rotation.from_rotvec(axes_sigma_deg * z[3:], degrees=True).as_matrix() @ axes
+    j = turn @ np.diag(moments) @ turn.T
+    j = 0.5 * (j + j.T)
+    return np.array([j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]])

@@ -53,3 +53,20 @@ def test_the_kernel_equals_its_slow_twin():
         keyed_random.uniforms(keyed_random.entropy_words(entropy), out)
         assert list(out) == naive.keyed_doubles(entropy, 4), entropy
         assert list(np.random.SeedSequence(entropy).pool) == naive.seed_sequence_pool(entropy)
+
+
+def test_a_chunk_of_runs_draws_each_run_as_numpy_would_alone():
+    """uniforms_for_runs, row by row, is numpy's generator of (seed, run id, path key, attempt):
+    run ids 0 and past 2^32 (one word, two words), keys of one and two words, attempts 0 and large."""
+    run_ids = np.array([0, 1, 7, 999, 2**32 - 1, 2**32, 2**40 + 5, 10**12])
+    for seed in (0, 20231121, 2**64 + 3):
+        for key in (0, 12345, 2**63 + 99):
+            for attempt in (0, 3, 2**33):
+                out = np.empty((len(run_ids), 5))
+                keyed_random.uniforms_for_runs(
+                    keyed_random.entropy_words([seed]), run_ids, np.uint64(key), np.int64(attempt), out
+                )
+                for row, run_id in zip(out, run_ids, strict=True):
+                    entropy = [seed, int(run_id), key, attempt]
+                    expected = np.random.default_rng(np.random.SeedSequence(entropy)).random(5)
+                    np.testing.assert_array_equal(row, expected, err_msg=str(entropy))

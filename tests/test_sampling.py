@@ -1,19 +1,22 @@
 """Dispersions and failures: keyed seeding, distributions, and every path reaching the flight."""
 
 import copy
+import itertools
 import math
 from pathlib import Path
 
+import naive
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
+from refexmc.campaign import sampling
 from refexmc.campaign.chunk import RunPlan, fly_chunk
-from refexmc.campaign.sampling import Sampler, truncated_normal_ppf
+from refexmc.campaign.sampling import Sampler, dims, keyed_rng, transform, truncated_normal_ppf
 from refexmc.config import dispersions
-from refexmc.config.derived import inertia_problem
+from refexmc.config.derived import inertia_problem, unphysical_inertias
 from refexmc.config.load import failure_sets, load_campaign
 from refexmc.core import layout as L
 from refexmc.simulate import fly
@@ -164,6 +167,98 @@ def test_uniform_so3_is_haar_distributed(base):
     # the rotated body x axis is uniform on the sphere: its mean is near zero (3 / sqrt(n) bound)
     x_axis = Rotation.from_rotvec(rotvec, degrees=True).apply([1.0, 0.0, 0.0])
     assert np.all(np.abs(x_axis.mean(axis=0)) < 3.0 / math.sqrt(n))
+
+
+# every distribution at once, a large inertia dispersion among them (some first draws are redrawn)
+EVERY_DISTRIBUTION = {
+    "separation.rates_deg_s": {"dist": "normal", "mean": [1.0, 0.0, -2.0], "sigma": [0.5, 2.0, 1.0]},
+    "rcs.isp_s": {"dist": "truncnorm", "mean": 70.0, "sigma": 3.0, "low": 68.0, "high": 80.0},
+    "separation.altitude_m": {"dist": "uniform", "low": 84000.0, "high": 86000.0},
+    "atmosphere.density_scale": {"dist": "lognormal", "median": 1.2, "sigma": 0.3},
+    "rcs.propellant_kg": {"dist": "choice", "values": [1.0, 2.0, 3.0], "probabilities": [0.2, 0.5, 0.3]},
+    "com_offset_m": {"dist": "choice", "values": [[0, 0, 0], [0.01, 0.02, 0.03]]},
+    "separation.attitude_error_deg": {"dist": "uniform_so3"},
+    "inertia_kg_m2": {"dist": "inertia", "moments_sigma_fraction": 0.3, "axes_sigma_deg": 20},
+    "mass_kg": {"dist": "constant", "value": 80.0},
+}
+
+
+@pytest.mark.parametrize("sampling", ["random", "lhs", "sobol"])
+def test_a_chunk_draws_each_run_as_it_would_be_drawn_alone(base, sampling):
+    """values_for_runs transforms a chunk's uniforms path by path in one go; every run's values
+    are, bit for bit, those of its own uniforms (numpy's keyed generator for random sampling, its
+    design row otherwise) transformed alone, the inertia by the one-tensor twin (tests/naive.py)."""
+    campaign = campaign_with(base, EVERY_DISTRIBUTION, runs=80, sampling=sampling, nominal_first=True)
+    sampler = Sampler(campaign)
+    run_ids, bounds = list(range(80)), [0, 13, 45, 80]  # chunks of 13, 32 and 35 runs
+    chunked = [v for a, b in itertools.pairwise(bounds) for v in sampler.values_for_runs(run_ids[a:b])]
+    redrawn = 0
+    for run_id, values in zip(run_ids, chunked, strict=True):
+        if run_id == 0:
+            assert all(np.array_equal(values[p], sampler.nominal[p]) for p in EVERY_DISTRIBUTION)
+            continue
+        for path, spec in sampler.specs.items():
+            n = dims(spec, dispersions.size(path, campaign["vehicle"]))
+            if sampling == "random":
+                u = keyed_rng(campaign["seed"], run_id, path).random(n)
+            else:
+                u = sampler.uniforms(path, run_id, n)
+            u = np.clip(u, dispersions.UNIFORM_EPS, 1.0 - dispersions.UNIFORM_EPS)
+            if spec["dist"] == "inertia":
+                alone = naive.dispersed_inertia(sampler.nominal[path], 0.3, 20.0, u)
+                if inertia_problem(dispersions.inertia_matrix(alone)) is not None:
+                    redrawn += 1
+                    continue  # drawn again with attempt 1, 2, ...: checked by the test below
+            else:
+                alone = transform(spec, u, sampler.nominal[path])
+            np.testing.assert_array_equal(values[path], alone, err_msg=f"{path} of run {run_id}")
+    assert redrawn > 0  # the large inertia sigma makes some first draws unphysical
+
+
+def test_inertia_is_redrawn_alone_until_physical(base):
+    """A run whose first inertia draw is not physical gets the first physical one of attempts
+    1, 2, ... of its own keyed stream, whatever chunk it is drawn in."""
+    spec = {"inertia_kg_m2": EVERY_DISTRIBUTION["inertia_kg_m2"]}
+    sampler = Sampler(campaign_with(base, spec, runs=60))
+    nominal = sampler.nominal["inertia_kg_m2"]
+    drawn = sampler.values_for_runs(list(range(60)))
+    for run_id, values in enumerate(drawn):
+        for attempt in range(1000):
+            u = np.clip(keyed_rng(sampler.seed, run_id, "inertia_kg_m2", attempt).random(6), 2.0**-53, 1.0 - 2.0**-53)
+            expected = naive.dispersed_inertia(nominal, 0.3, 20.0, u)
+            if inertia_problem(dispersions.inertia_matrix(expected)) is None:
+                break
+        np.testing.assert_array_equal(values["inertia_kg_m2"], expected, err_msg=f"run {run_id}")
+
+
+def test_a_run_without_a_physical_draw_is_an_error_row_beside_the_others(base, monkeypatch):
+    """Drawn in one chunk, a run whose inertia cannot be drawn (no redraws allowed here) fails
+    alone: an error row naming the reason, while every other run of the chunk flies."""
+    monkeypatch.setattr(sampling, "INERTIA_MAX_ATTEMPTS", 0)
+    campaign = campaign_with(base, {"inertia_kg_m2": EVERY_DISTRIBUTION["inertia_kg_m2"]}, runs=24)
+    prepared = RunPlan(campaign).prepare_runs(list(range(24)))
+    failed = [i for i, p in enumerate(prepared) if isinstance(p, Exception)]
+    assert 0 < len(failed) < 24
+    rows, histories = fly_chunk(campaign, range(24))
+    assert [r["run_id"] for r in rows if r["status"] == "error"] == failed
+    assert all("no physical inertia" in rows[i]["failure_reason"] for i in failed)
+    assert len(histories) == 24 - len(failed)
+
+
+def test_batched_inertia_check_agrees_with_inertia_problem():
+    """unphysical_inertias (a chunk's tensors at once) says what inertia_problem says of each:
+    physical, not positive definite, triangle violated, not symmetric, NaN."""
+    rng = np.random.default_rng(4)
+    tensors = []
+    for _ in range(3000):
+        axes = Rotation.random(random_state=rng).as_matrix()
+        tensors.append(axes @ np.diag(rng.uniform(-0.2, 2.0, 3)) @ axes.T)
+    tensors += [np.diag([1.0, 1.0, 2.0]), np.diag([1.0, 1.0, 2.0 + 1e-9]), np.diag([0.0, 1.0, 1.0])]
+    tensors += [np.array([[1.0, 0.1, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]), np.full((3, 3), np.nan)]
+    tensors = np.array(tensors)
+    expected = [inertia_problem(t) is not None for t in tensors]
+    assert 100 < sum(expected) < len(tensors) - 100  # both verdicts well represented
+    assert unphysical_inertias(tensors).tolist() == expected
 
 
 def test_inertia_draws_are_physical_and_disperse_the_principal_moments(base):

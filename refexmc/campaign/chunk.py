@@ -56,10 +56,35 @@ class RunPlan:
     def prepare(self, run_id):
         """(nav seed, failures, p-columns, packed inputs) of run ``run_id``; failures: a
         ``storage.Failures`` (failed thruster and wheel ids)."""
-        values = self.sampler.values(run_id)
-        failed_wheels = self.sampler.failed_wheels(run_id)
-        failed = storage.Failures(self.sampler.failed(run_id), failed_wheels)
-        inputs = self.sampler.inputs(self.inputs_with_failed_wheels(failed_wheels), values, failed.thrusters)
+        (prepared,) = self.prepare_runs([run_id])
+        if isinstance(prepared, Exception):
+            raise prepared
+        return prepared
+
+    def prepare_runs(self, run_ids):
+        """:meth:`prepare` of each of ``run_ids``, their parameters drawn together (the same numbers);
+        a run whose preparation raised gets the exception instead."""
+        try:
+            drawn = self.sampler.values_for_runs(run_ids)
+        except Exception:  # noqa: BLE001 - not a single run's problem: let each run raise it alone
+            drawn = [self._values_or_exception(run_id) for run_id in run_ids]
+        return [self._prepared(run_id, values) for run_id, values in zip(run_ids, drawn, strict=True)]
+
+    def _values_or_exception(self, run_id):
+        try:
+            return self.sampler.values(run_id)
+        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
+            return exc
+
+    def _prepared(self, run_id, values):
+        if isinstance(values, Exception):
+            return values
+        try:
+            failed_wheels = self.sampler.failed_wheels(run_id)
+            failed = storage.Failures(self.sampler.failed(run_id), failed_wheels)
+            inputs = self.sampler.inputs(self.inputs_with_failed_wheels(failed_wheels), values, failed.thrusters)
+        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
+            return exc
         return run_seed(self.campaign["seed"], run_id), failed, self.sampler.columns(values), inputs
 
     def error_row(self, run_id, reason):
@@ -78,10 +103,15 @@ class RunPlan:
         row.update(params or dict.fromkeys(self.param_columns(), float("nan")))
         return row
 
-    def fly(self, run_id, history_rate_hz):
-        """(runs row, history table, FlightResult); an error gives an error row and no history/result."""
+    def fly(self, run_id, history_rate_hz, prepared=None):
+        """(runs row, history table, FlightResult); an error gives an error row and no history/result.
+        ``prepared``: the run's :meth:`prepare_runs` entry, when drawn with others."""
         try:
-            seed, failed, params, inputs = self.prepare(run_id)
+            if prepared is None:
+                prepared = self.prepare(run_id)
+            if isinstance(prepared, Exception):
+                raise prepared
+            seed, failed, params, inputs = prepared
             result = simulate.fly(inputs, nav_seed=seed, history_rate_hz=history_rate_hz, mode_names=self.mode_names)
             reason = result.non_finite_reason()
         except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
@@ -112,8 +142,8 @@ def fly_chunk(campaign, run_ids):
     plan = plan_for(campaign)
     rate = campaign["output"]["history_rate_hz"]
     rows, histories = [], []
-    for run_id in run_ids:
-        row, history, _ = plan.fly(run_id, rate)
+    for run_id, prepared in zip(run_ids, plan.prepare_runs(run_ids), strict=True):
+        row, history, _ = plan.fly(run_id, rate, prepared)
         rows.append(row)
         if history is not None:
             histories.append(history)

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from refexmc.config import dispersions
-from refexmc.config.derived import inertia_problem, level_names, thruster_count, wheel_count
+from refexmc.config.derived import inertia_problem, level_names, thruster_count, unphysical_inertias, wheel_count
 from refexmc.config.load import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
 
 _TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
@@ -43,6 +43,13 @@ def keyed_uniforms(seed, run_id, name, count, attempt=0):
     from refexmc.simulate import keyed_uniforms as draw  # numba: imported where drawn (workers), not by the parent
 
     return draw((seed, run_id, path_key(name), attempt), count)
+
+
+def keyed_uniforms_for_runs(seed, run_ids, name, count, attempt=0):
+    """Row i: ``keyed_uniforms(seed, run_ids[i], name, count, attempt)``, in one call for them all."""
+    from refexmc.simulate import keyed_uniforms_for_runs as draw
+
+    return draw((int(seed),), run_ids, path_key(name), attempt, count)
 
 
 @functools.lru_cache(maxsize=256)
@@ -84,17 +91,28 @@ def so3_rotation_vector_deg(u):
 
 def dispersed_inertia(nominal_components, spec, u):
     """Principal moments scaled by (1 + sigma z), principal axes turned by a small rotation."""
+    return dispersed_inertia_rows(nominal_components, spec, u[np.newaxis, :])[0]
+
+
+def dispersed_inertia_rows(nominal_components, spec, u):
+    """:func:`dispersed_inertia` of each row of ``u`` (n x 6), as n x 6 components.
+
+    Batched, numpy and scipy make each row's tensor with the same operations as alone (the same
+    bits: tests/test_sampling.py checks it).
+    """
     from scipy import special
     from scipy.spatial.transform import Rotation
 
-    j0 = dispersions.inertia_matrix(nominal_components)
-    moments, axes = np.linalg.eigh(j0)
+    if len(u) == 0:
+        return np.empty((0, 6))
+    moments, axes = np.linalg.eigh(dispersions.inertia_matrix(nominal_components))
     z = special.ndtri(u)
-    moments = moments * (1.0 + spec["moments_sigma_fraction"] * z[:3])
-    turn = Rotation.from_rotvec(spec["axes_sigma_deg"] * z[3:], degrees=True).as_matrix() @ axes
-    j = turn @ np.diag(moments) @ turn.T
-    j = 0.5 * (j + j.T)
-    return np.array([j[a, b] for a, b in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))])
+    diagonal = np.zeros((len(u), 3, 3))
+    diagonal[:, (0, 1, 2), (0, 1, 2)] = moments * (1.0 + spec["moments_sigma_fraction"] * z[:, :3])
+    turn = Rotation.from_rotvec(spec["axes_sigma_deg"] * z[:, 3:], degrees=True).as_matrix() @ axes
+    j = turn @ diagonal @ np.swapaxes(turn, 1, 2)
+    j = 0.5 * (j + np.swapaxes(j, 1, 2))
+    return j[:, dispersions.INERTIA_ROWS, dispersions.INERTIA_COLUMNS]
 
 
 def truncated_normal_ppf(u, a, b):
@@ -114,11 +132,20 @@ def truncated_normal_ppf(u, a, b):
 
 def transform(spec, u, nominal_value):
     """Values (user units) of one draw from the uniforms ``u``."""
+    return transform_rows(spec, u[np.newaxis, :], nominal_value)[0]
+
+
+def transform_rows(spec, u, nominal_value):
+    """Values (user units, one row per draw) of the draws whose uniforms are the rows of ``u``.
+
+    The elementwise distributions transform all rows at once, with the same operations on each
+    element as one row alone (so the same bits); rotations and inertia go row by row.
+    """
     from scipy import special
 
     dist = spec["dist"]
     if dist == "constant":
-        return spec["value"].copy()
+        return np.repeat(np.atleast_1d(spec["value"])[np.newaxis, :], u.shape[0], axis=0)
     if dist == "normal":
         return spec["mean"] + spec["sigma"] * special.ndtri(u)
     if dist == "truncnorm":
@@ -135,11 +162,11 @@ def transform(spec, u, nominal_value):
         values = spec["values"]
         if spec["per_component"]:
             return values[index, np.arange(values.shape[1])]
-        return values[index[0]].copy()
+        return values[index[:, 0]]
     if dist == "uniform_so3":
-        return so3_rotation_vector_deg(u)
+        return np.array([so3_rotation_vector_deg(row) for row in u]).reshape(len(u), 3)
     if dist == "inertia":
-        return dispersed_inertia(nominal_value, spec, u)
+        return dispersed_inertia_rows(nominal_value, spec, u)
     raise KeyError(dist)  # pragma: no cover - the campaign was validated
 
 
@@ -158,6 +185,7 @@ class Sampler:
         self.levels = level_names(self.vehicle)
         self.specs = dispersions.check(campaign["dispersions"], self.vehicle, self.mission, None, {})
         self.nominal = {path: dispersions.nominal(path, self.vehicle, self.mission) for path in self.specs}
+        self.column_names = {path: dispersions.columns(path, self.vehicle) for path in self.specs}
         self.n_wheels = wheel_count(self.vehicle)
         self.wheel_failures = campaign.get(WHEEL_FAILURES.key, NO_FAILURES)
         self.failure_sets = self._enumerated(campaign["failures"], self.n_thrusters)
@@ -179,22 +207,57 @@ class Sampler:
             u = _design(self.sampling, self.seed, path, self.n_dispersed, count)[run_id - self.offset]
         return np.clip(u, _TINY, 1.0 - _TINY)
 
+    def uniforms_for_runs(self, path, run_ids, count):
+        """(len(run_ids), count) uniforms: row i is ``uniforms(path, run_ids[i], count)``."""
+        if count == 0:
+            return np.empty((len(run_ids), 0))
+        if self.sampling == "random":
+            u = keyed_uniforms_for_runs(self.seed, run_ids, path, count)
+        else:
+            rows = np.asarray(run_ids, dtype=np.int64) - self.offset
+            u = _design(self.sampling, self.seed, path, self.n_dispersed, count)[rows]
+        return np.clip(u, _TINY, 1.0 - _TINY)
+
     def values(self, run_id):
         """{path: values in user units} of run ``run_id`` (the nominal values for the nominal run)."""
-        if self.is_nominal(run_id):
-            return {path: value.copy() for path, value in self.nominal.items()}
-        out = {}
-        for path, spec in self.specs.items():
-            n = dims(spec, dispersions.size(path, self.vehicle))
-            value = transform(spec, self.uniforms(path, run_id, n), self.nominal[path])
-            attempt = 0
-            while spec["dist"] == "inertia" and inertia_problem(dispersions.inertia_matrix(value)):
-                attempt += 1
-                if attempt > INERTIA_MAX_ATTEMPTS:
-                    raise ValueError(f"{path}: no physical inertia in {INERTIA_MAX_ATTEMPTS} draws; reduce the sigmas")
-                value = transform(spec, self.uniforms(path, run_id, n, attempt), self.nominal[path])
-            out[path] = value
+        (values,) = self.values_for_runs([run_id])
+        if isinstance(values, Exception):
+            raise values
+        return values
+
+    def values_for_runs(self, run_ids):
+        """:meth:`values` of each of ``run_ids``, drawn path by path for them all at once (the same
+        numbers). A run without a physical draw gets its exception (a ValueError) instead."""
+        dispersed = [run_id for run_id in run_ids if not self.is_nominal(run_id)]
+        drawn = {path: self._draw(path, spec, dispersed) for path, spec in self.specs.items()}
+        out = []
+        for run_id in run_ids:
+            if self.is_nominal(run_id):
+                out.append({path: value.copy() for path, value in self.nominal.items()})
+                continue
+            values = {path: draws[run_id] for path, draws in drawn.items()}
+            problem = next((v for v in values.values() if isinstance(v, Exception)), None)
+            out.append(problem if problem is not None else values)
         return out
+
+    def _draw(self, path, spec, run_ids):
+        """{run id: values of ``path``} of ``run_ids``; inertia that is not physical is redrawn
+        with attempts 1, 2, ... (an exception as the value when every attempt failed)."""
+        n = dims(spec, dispersions.size(path, self.vehicle))
+        rows = transform_rows(spec, self.uniforms_for_runs(path, run_ids, n), self.nominal[path])
+        drawn = dict(zip(run_ids, rows, strict=True))
+        if spec["dist"] == "inertia":
+            for run_id in np.asarray(run_ids)[unphysical_inertias(dispersions.inertia_tensors(rows))]:
+                drawn[run_id] = self._redrawn_inertia(path, spec, run_id, n)
+        return drawn
+
+    def _redrawn_inertia(self, path, spec, run_id, n):
+        """The first physical inertia of attempts 1, 2, ... of run ``run_id`` (its first draw was not)."""
+        for attempt in range(1, INERTIA_MAX_ATTEMPTS + 1):
+            value = transform(spec, self.uniforms(path, run_id, n, attempt), self.nominal[path])
+            if not inertia_problem(dispersions.inertia_matrix(value)):
+                return value
+        return ValueError(f"{path}: no physical inertia in {INERTIA_MAX_ATTEMPTS} draws; reduce the sigmas")
 
     def _failed_units(self, failures, kind, n_units, sets, run_id):
         """Failed unit ids (1-based, ascending) of run ``run_id`` under ``failures`` (thrusters or
@@ -248,6 +311,6 @@ class Sampler:
         """The ``p.<path>`` columns of one run."""
         row = {}
         for path, value in values.items():
-            for name, v in zip(dispersions.columns(path, self.vehicle), np.atleast_1d(value), strict=True):
-                row[name] = float(v)
+            numbers = np.atleast_1d(np.asarray(value, dtype=float)).tolist()
+            row.update(zip(self.column_names[path], numbers, strict=True))
         return row

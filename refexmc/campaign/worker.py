@@ -1,7 +1,7 @@
 """The worker side of execution: fly a chunk's runs one at a time under a wall-time watchdog.
 
-Every backend hands :func:`fly_guarded` to its worker processes. It calls
-``chunk.fly_chunk(campaign, [run_id])`` for one run after another, so the worker always knows
+Every backend hands :func:`fly_guarded` to its worker processes. It draws the parameters of
+the runs it was given together, then flies one run after another, so the worker always knows
 which run it is flying. A watchdog thread (the flight kernel is numba ``nogil``, so the thread
 runs while a flight does) ends the worker process with ``os._exit`` when one run exceeds
 ``Guard.time_limit_s``. Time spent compiling or loading the numba kernels is not counted (up to
@@ -193,23 +193,30 @@ def ignore_interrupts():
 
 
 def fly_guarded(campaign, run_ids, guard):
-    """Fly ``run_ids`` one by one under the watchdog; return a :class:`Flown`."""
-    from refexmc.campaign.chunk import fly_chunk, plan_for  # here: the parent imports this module, never flies
+    """Fly ``run_ids`` one by one under the watchdog; return a :class:`Flown`.
 
-    plan_for(campaign)  # imports and sampling designs: not a run's time
+    The runs' parameters are drawn together first (``RunPlan.prepare_runs``: one vectorised draw
+    per parameter path), then each run is flown with its own time limit.
+    """
+    from refexmc.campaign.chunk import plan_for  # here: the parent imports this module, never flies
+
+    plan = plan_for(campaign)  # imports and sampling designs: not a run's time
+    rate = campaign["output"]["history_rate_hz"]
+    prepared = plan.prepare_runs(run_ids)
     _start_watchdog()
     state = _open_state(guard.state_dir)
     rows, histories = [], []
     try:
-        for run_id in run_ids:
+        for run_id, run_prepared in zip(run_ids, prepared, strict=True):
             _STATE.pack_into(state, 0, run_id, FLYING)
             _set_current(_Flight(run_id, guard.time_limit_s, state))
-            run_rows, run_histories = fly_chunk(campaign, [run_id])
+            row, history, _ = plan.fly(run_id, rate, run_prepared)
             _test_hooks(guard, run_id)
             _set_current(None)
             _STATE.pack_into(state, 0, -1, IDLE)
-            rows.extend(run_rows)
-            histories.extend(run_histories)
+            rows.append(row)
+            if history is not None:
+                histories.append(history)
     finally:
         _set_current(None)
         state.close()

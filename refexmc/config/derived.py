@@ -317,18 +317,38 @@ def _rcs_design(vehicle):
     return out
 
 
+def _inertia_checks(tensors):
+    """(symmetric, eigenvalues ascending) of each tensor of an n x 3 x 3 stack; a tensor that is not
+    symmetric (or not finite) gets the identity's eigenvalues (they are not looked at)."""
+    j = np.asarray(tensors, dtype=float)
+    finite = np.isfinite(j).all(axis=(1, 2))  # NaN or infinite entries: reported as not symmetric
+    j = np.where(finite[:, None, None], j, np.eye(3))
+    atol = 1e-9 * np.maximum(1.0, np.abs(j).max(axis=(1, 2)))
+    symmetric = finite & np.isclose(j, np.swapaxes(j, 1, 2), rtol=0.0, atol=atol[:, None, None]).all(axis=(1, 2))
+    return symmetric, np.linalg.eigvalsh(np.where(symmetric[:, None, None], j, np.eye(3)))
+
+
+def _triangle_violated(eig):
+    return eig[..., 0] + eig[..., 1] < eig[..., 2] * (1.0 - 1e-12)
+
+
 def inertia_problem(inertia):
     """Why an inertia tensor is not physical, or None."""
-    j = np.asarray(inertia, dtype=float)
-    if not np.allclose(j, j.T, rtol=0.0, atol=1e-9 * max(1.0, np.abs(j).max())):
+    symmetric, eig = _inertia_checks(np.asarray(inertia, dtype=float)[np.newaxis])
+    if not symmetric[0]:
         return "expected a symmetric inertia tensor"
-    eig = np.linalg.eigvalsh(j)
-    if eig.min() <= 0.0:
-        return f"expected a positive definite inertia tensor, eigenvalues {eig.round(6).tolist()}"
-    a, b, c = eig
-    if a + b < c * (1.0 - 1e-12):
-        return f"principal moments {eig.round(6).tolist()} violate the triangle inequality"
+    if eig[0].min() <= 0.0:
+        return f"expected a positive definite inertia tensor, eigenvalues {eig[0].round(6).tolist()}"
+    if _triangle_violated(eig[0]):
+        return f"principal moments {eig[0].round(6).tolist()} violate the triangle inequality"
     return None
+
+
+def unphysical_inertias(tensors):
+    """Whether each tensor of an n x 3 x 3 stack is not physical: :func:`inertia_problem` is not
+    None for it (the same checks, batched: a campaign's draws are checked a chunk at a time)."""
+    symmetric, eig = _inertia_checks(tensors)
+    return ~symmetric | (eig.min(axis=1) <= 0.0) | _triangle_violated(eig)
 
 
 def allocate_torque(vehicle, torque, level=None):

@@ -22,7 +22,8 @@ from refexmc.core import layout as L
 
 AXES = ("x", "y", "z")
 INERTIA_COMPONENTS = ("xx", "yy", "zz", "xy", "xz", "yz")
-_INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+INERTIA_ROWS, INERTIA_COLUMNS = (list(index) for index in zip(*INERTIA_INDEX, strict=True))
 
 
 class Parameter(NamedTuple):
@@ -222,7 +223,7 @@ def nominal(path, vehicle, mission):
     angles is their rotation vector."""
     if path == "inertia_kg_m2":
         j = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
-        return np.array([j[a, b] for a, b in _INERTIA_INDEX])
+        return np.array([j[a, b] for a, b in INERTIA_INDEX])
     if path == "rcs.thrust_scale":
         return np.ones(len(vehicle["rcs"]["thrusters"]))
     if path == "atmosphere.density_scale":
@@ -270,8 +271,16 @@ def _put(array, fields, name, values):
 def inertia_matrix(values):
     """3x3 tensor from the (xx, yy, zz, xy, xz, yz) components."""
     j = np.empty((3, 3))
-    for v, (a, b) in zip(values, _INERTIA_INDEX, strict=True):
+    for v, (a, b) in zip(values, INERTIA_INDEX, strict=True):
         j[a, b] = j[b, a] = v
+    return j
+
+
+def inertia_tensors(rows):
+    """n x 3 x 3 tensors from the rows (xx, yy, zz, xy, xz, yz) of an n x 6 array (:func:`inertia_matrix` of each)."""
+    j = np.empty((len(rows), 3, 3))
+    j[:, INERTIA_ROWS, INERTIA_COLUMNS] = rows
+    j[:, INERTIA_COLUMNS, INERTIA_ROWS] = rows
     return j
 
 

@@ -127,3 +127,33 @@ def uniforms(words, out):
         rot = hi >> np.uint64(58)
         x = (x >> rot) | (x << ((np.uint64(64) - rot) & _SHIFT64_LESS_ONE))
         out[n] = np.float64(x >> np.uint64(11)) * _DOUBLE_UNIT
+
+
+@jit_noalloc
+def _append_words(value, words, n):
+    """Append numpy's SeedSequence words of ``value`` (uint64: 32-bit words, low first; 0 is one
+    word) at ``words[n]``; return the new word count (:func:`entropy_words` for one integer)."""
+    if value == _ZERO:
+        words[n] = _ZERO
+        return n + 1
+    while value > _ZERO:
+        words[n] = value & _M32
+        value = value >> _SHIFT32
+        n += 1
+    return n
+
+
+@jit
+def uniforms_for_runs(leading_words, run_ids, path_key, attempt, out):
+    """Row i of ``out``: :func:`uniforms` of the entropy (leading integers, ``run_ids[i]``,
+    ``path_key``, ``attempt``), i.e. the keyed draws of a campaign's runs for one parameter path.
+    ``leading_words``: the words of the integers before the run id (:func:`entropy_words`);
+    run ids, key and attempt are non-negative and below 2^64."""
+    n_leading = leading_words.shape[0]
+    words = np.empty(n_leading + 6, dtype=np.uint64)
+    words[:n_leading] = leading_words
+    for i in range(run_ids.shape[0]):
+        n = _append_words(np.uint64(run_ids[i]), words, n_leading)
+        n = _append_words(path_key, words, n)
+        n = _append_words(np.uint64(attempt), words, n)
+        uniforms(words[:n], out[i])
