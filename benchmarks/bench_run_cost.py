@@ -1,7 +1,7 @@
 """Where a campaign's time per run goes (issue 15): kernel, sampling, history, encoding, transfer.
 
 Flies ``--runs`` runs of ``campaigns/refex-mc100.yaml`` in this process, one at a time, through
-the same functions a worker calls (``RunPlan.prepare``, ``execute.fly``, ``storage.runs_row`` and
+the same functions a worker calls (``RunPlan.prepare_runs`` per chunk, ``simulate.fly``, ``storage.runs_row`` and
 ``history_table``, ``worker.Flown.encode``), timing each stage, then the hand-over of a chunk's
 result to the parent (pickle dumps + loads of the ``Flown``, what loky does) and the parent's
 atomic write of the two parts. Chunks are of ``--chunk`` runs, as ``refexmc run`` makes them.
@@ -54,9 +54,11 @@ def stage_times(runs, chunk):
     with tempfile.TemporaryDirectory() as tmp:
         for start in range(0, runs, chunk):
             rows, histories = [], []
-            for run_id in range(start, min(runs, start + chunk)):
-                t0 = clock()
-                seed, failed, params, inputs = plan.prepare(run_id)
+            run_ids = list(range(start, min(runs, start + chunk)))
+            t0 = clock()
+            prepared = plan.prepare_runs(run_ids)  # a worker draws its chunk's parameters together
+            spent["sampling"] += clock() - t0
+            for run_id, (seed, failed, params, inputs) in zip(run_ids, prepared, strict=True):
                 t1 = clock()
                 result = fly(inputs, nav_seed=seed, history_rate_hz=rate, mode_names=plan.mode_names)
                 t2 = clock()
@@ -66,7 +68,6 @@ def stage_times(runs, chunk):
                 histories.append(storage.history_table(run_id, result))
                 t4 = clock()
                 rows.append(row)
-                spent["sampling"] += t1 - t0
                 spent["kernel"] += t2 - t1
                 spent["runs_row"] += t3 - t2
                 spent["history_table"] += t4 - t3
