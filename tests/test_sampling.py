@@ -3,6 +3,7 @@
 import copy
 import itertools
 import math
+import pickle
 from pathlib import Path
 
 import naive
@@ -13,7 +14,7 @@ from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from refexmc.campaign import sampling
-from refexmc.campaign.chunk import RunPlan, fly_chunk
+from refexmc.campaign.chunk import RunPlan, fly_chunk, plan_for
 from refexmc.campaign.sampling import Sampler, dims, keyed_rng, transform, truncated_normal_ppf
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem, unphysical_inertias
@@ -85,6 +86,17 @@ def test_fly_chunk_rows_are_independent_of_chunking(base):
     )
     assert [r["failed_thrusters"] for r in whole] == ["", "1", "2", "3", "4", "5"]
     assert whole[0]["p.separation.rates_deg_s.x"] == 3.0  # run 0: the nominal value
+
+
+def test_a_worker_reuses_its_plan_for_every_copy_of_the_same_campaign(base):
+    """Each task brings a new unpickled copy of the campaign: the plan is kept by content, and a
+    campaign that differs (here the seed, also when changed in place) gets its own plan."""
+    campaign = campaign_with(base, MIXED)
+    plan = plan_for(campaign)
+    assert plan_for(pickle.loads(pickle.dumps(campaign))) is plan
+    campaign["seed"] += 1
+    changed = plan_for(campaign)
+    assert changed is not plan and changed.sampler.seed == campaign["seed"]
 
 
 def test_seed_changes_the_draws(base):
