@@ -63,10 +63,11 @@ def _rss_kib(pid):
     return 0
 
 
-def run_cli(runs, jobs, out, campaign=CAMPAIGN):
-    """(wall s, peak tree RSS MiB, peak single-process RSS MiB) of one `refexmc run`."""
+def run_cli(runs, jobs, out, campaign=CAMPAIGN, options=()):
+    """(wall s, peak tree RSS MiB, peak single-process RSS MiB) of one `refexmc run` (``options``:
+    more of its options, e.g. ``("--backend", "dask", "--scheduler", "local:2")``)."""
     command = [*REFEXMC, "run", str(campaign), "--runs", str(runs), "-j", str(jobs), "-o", str(out)]
-    command += ["--overwrite", "--no-progress"]
+    command += ["--overwrite", "--no-progress", *options]
     peak = {"tree": 0, "process": 0}
     t0 = time.perf_counter()
     proc = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
