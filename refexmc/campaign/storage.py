@@ -145,7 +145,8 @@ def history_table(run_id, result):
     columns = {"run_id": pa.array(np.full(n, run_id, dtype=np.int64))}
     for name, values in signals.items():
         if name == "mode":
-            columns[name] = pa.DictionaryArray.from_arrays(pa.array(values), pa.array(result.mode_names))
+            names = pa.array(result.mode_names, type=pa.string())  # typed: an empty result has no names
+            columns[name] = pa.DictionaryArray.from_arrays(pa.array(values), names)
         else:
             columns[name] = pa.array(values)
     return pa.table(columns)
