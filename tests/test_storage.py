@@ -167,6 +167,16 @@ def test_encoded_parts_read_back_as_they_were(smoke_chunk):
         assert_same_table(storage.decode_table(storage.encode_table(table)), table)
 
 
+def test_floats_are_stored_plain_and_the_other_columns_as_dictionaries(smoke_chunk):
+    rows, histories = smoke_chunk
+    for table in (storage.runs_table(rows), pa.concat_tables(histories)):
+        metadata = pq.read_metadata(pa.BufferReader(storage.encode_table(table)))
+        for k, field in enumerate(table.schema):
+            if not pa.types.is_boolean(field.type):  # Parquet has no dictionaries of booleans
+                column = metadata.row_group(0).column(k)
+                assert column.has_dictionary_page != pa.types.is_floating(field.type), field.name
+
+
 def test_a_worker_never_imports_pandas(tmp_path):
     """pyarrow imports pandas on its first pa.array call: ~0.35 s of each worker's start-up."""
     script = (
