@@ -140,6 +140,15 @@ def test_empty_history_table_is_the_pa_array_table():
     assert_same_table(storage.history_table(5, result), reference_history_table(5, result))
 
 
+def test_histories_table_is_the_run_tables_one_after_the_other(smoke_flights):
+    run_ids, results = zip(*smoke_flights, strict=True)
+    assert len({len(result.history) for result in results}) > 1  # runs of different lengths
+    each = pa.concat_tables([storage.history_table(run_id, result) for run_id, result in smoke_flights])
+    assert_same_table(storage.histories_table(run_ids, results), each)
+    empty = empty_result(results[0].mode_names, 4)
+    assert_same_table(storage.histories_table([9, 2], [empty, results[2]]), storage.history_table(2, results[2]))
+
+
 def test_runs_table_is_the_pa_array_table(smoke_chunk):
     rows, _ = smoke_chunk
     assert any(math.isnan(value) for value in rows[-1].values() if isinstance(value, float))
