@@ -1,6 +1,8 @@
 """Output directory: Parquet part files (written atomically), manifest and resolved campaign."""
 
+import functools
 import hashlib
+import itertools
 import json
 import os
 import platform
@@ -28,10 +30,20 @@ def now():
 PARQUET_COMPRESSION = "zstd"
 
 
+def write_options(schema):
+    """``pq.write_table`` options of a table: zstd, and dictionary encoding but for floating-point columns.
+
+    Float values hardly repeat: a dictionary only costs hashing each value, and makes larger files
+    than plain values (a history part: 0.36 -> 0.15 ms per run to encode, 25.9 -> 17.4 kB per run).
+    """
+    dictionary = [field.name for field in schema if not pa.types.is_floating(field.type)]
+    return {"compression": PARQUET_COMPRESSION, "use_dictionary": dictionary}
+
+
 def encode_table(table):
     """A table as the bytes of a Parquet file: workers compress, the writing process only writes."""
     sink = pa.BufferOutputStream()
-    pq.write_table(table, sink, compression=PARQUET_COMPRESSION)
+    pq.write_table(table, sink, **write_options(table.schema))
     return sink.getvalue().to_pybytes()
 
 
@@ -65,7 +77,7 @@ def write_bytes_atomic(data, path):
 
 def write_table_atomic(table, path):
     """Write a Parquet file under a temporary name, then rename: readers never see a partial file."""
-    _write_atomic(path, lambda tmp: pq.write_table(table, tmp, compression=PARQUET_COMPRESSION))
+    _write_atomic(path, lambda tmp: pq.write_table(table, tmp, **write_options(table.schema)))
 
 
 def write_text_atomic(text, path):
@@ -121,6 +133,46 @@ def runs_row(run_id, seed, failed, result, value_columns, n_thrusters, error=Non
 
 STRING_COLUMNS = ("status", "failure_reason", "failed_thrusters", "failed_wheels")
 
+# Arrays are built from numpy buffers (pa.Array.from_buffers), not by pa.array: pyarrow 26 imports
+# pandas on the first pa.array call, ~0.35 s of every worker's start-up, and a worker has no use for it.
+
+
+def numpy_column(values):
+    """The Arrow array of a 1-D numpy array, without nulls (NaN is a value, as pa.array keeps it).
+
+    No copy of a contiguous array (but bool, which Arrow stores as bits): the array shares its memory.
+    """
+    values = np.ascontiguousarray(values)
+    data = np.packbits(values, bitorder="little") if values.dtype == np.bool_ else values
+    return pa.Array.from_buffers(_arrow_type(values.dtype), len(values), [None, pa.py_buffer(data)], null_count=0)
+
+
+@functools.cache
+def _arrow_type(dtype):
+    return pa.from_numpy_dtype(dtype)
+
+
+def string_column(values):
+    """The Arrow string array of Python strings, None a null."""
+    encoded = [b"" if value is None else value.encode() for value in values]
+    offsets = np.array([0, *itertools.accumulate(map(len, encoded))], dtype=np.int32)
+    nulls = sum(value is None for value in values)
+    validity = pa.py_buffer(np.packbits([value is not None for value in values], bitorder="little")) if nulls else None
+    buffers = [validity, pa.py_buffer(offsets), pa.py_buffer(b"".join(encoded))]
+    return pa.Array.from_buffers(pa.string(), len(values), buffers, null_count=nulls)
+
+
+# the numpy dtype of a column whose values are all of one Python type: the Arrow type pa.array infers
+_NUMPY_DTYPES = {float: np.float64, int: np.int64, bool: np.bool_}
+
+
+def python_column(values):
+    """The Arrow array of Python values, of the type pa.array infers: a column of floats, of ints or of
+    bools from numpy (ints beyond int64 raise); any other column (a mix of types, None) by pa.array."""
+    kinds = {type(value) for value in values}
+    dtype = _NUMPY_DTYPES.get(kinds.pop()) if len(kinds) == 1 else None
+    return numpy_column(np.array(values, dtype=dtype)) if dtype else pa.array(values)
+
 
 def runs_table(rows):
     """The ``runs`` table of ``rows`` (dicts with the same keys, in column order)."""
@@ -129,10 +181,10 @@ def runs_table(rows):
         values = [row[name] for row in rows]
         # fixed types where a chunk's values may all be null, so that every part has one schema
         if name in ("run_id", "seed"):
-            return pa.array(values, type=pa.int64())
+            return numpy_column(np.array(values, dtype=np.int64))
         if name in STRING_COLUMNS:
-            return pa.array(values, type=pa.string())
-        return pa.array(values)
+            return string_column(values)
+        return python_column(values)
 
     return pa.table({name: column(name) for name in rows[0]})
 
@@ -141,13 +193,27 @@ def history_table(run_id, result):
     """Long history table of one run (interface.md ``histories`` columns) from its
     ``refexmc.simulate.FlightResult``; ``mode`` is a dictionary column of the mission's mode names."""
     signals = result.history_columns()
-    n = len(signals["t_s"])
-    columns = {"run_id": pa.array(np.full(n, run_id, dtype=np.int64))}
+    return _history_arrow(np.full(len(signals["t_s"]), run_id, dtype=np.int64), signals, result.mode_names)
+
+
+def histories_table(run_ids, results):
+    """The :func:`history_table` of several runs of one mission, one run after the other.
+
+    Building a chunk's histories at once pays Arrow's per-column cost once, not once per run:
+    flown a chunk at a time, history and encoding cost 0.27 ms per run against 0.64 run by run.
+    """
+    runs = [result.history_columns() for result in results]
+    signals = {name: np.concatenate([run[name] for run in runs]) for name in runs[0]}
+    ids = np.repeat(np.asarray(run_ids, dtype=np.int64), [len(run["t_s"]) for run in runs])
+    return _history_arrow(ids, signals, results[0].mode_names)
+
+
+def _history_arrow(run_ids, signals, mode_names):
+    """The history table of a run_id column, the signals (``FlightResult.history_columns``) and mode names."""
+    columns = {"run_id": numpy_column(run_ids)}
     for name, values in signals.items():
-        if name == "mode":
-            columns[name] = pa.DictionaryArray.from_arrays(pa.array(values), pa.array(result.mode_names))
-        else:
-            columns[name] = pa.array(values)
+        columns[name] = numpy_column(values)
+    columns["mode"] = pa.DictionaryArray.from_arrays(columns["mode"], string_column(mode_names))
     return pa.table(columns)
 
 
