@@ -4,7 +4,6 @@ output directory in-process."""
 
 from pathlib import Path
 
-import pyarrow as pa
 import pyarrow.parquet as pq
 from click.testing import CliRunner
 
@@ -46,7 +45,7 @@ def store_campaign(campaign, out):
     """Fly every run of ``campaign`` into ``out``: resolved campaign, one runs part, one histories part."""
     storage.prepare_output(out)
     storage.write_resolved(out, campaign)
-    rows, histories = fly_chunk(campaign, range(campaign["runs"]))
+    rows, history = fly_chunk(campaign, range(campaign["runs"]))
     storage.write_table_atomic(storage.runs_table(rows), out / "runs" / storage.part_name(0))
-    storage.write_table_atomic(pa.concat_tables(histories), out / "histories" / storage.part_name(0))
+    storage.write_table_atomic(history or storage.empty_history_table(), out / "histories" / storage.part_name(0))
     return rows

@@ -123,10 +123,10 @@ def smoke_flights(smoke_campaign):
 
 @pytest.fixture(scope="module")
 def smoke_chunk(smoke_campaign):
-    """(rows, history tables) of three smoke runs, and the row of a fourth that errored."""
-    rows, histories = fly_chunk(smoke_campaign, range(3))
+    """(rows, history table) of three smoke runs, and the row of a fourth that errored."""
+    rows, history = fly_chunk(smoke_campaign, range(3))
     error = RunPlan(smoke_campaign).error_row(3, "RuntimeError: boom")
-    return [*rows, error], histories
+    return [*rows, error], history
 
 
 def test_history_table_is_the_pa_array_table(smoke_flights):
@@ -157,28 +157,28 @@ def test_runs_table_is_the_pa_array_table(smoke_chunk):
 
 
 def test_the_empty_history_table_has_the_schema_of_a_flown_one(smoke_chunk):
-    _, histories = smoke_chunk
-    assert storage.empty_history_table().schema.equals(histories[0].schema)
+    _, history = smoke_chunk
+    assert storage.empty_history_table().schema.equals(history.schema)
 
 
 def test_a_histories_folder_read_whole_keeps_its_modes_when_the_first_part_is_empty(smoke_chunk, tmp_path):
     """A chunk whose runs all errored writes an empty histories part; it must not hide the mode names."""
-    _, histories = smoke_chunk
+    _, history = smoke_chunk
     storage.write_table_atomic(storage.empty_history_table(), tmp_path / storage.part_name(0))
-    storage.write_table_atomic(histories[0], tmp_path / storage.part_name(1))
+    storage.write_table_atomic(history, tmp_path / storage.part_name(1))
     table = pq.read_table(tmp_path)
-    assert table.column("mode").to_pylist() == histories[0].column("mode").to_pylist()
+    assert table.column("mode").to_pylist() == history.column("mode").to_pylist()
 
 
 def test_encoded_parts_read_back_as_they_were(smoke_chunk):
-    rows, histories = smoke_chunk
-    for table in (storage.runs_table(rows), pa.concat_tables(histories)):
+    rows, history = smoke_chunk
+    for table in (storage.runs_table(rows), history):
         assert_same_table(storage.decode_table(storage.encode_table(table)), table)
 
 
 def test_floats_are_stored_plain_and_the_other_columns_as_dictionaries(smoke_chunk):
-    rows, histories = smoke_chunk
-    for table in (storage.runs_table(rows), pa.concat_tables(histories)):
+    rows, history = smoke_chunk
+    for table in (storage.runs_table(rows), history):
         metadata = pq.read_metadata(pa.BufferReader(storage.encode_table(table)))
         for k, field in enumerate(table.schema):
             if not pa.types.is_boolean(field.type):  # Parquet has no dictionaries of booleans

@@ -107,6 +107,12 @@ class RunPlan:
     def fly(self, run_id, history_rate_hz, prepared=None):
         """(runs row, history table, FlightResult); an error gives an error row and no history/result.
         ``prepared``: the run's :meth:`prepare_runs` entry, when drawn with others."""
+        row, result = self.fly_run(run_id, history_rate_hz, prepared)
+        return row, None if result is None else storage.history_table(run_id, result), result
+
+    def fly_run(self, run_id, history_rate_hz, prepared=None):
+        """(runs row, FlightResult) of :meth:`fly`, without the history table (a chunk builds one
+        for all its runs: ``storage.histories_table``); an error gives an error row and None."""
         try:
             if prepared is None:
                 prepared = self.prepare(run_id)
@@ -118,10 +124,10 @@ class RunPlan:
         except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
             reason = f"{type(exc).__name__}: {exc}"
         if reason is not None:
-            return self.error_row(run_id, reason), None, None
+            return self.error_row(run_id, reason), None
         row = storage.runs_row(run_id, seed, failed, result, self.value_columns, self.n_thrusters, wheels=self.wheels)
         row.update(params)
-        return row, storage.history_table(run_id, result), result
+        return row, result
 
     def param_columns(self):
         return [c for path in self.sampler.specs for c in dispersions.columns(path, self.campaign["vehicle"])]
@@ -145,13 +151,14 @@ def plan_for(campaign):
 
 
 def fly_chunk(campaign, run_ids):
-    """Fly ``run_ids``; return (runs rows as dicts, history tables). A run that raises is an error row."""
+    """Fly ``run_ids``; return (runs rows as dicts, the history table of the runs that flew, or None
+    when none did). A run that raises is an error row."""
     plan = plan_for(campaign)
     rate = campaign["output"]["history_rate_hz"]
-    rows, histories = [], []
+    rows, flown = [], {}
     for run_id, prepared in zip(run_ids, plan.prepare_runs(run_ids), strict=True):
-        row, history, _ = plan.fly(run_id, rate, prepared)
+        row, result = plan.fly_run(run_id, rate, prepared)
         rows.append(row)
-        if history is not None:
-            histories.append(history)
-    return rows, histories
+        if result is not None:
+            flown[run_id] = result
+    return rows, storage.histories_table(list(flown), list(flown.values())) if flown else None

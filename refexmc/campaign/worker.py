@@ -196,7 +196,8 @@ def fly_guarded(campaign, run_ids, guard):
     """Fly ``run_ids`` one by one under the watchdog; return a :class:`Flown`.
 
     The runs' parameters are drawn together first (``RunPlan.prepare_runs``: one vectorised draw
-    per parameter path), then each run is flown with its own time limit.
+    per parameter path), then each run is flown with its own time limit, and the history table
+    of the runs that flew is built once (``storage.histories_table``).
     """
     from refexmc.campaign.chunk import plan_for  # here: the parent imports this module, never flies
 
@@ -205,22 +206,23 @@ def fly_guarded(campaign, run_ids, guard):
     prepared = plan.prepare_runs(run_ids)
     _start_watchdog()
     state = _open_state(guard.state_dir)
-    rows, histories = [], []
+    rows, flown = [], {}
     try:
         for run_id, run_prepared in zip(run_ids, prepared, strict=True):
             _STATE.pack_into(state, 0, run_id, FLYING)
             _set_current(_Flight(run_id, guard.time_limit_s, state))
-            row, history, _ = plan.fly(run_id, rate, run_prepared)
+            row, result = plan.fly_run(run_id, rate, run_prepared)
             _test_hooks(guard, run_id)
             _set_current(None)
             _STATE.pack_into(state, 0, -1, IDLE)
             rows.append(row)
-            if history is not None:
-                histories.append(history)
+            if result is not None:
+                flown[run_id] = result
     finally:
         _set_current(None)
         state.close()
-    return Flown.encode(rows, histories)
+    history = storage.histories_table(list(flown), list(flown.values())) if flown else None
+    return Flown.encode(rows, [history] if history is not None else [])
 
 
 def collect_states(state_dir):
