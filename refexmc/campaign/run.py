@@ -22,7 +22,7 @@ import yaml
 
 import refexmc
 from refexmc.campaign import lock, storage
-from refexmc.campaign.backends import BACKENDS, check_backend
+from refexmc.campaign.backends import BACKENDS, check_backend, start_workers, stop_workers
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import Guard
 from refexmc.config.errors import ConfigError
@@ -230,6 +230,10 @@ def run_campaign(
     bad input, an OUT this run may not write (:func:`storage.check_output`) or one another run
     holds, with nothing written; :class:`CampaignInterrupted` on SIGINT/SIGTERM (workers stopped,
     completed chunks kept); OSError when OUT cannot be written.
+
+    The workers start as soon as OUT is locked, and warm up while OUT is prepared; whatever ends
+    the campaign early kills them. After a complete campaign they are left to the next one in this
+    process (:func:`refexmc.campaign.backends.stop_workers` ends them).
     """
     campaign_file, campaign = resolve_campaign(campaign_file, runs, seed)
     jobs = default_jobs() if jobs is None else jobs
@@ -260,12 +264,35 @@ def run_campaign(
     with stop_on_signals(), lock.locked(out, notify):
         try:
             previous = check()  # again, now that no other run can change OUT
-            storage.prepare_output(out, overwrite=overwrite, resume=resume, protect=[campaign_file])
-            return _run_locked(flight, previous, options, progress, notify)
+            with _workers_stopped_on_error():
+                options = {**options, **_start_workers(flight, previous)}
+                storage.prepare_output(out, overwrite=overwrite, resume=resume, protect=[campaign_file])
+                return _run_locked(flight, previous, options, progress, notify)
         except CampaignInterrupted as exc:
             exc.out, exc.total = out, campaign["runs"]
             exc.done = _runs_done(out, campaign["runs"])
             raise
+
+
+def _start_workers(flight, previous):
+    """Start the backend's workers, one per chunk up to ``jobs``; the backend options that fly on them.
+
+    A resumed OUT may need fewer: its chunks still to fly are known only once its parts are read.
+    """
+    chunk_size = previous["chunk_size"] if previous else flight["chunk_size"]
+    chunks = len(plan_chunks(flight["campaign"]["runs"], chunk_size))
+    execution = flight["execution"]
+    return start_workers(execution["backend"], max(1, min(execution["jobs"], chunks)))
+
+
+@contextmanager
+def _workers_stopped_on_error():
+    """Kill the workers when the body raises: a campaign that ends early leaves none running."""
+    try:
+        yield
+    except BaseException:
+        stop_workers()
+        raise
 
 
 def _runs_done(out, runs):
