@@ -197,3 +197,31 @@ def keyed_uniforms_for_runs(leading, run_ids, path_key, attempt, count):
     ids = np.asarray(run_ids, dtype=np.int64)
     keyed_random.uniforms_for_runs(words, ids, np.uint64(path_key), np.int64(attempt), out)
     return out
+
+
+_VECTOR_TABLES = ("vehicle", "fsw", "mission", "nav")  # the 1-d tables of RunInputs; the others are 2-d
+
+
+def _flight_argument_types():
+    """The numba types of ``run_flight``'s arguments as :func:`fly` passes them (packed inputs)."""
+    import numba
+
+    from refexmc.core.inputs import RunInputs
+
+    def table(name):
+        shape = (0,) if name in _VECTOR_TABLES else (0, 0)
+        return np.empty(shape, dtype=np.int64 if name == "allocation" else np.float64)
+
+    inputs = RunInputs(**{name: table(name) for name in RunInputs._fields})
+    arguments = (inputs, np.int64(0), np.int64(1), np.empty(0), np.empty(0, dtype=np.int64), np.empty((0, 0)))
+    return tuple(numba.typeof(argument) for argument in arguments)
+
+
+def load_kernels():
+    """Load the flight and keyed-uniform kernels from numba's disk cache (compiling what is not
+    there), without flying: a worker does it while the parent still prepares the campaign, so
+    that its first run costs the run only (numba's first load also sets up its target, ~0.4 s)."""
+    if hasattr(run_flight, "compile"):  # not with REFEXMC_DISABLE_JIT
+        run_flight.compile(_flight_argument_types())
+    keyed_uniforms((0,), 1)
+    keyed_uniforms_for_runs((0,), [0], 0, 0, 1)

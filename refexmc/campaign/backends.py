@@ -2,13 +2,16 @@
 
 A backend is a generator function ``backend(campaign, chunks, jobs, guard, **options)``:
 ``chunks`` is a list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`,
-``options`` what :func:`check_backend` returned for it (e.g. ``scheduler`` for dask); it
+``options`` what :func:`check_backend` and :func:`start_workers` returned for it (e.g. ``scheduler``
+for dask, ``workers`` for loky); it
 yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` in completion order,
 rows sorted by run id, and keeps only a bounded number of chunks in flight so that memory does
 not grow with the campaign. ``check_backend(name, **options)`` runs before anything is written: ConfigError for an
 unknown backend, an option it does not take, or one it cannot start with (dask: the extra missing,
 a malformed or unreachable scheduler). ``loky`` (below) runs on this machine; ``dask``
 (:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster.
+``start_workers(name, workers)`` starts a backend's workers before the campaign is prepared, so
+that they warm up meanwhile (loky: :mod:`refexmc.campaign.pool`).
 
 Workers return both parts already encoded (:class:`refexmc.campaign.worker.Flown`); only a
 chunk that came back in pieces (after a crash) is assembled and encoded again
@@ -21,15 +24,14 @@ flight: the one that crashes again is the culprit.
 """
 
 import re
-import threading
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, wait
 
-from joblib.externals.loky import get_reusable_executor
 from joblib.externals.loky.process_executor import TerminatedWorkerError
 
+from refexmc.campaign import pool
 from refexmc.campaign.assembly import TASKS_PER_WORKER, ChunkAssembler, Task, error_row
-from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded, ignore_interrupts
+from refexmc.campaign.worker import FLYING, OVER_LIMIT, collect_states, fly_guarded
 from refexmc.config.errors import ConfigError
 
 MAX_BLIND_RETRIES = 3  # a chunk whose worker died with no run in flight is retried this often
@@ -50,18 +52,22 @@ def _submit(executor, inflight, task, campaign, guard, source):
     inflight[future] = task
 
 
-def loky_backend(campaign, chunks, jobs, guard):
-    """Fly ``chunks`` on ``jobs`` loky worker processes (a worker process even for jobs=1)."""
+def loky_backend(campaign, chunks, jobs, guard, workers=None):
+    """Fly ``chunks`` on ``jobs`` loky worker processes (a worker process even for jobs=1).
+
+    ``workers``: the pool :func:`start_workers` started (default: ``jobs``, at most one per chunk),
+    flown on as it is: shrinking it would wait for its workers to finish warming up.
+    """
     if not chunks:
         return
-    jobs = max(1, min(jobs, len(chunks)))
+    jobs = workers or max(1, min(jobs, len(chunks)))
     window = TASKS_PER_WORKER * jobs
     assembler = ChunkAssembler(chunks)
     queue = deque(Task(chunk, run_ids) for chunk, run_ids in chunks)
     isolate = deque()  # suspects of a crash, flown one at a time with nothing else in flight
     blind_retries = {}
     inflight = {}
-    executor = get_reusable_executor(max_workers=jobs, initializer=ignore_interrupts)
+    executor = pool.executor(jobs)
     finished = False
     try:
         while queue or isolate or inflight:
@@ -94,31 +100,11 @@ def loky_backend(campaign, chunks, jobs, guard):
             if crash:
                 executor.shutdown(wait=True, kill_workers=True)
                 yield from _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries)
-                executor = get_reusable_executor(max_workers=jobs, initializer=ignore_interrupts)
+                executor = pool.executor(jobs)
         finished = True
     finally:
         if not finished:  # interrupted or failed: leave no worker running
-            _kill_workers(executor)
-
-
-def _kill_workers(executor):
-    """Shut ``executor`` down, killing its workers; return when they are gone.
-
-    loky's manager thread can trip over the work queue it has just cleared (a KeyError in
-    ``add_call_item_to_queue``, joblib 1.6) when tasks are still queued: the workers are killed
-    all the same, so that thread's traceback is not printed over the user's message.
-    """
-    previous = threading.excepthook
-
-    def quiet(args):
-        if args.thread is None or args.thread.name != "ExecutorManagerThread":
-            previous(args)
-
-    threading.excepthook = quiet
-    try:
-        executor.shutdown(wait=True, kill_workers=True)
-    finally:
-        threading.excepthook = previous
+            pool.kill(executor)
 
 
 def _recover(campaign, broken, crash, guard, assembler, queue, isolate, blind_retries):
@@ -176,6 +162,25 @@ def _dask_options(scheduler=None):
 
 BACKENDS = {"loky": loky_backend, "dask": dask_backend}
 _OPTIONS = {"loky": _loky_options, "dask": _dask_options}
+
+
+def _start_loky(workers):
+    pool.start(workers)
+    return {"workers": workers}
+
+
+_STARTERS = {"loky": _start_loky}  # dask: its cluster starts when the campaign flies
+
+
+def start_workers(name, workers):
+    """Start ``workers`` workers of backend ``name`` ahead of the flight; the options that fly on them."""
+    starter = _STARTERS.get(name)
+    return starter(workers) if starter else {}
+
+
+def stop_workers():
+    """Kill the workers :func:`start_workers` started, if they still run (loky: :func:`pool.stop`)."""
+    pool.stop()
 
 
 def check_backend(name, **options):

@@ -1,0 +1,68 @@
+"""This process's pool of loky worker processes: started early, warm before the first chunk, killed when done.
+
+A worker takes ~1 s to be ready for its first run on 2 cores: spawning and importing (~0.5 s),
+numba's target and the kernels from the disk cache (~0.5 s). Each worker does that start-up in
+its initializer (:func:`refexmc.campaign.worker.warm_up`), without waiting for a task, so that
+starting the pool early hides it behind the parent's own start-up: ``refexmc run`` starts one
+worker before it imports the campaign machinery (pyarrow) and validates the campaign, which is
+why this module imports nothing but loky (joblib, numpy).
+
+Every user asks for the executor through :func:`executor`, with the same initializer: loky
+replaces an executor asked for with other arguments, killing its workers. A complete campaign
+leaves its workers to the next one in this process (loky ends them after 10 s idle); :func:`stop`
+kills them at once.
+"""
+
+import threading
+
+from joblib.externals.loky import get_reusable_executor
+
+_executor = None  # the executor this process asked for last: what stop() kills
+
+
+def _start_worker():
+    """Each worker's initializer: Ctrl-C is the parent's to handle; then warm up."""
+    from refexmc.campaign import worker  # pyarrow and the kernels: the worker's business, not the parent's
+
+    worker.ignore_interrupts()
+    worker.warm_up()
+
+
+def executor(workers):
+    """The reusable loky executor with ``workers`` worker processes (spawned with its first task)."""
+    global _executor
+    _executor = get_reusable_executor(max_workers=workers, initializer=_start_worker)
+    return _executor
+
+
+def start(workers):
+    """Have ``workers`` worker processes start now: they warm up before any task comes."""
+    executor(workers).submit(int)  # loky spawns the workers it lacks when a task is submitted
+
+
+def stop():
+    """Kill the workers of the executor this process asked for last, if any; return when they are gone."""
+    global _executor
+    if _executor is not None:
+        kill(_executor)
+        _executor = None
+
+
+def kill(executor):
+    """Shut ``executor`` down, killing its workers; return when they are gone.
+
+    loky's manager thread can trip over the work queue it has just cleared (a KeyError in
+    ``add_call_item_to_queue``, joblib 1.6) when tasks are still queued: the workers are killed
+    all the same, so that thread's traceback is not printed over the user's message.
+    """
+    previous = threading.excepthook
+
+    def quiet(args):
+        if args.thread is None or args.thread.name != "ExecutorManagerThread":
+            previous(args)
+
+    threading.excepthook = quiet
+    try:
+        executor.shutdown(wait=True, kill_workers=True)
+    finally:
+        threading.excepthook = previous
