@@ -27,7 +27,7 @@ import re
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, wait
 
-from joblib.externals.loky.process_executor import TerminatedWorkerError
+from loky.process_executor import TerminatedWorkerError
 
 from refexmc.campaign import pool
 from refexmc.campaign.assembly import TASKS_PER_WORKER, ChunkAssembler, Task, error_row
