@@ -15,6 +15,7 @@ Prints the median of each milestone over the repeats. File times have the file s
 granularity (a few milliseconds).
 
 Usage: .venv/bin/python benchmarks/bench_startup.py [--runs 2] [-j 1] [--repeats 5] [--campaign PATH]
+       [--scheduler local:N]
 """
 
 import argparse
@@ -35,10 +36,12 @@ def _mtime(path):
     return path.stat().st_mtime_ns / 1e9
 
 
-def timeline(campaign, runs, jobs, out):
-    """{milestone: seconds after the process was started} of one ``refexmc run``."""
+def timeline(campaign, runs, jobs, out, scheduler=None):
+    """{milestone: seconds after the process was started} of one ``refexmc run`` (on the Dask
+    cluster ``scheduler`` if given, e.g. ``local:2``)."""
     command = [sys.executable, "-m", "refexmc.cli", "run", str(campaign), "--runs", str(runs), "-j", str(jobs)]
     command += ["-o", str(out), "--overwrite", "--no-progress"]
+    command += ["--backend", "dask", "--scheduler", scheduler] if scheduler else []
     start = time.time()
     subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
     end = time.time()
@@ -58,14 +61,16 @@ def main():
     parser.add_argument("-j", "--jobs", type=int, default=1)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--campaign", type=Path, default=CAMPAIGN)
+    parser.add_argument("--scheduler", help="fly on this Dask cluster (--backend dask), e.g. local:2")
     args = parser.parse_args()
 
     env_note = os.environ.get("REFEXMC_CHUNK_SIZE")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
-        timeline(args.campaign, args.runs, args.jobs, out)  # kernels in the cache, files in the page cache
-        samples = [timeline(args.campaign, args.runs, args.jobs, out) for _ in range(args.repeats)]
-    print(f"refexmc run --runs {args.runs} -j {args.jobs}, median of {args.repeats} warm runs [s after start]:")
+        timeline(args.campaign, args.runs, args.jobs, out, args.scheduler)  # kernels cached, files in the page cache
+        samples = [timeline(args.campaign, args.runs, args.jobs, out, args.scheduler) for _ in range(args.repeats)]
+    where = f"--scheduler {args.scheduler}" if args.scheduler else f"-j {args.jobs}"
+    print(f"refexmc run --runs {args.runs} {where}, median of {args.repeats} warm runs [s after start]:")
     if env_note:
         print(f"  (REFEXMC_CHUNK_SIZE={env_note})")
     for name in MILESTONES:

@@ -236,6 +236,17 @@ class _Window:
 # --- the worker side ---------------------------------------------------------------------------
 
 _fly_lock = threading.Lock()  # one task at a time per worker process: the watchdog guards one flight
+_warm = False
+
+
+def _warm_up_once():
+    """A worker's first task warms its process up as a loky worker's initializer does
+    (``worker.warm_up``): its imports and kernels are then frozen out of the garbage collector's
+    reach, so that collections in the task and the process's exit do not walk them."""
+    global _warm
+    if not _warm:
+        guarded.warm_up()
+        _warm = True
 
 
 def _report_hung(client, key, run_id):
@@ -251,6 +262,7 @@ def _fly_task(campaign, run_ids, guard):
     key = distributed.get_worker().get_current_task()
     client = distributed.get_client()
     with _fly_lock:
+        _warm_up_once()
         hung = client.get_metadata([key, HUNG], default={})
         flown = [run_id for run_id in run_ids if str(run_id) not in hung]
         guarded.set_over_limit_hook(partial(_report_hung, client, key))
