@@ -86,8 +86,8 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
         _bad_input("--resume and --overwrite exclude each other")
     from refexmc.campaign import pool  # loky alone: before the campaign machinery is imported
 
-    if backend == "loky" and jobs == 1:  # the pool's size, known before the campaign is read
-        pool.start(1)  # it warms up while this process imports and validates (~1 s on 2 cores)
+    if backend == "loky" and (jobs is None or jobs >= 1):
+        pool.start_early(jobs or pool.usable_cores())  # they warm up while this process validates (~1 s)
     try:
         result = _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress)
     finally:

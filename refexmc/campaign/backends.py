@@ -165,6 +165,7 @@ _OPTIONS = {"loky": _loky_options, "dask": _dask_options}
 
 
 def _start_loky(workers):
+    workers = max(workers, pool.started_early())
     pool.start(workers)
     return {"workers": workers}
 

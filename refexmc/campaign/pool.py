@@ -13,11 +13,18 @@ leaves its workers to the next one in this process (loky ends them after 10 s id
 kills them at once.
 """
 
+import os
 import threading
 
 from loky import get_reusable_executor
 
 _executor = None  # the executor this process asked for last: what stop() kills
+_early = 0  # workers start_early() started for the command under way (0: none)
+
+
+def usable_cores():
+    """All cores this process may use: the default number of workers (``refexmc run -j``)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def _start_worker():
@@ -40,9 +47,24 @@ def start(workers):
     executor(workers).submit(int)  # loky spawns the workers it lacks when a task is submitted
 
 
+def start_early(workers):
+    """:func:`start` ``workers`` workers before the campaign is read (``refexmc run``): one per job,
+    as the campaign's number of chunks is not known yet."""
+    global _early
+    start(workers)
+    _early = workers
+
+
+def started_early():
+    """The workers :func:`start_early` started for the command under way (0: none). The campaign
+    flies on all of them: shrinking a pool whose workers still warm up waits for them."""
+    return _early if _executor is not None else 0
+
+
 def stop():
     """Kill the workers of the executor this process asked for last, if any; return when they are gone."""
-    global _executor
+    global _executor, _early
+    _early = 0
     if _executor is not None:
         kill(_executor)
         _executor = None

@@ -23,7 +23,7 @@ import pyarrow.parquet as pq
 import yaml
 
 import refexmc
-from refexmc.campaign import lock, storage
+from refexmc.campaign import lock, pool, storage
 from refexmc.campaign.backends import BACKENDS, check_backend, start_workers, stop_workers
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import Guard
@@ -45,7 +45,7 @@ def default_output(campaign):
 
 def default_jobs():
     """All cores this process may use."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return pool.usable_cores()
 
 
 def resolve_campaign(campaign_file=None, runs=None, seed=None):
