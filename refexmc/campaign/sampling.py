@@ -18,7 +18,7 @@ import numpy as np
 
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem, level_names, thruster_count, unphysical_inertias, wheel_count
-from refexmc.config.load import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
+from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
 
 _TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
 _DESIGN_TAG = {"lhs": 1, "sobol": 2}

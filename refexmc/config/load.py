@@ -1,12 +1,10 @@
 """Read YAML files, validate them against the schema, and report bad input precisely."""
 
 import difflib
-import itertools
 import math
 import re
 import sys
 from pathlib import Path
-from typing import NamedTuple
 
 import jsonschema
 import numpy as np
@@ -15,6 +13,7 @@ import yaml
 from refexmc.config import published, requirements, schema
 from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
 from refexmc.config.errors import ConfigError
+from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
 
 
 class _Loader(yaml.SafeLoader):
@@ -539,24 +538,6 @@ def _failing_at(file, lines, prefix):
 
 
 FAILURE_KEYS = {"none": (), "fixed": ("units",), "random": ("count_probabilities",), "enumerate": ("sizes",)}
-NO_FAILURES = {"mode": "none"}
-
-
-class FailureKind(NamedTuple):
-    """What a campaign's failure key fails: ``failures`` thrusters, ``wheel_failures`` wheels."""
-
-    key: str  # the campaign key
-    units_key: str  # its list of failed units (mode fixed)
-    word: str  # one unit, in messages
-
-
-THRUSTER_FAILURES = FailureKind("failures", "thrusters", "thruster")
-WHEEL_FAILURES = FailureKind("wheel_failures", "wheels", "wheel")
-
-
-def failure_sets(sizes, n_units):
-    """Every set of failed units (1-based, ascending) of the given sizes, smallest sizes first."""
-    return [combo for k in sorted(sizes) for combo in itertools.combinations(range(1, n_units + 1), k)]
 
 
 def _check_failures(failures, units, path, lines, kind=THRUSTER_FAILURES):
