@@ -88,15 +88,38 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
 
     if backend == "loky" and (jobs is None or jobs >= 1):
         pool.start_early(jobs or pool.usable_cores())  # they warm up while this process validates (~1 s)
+    dask_local = _local_workers(scheduler, jobs) if backend == "dask" else None
+    if dask_local:
+        from refexmc.campaign import dask_backend
+
+        dask_backend.start_local_early(dask_local)  # its start overlaps the validation as well
     try:
         result = _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress)
     finally:
         pool.stop()  # idle now, and this process ends: its exit would wait ~0.4 s for them to leave
+        if dask_local:
+            dask_backend.stop_early()  # a cluster that no campaign took (bad input)
     click.echo(format_run_summary(result))
     errored = result["runs"].loc[result["runs"]["status"] == "error", "run_id"].tolist()
     if errored:
         click.echo(f"runs with errors: {', '.join(map(str, errored))}", err=True)
         sys.exit(1)
+
+
+def _local_workers(scheduler, jobs):
+    """The workers of the LocalCluster ``--scheduler local[:N]`` asks for (None: another scheduler,
+    or a malformed one, which the campaign's checks report)."""
+    from refexmc.campaign.dask_backend import parse_scheduler
+
+    try:
+        kind, workers = parse_scheduler(scheduler)
+    except ConfigError:
+        return None
+    if kind != "local" or (jobs is not None and jobs < 1):
+        return None
+    from refexmc.campaign import pool
+
+    return workers or jobs or pool.usable_cores()
 
 
 def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress):

@@ -97,6 +97,33 @@ def test_an_interrupted_campaign_closes_its_local_cluster(tmp_path, monkeypatch)
     assert child_pids() <= before
 
 
+def _warmed_up():
+    """On a worker: whether the process warmed up (imports and kernels) before any task."""
+    from refexmc.campaign import dask_backend
+
+    return dask_backend._warm and "refexmc.simulate" in sys.modules
+
+
+def test_a_local_cluster_started_early_is_taken_by_the_campaign_with_its_workers_warm():
+    before = child_pids()
+    dask_backend.start_local_early(1)
+    with dask_backend.connect("local:1", 1) as client:
+        assert dask_backend._early is None  # taken, not started again
+        assert list(client.run(_warmed_up).values()) == [True]  # by the preload, no task run yet
+    assert child_pids() <= before
+
+
+def test_a_refusal_closes_the_local_cluster_started_before_the_campaign_was_read(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("not a refexmc output\n")
+    before = child_pids()
+    result = invoke_run(smoke_file(tmp_path), "-o", out, "--backend", "dask", "--scheduler", "local:1")
+    assert result.exit_code == 2 and "output directory exists" in result.stderr
+    assert dask_backend._early is None and child_pids() <= before
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+
+
 def test_worker_killed_mid_campaign_costs_no_run(tmp_path, cluster):
     campaign, runs, chunk_size = smoke_file(tmp_path), 160, 4  # 40 chunks
     reference = run_campaign(campaign, out=tmp_path / "loky", runs=runs, jobs=2, chunk_size=chunk_size)["runs"]

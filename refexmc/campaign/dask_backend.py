@@ -103,18 +103,73 @@ def _client(distributed, address):
         client.close()
 
 
+def _local_cluster(distributed, workers):
+    """A LocalCluster of ``workers`` one-thread worker processes, each warmed up as it starts
+    (:mod:`refexmc.campaign.dask_preload`); its dashboard on any free port, so that campaigns
+    side by side do not collide."""
+    return distributed.LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",
+        preload=["refexmc.campaign.dask_preload"],
+    )
+
+
+_early = None  # (workers, thread, {"cluster": ...}) of the LocalCluster start_local_early started
+
+
+def start_local_early(workers):
+    """Start a LocalCluster of ``workers`` workers in a thread, now: ``refexmc run --scheduler
+    local[:N]`` does so before it reads the campaign, so that importing distributed (~0.7 s), the
+    cluster's start (~0.7 s) and its workers' warm-up overlap the validation. The campaign takes
+    it (:func:`connect`); :func:`stop_early` closes one that no campaign took."""
+    global _early
+    box = {}
+
+    def start():
+        with suppress(Exception):  # the campaign's own checks and start report it
+            box["cluster"] = _local_cluster(require_distributed(), workers)
+
+    thread = threading.Thread(target=start, name="refexmc-dask-start", daemon=True)
+    thread.start()
+    _early = (workers, thread, box)
+
+
+def _take_early(workers):
+    """The cluster :func:`start_local_early` started, if it has ``workers`` workers (else None)."""
+    global _early
+    if _early is None or _early[0] != workers:
+        return None
+    _, thread, box = _early
+    thread.join()
+    _early = None
+    return box.get("cluster")
+
+
+def stop_early():
+    """Close the cluster :func:`start_local_early` started if no campaign took it (bad input)."""
+    global _early
+    if _early is not None:
+        _, thread, box = _early
+        _early = None
+        thread.join()
+        if "cluster" in box:
+            box["cluster"].close()
+
+
 @contextmanager
 def connect(scheduler, jobs):
-    """A client of the cluster ``scheduler`` names; a LocalCluster started here is closed on exit."""
+    """A client of the cluster ``scheduler`` names; a LocalCluster started here (or ahead, by
+    :func:`start_local_early`) is closed on exit."""
     distributed = require_distributed()
     kind, value = parse_scheduler(scheduler)
     if kind == "address":
         with _client(distributed, value) as client:
             yield client
         return
-    cluster = distributed.LocalCluster(  # dashboard on any free port: campaigns side by side do not collide
-        n_workers=value or jobs, threads_per_worker=1, processes=True, dashboard_address=":0"
-    )
+    workers = value or jobs
+    cluster = _take_early(workers) or _local_cluster(distributed, workers)
     try:
         with distributed.Client(cluster) as client:
             yield client
@@ -239,10 +294,11 @@ _fly_lock = threading.Lock()  # one task at a time per worker process: the watch
 _warm = False
 
 
-def _warm_up_once():
-    """A worker's first task warms its process up as a loky worker's initializer does
-    (``worker.warm_up``): its imports and kernels are then frozen out of the garbage collector's
-    reach, so that collections in the task and the process's exit do not walk them."""
+def warm_up_once():
+    """Warm this worker process up once, as a loky worker's initializer does (``worker.warm_up``):
+    at its start on the LocalClusters refexmc starts (:mod:`refexmc.campaign.dask_preload`), in its
+    first task elsewhere. Its imports and kernels are then frozen out of the garbage collector's
+    reach, so that collections in the tasks and the process's exit do not walk them."""
     global _warm
     if not _warm:
         guarded.warm_up()
@@ -262,7 +318,7 @@ def _fly_task(campaign, run_ids, guard):
     key = distributed.get_worker().get_current_task()
     client = distributed.get_client()
     with _fly_lock:
-        _warm_up_once()
+        warm_up_once()
         hung = client.get_metadata([key, HUNG], default={})
         flown = [run_id for run_id in run_ids if str(run_id) not in hung]
         guarded.set_over_limit_hook(partial(_report_hung, client, key))
