@@ -3,9 +3,10 @@
 A worker takes ~1 s to be ready for its first run on 2 cores: spawning and importing (~0.5 s),
 numba's target and the kernels from the disk cache (~0.5 s). Each worker does that start-up in
 its initializer (:func:`refexmc.campaign.worker.warm_up`), without waiting for a task, so that
-starting the pool early hides it behind the parent's own start-up: ``refexmc run`` starts one
-worker before it imports the campaign machinery (pyarrow) and validates the campaign, which is
-why this module imports nothing but loky (not joblib, whose package import costs each process ~0.15 s).
+starting the pool early hides it behind the parent's own start-up: ``refexmc run`` starts its
+workers (one per job) before it imports the campaign machinery (pyarrow) and validates the
+campaign, which is why this module imports nothing but loky (not joblib, whose package import
+costs each process ~0.15 s).
 
 Every user asks for the executor through :func:`executor`, with the same initializer: loky
 replaces an executor asked for with other arguments, killing its workers. A complete campaign

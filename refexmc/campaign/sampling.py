@@ -12,6 +12,7 @@ are a prefix of one scrambled sequence). Redraws (non-physical inertia) use atte
 
 import functools
 import hashlib
+import itertools
 import math
 
 import numpy as np
@@ -138,8 +139,8 @@ def transform(spec, u, nominal_value):
 def transform_rows(spec, u, nominal_value):
     """Values (user units, one row per draw) of the draws whose uniforms are the rows of ``u``.
 
-    The elementwise distributions transform all rows at once, with the same operations on each
-    element as one row alone (so the same bits); rotations and inertia go row by row.
+    The elementwise distributions and the inertia tensors transform all rows at once, with the
+    same operations on each row as alone (so the same bits); uniform rotations go row by row.
     """
     from scipy import special
 
@@ -247,7 +248,8 @@ class Sampler:
         rows = transform_rows(spec, self.uniforms_for_runs(path, run_ids, n), self.nominal[path])
         drawn = dict(zip(run_ids, rows, strict=True))
         if spec["dist"] == "inertia":
-            for run_id in np.asarray(run_ids)[unphysical_inertias(dispersions.inertia_tensors(rows))]:
+            unphysical = unphysical_inertias(dispersions.inertia_tensors(rows))
+            for run_id in itertools.compress(run_ids, unphysical):
                 drawn[run_id] = self._redrawn_inertia(path, spec, run_id, n)
         return drawn
 
