@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from refexmc.config.requirements import ORBIT_COLUMNS, POINTING_COLUMNS, WHEEL_COLUMNS, mode_time_columns
+from refexmc.core import flight
 from refexmc.core import layout as L
-from refexmc.core.flight import run_flight
 
 AXES = "xyz"
 
@@ -141,8 +141,9 @@ def empty_result(mode_names, n_thrusters):
 
 
 def kernels_loaded():
-    """True once the flight kernel is compiled or loaded from the cache (or JIT is disabled)."""
-    return bool(getattr(run_flight, "signatures", True))
+    """True while every flight kernel this process has asked for is compiled or loaded from the
+    cache (or JIT is disabled): False while a family's first flight compiles its kernel."""
+    return all(getattr(kernel, "signatures", True) for kernel in flight.kernels().values())
 
 
 def history_every(inputs, history_rate_hz):
@@ -169,6 +170,7 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
     summary = np.zeros(L.summary_size(inputs.modes.shape[0]))
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
     history = np.zeros((max_rows, L.HISTORY_SIZE))
+    run_flight = flight.kernel(*flight.family(inputs))  # the vehicle family's own kernel (docs/families.md)
     run_flight(inputs, np.int64(nav_seed), np.int64(every), summary, pulses, history)
     rows = int(summary[L.S_HISTORY_ROWS])
     orbit = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_ORBIT
@@ -202,8 +204,14 @@ def keyed_uniforms_for_runs(leading, run_ids, path_key, attempt, count):
 _VECTOR_TABLES = ("vehicle", "fsw", "mission", "nav")  # the 1-d tables of RunInputs; the others are 2-d
 
 
+def flight_family(inputs):
+    """The vehicle family of packed inputs (``core.flight.family``): what :func:`load_kernels` takes."""
+    return flight.family(inputs)
+
+
 def _flight_argument_types():
-    """The numba types of ``run_flight``'s arguments as :func:`fly` passes them (packed inputs)."""
+    """The numba types of a flight kernel's arguments as :func:`fly` passes them (packed inputs);
+    the same for every family."""
     import numba
 
     from refexmc.core.inputs import RunInputs
@@ -217,11 +225,15 @@ def _flight_argument_types():
     return tuple(numba.typeof(argument) for argument in arguments)
 
 
-def load_kernels():
-    """Load the flight and keyed-uniform kernels from numba's disk cache (compiling what is not
-    there), without flying: a worker does it while the parent still prepares the campaign, so
-    that its first run costs the run only (numba's first load also sets up its target, ~0.4 s)."""
-    if hasattr(run_flight, "compile"):  # not with REFEXMC_DISABLE_JIT
-        run_flight.compile(_flight_argument_types())
+def load_kernels(families=()):
+    """Load the keyed-uniform kernels and the flight kernels of ``families`` (:func:`flight_family`
+    values) from numba's disk cache, compiling what is not there, without flying: a worker loads
+    the keyed kernels while the parent still prepares the campaign (numba's first load also sets
+    up its target, ~0.4 s) and its campaign's family before its first run (``chunk.RunPlan``),
+    so that the run costs the run only. Other families' kernels are neither loaded nor compiled."""
+    for family in families:
+        run_flight = flight.kernel(*family)
+        if hasattr(run_flight, "compile") and not run_flight.signatures:  # not with REFEXMC_DISABLE_JIT
+            run_flight.compile(_flight_argument_types())
     keyed_uniforms((0,), 1)
     keyed_uniforms_for_runs((0,), [0], 0, 0, 1)

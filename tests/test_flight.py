@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from refexmc import _jit
 from refexmc.config.load import load_mission, load_vehicle
 from refexmc.config.pack import mode_names, pack
 from refexmc.core import layout as L
@@ -223,7 +224,7 @@ def test_flight_is_deterministic(vehicle, mission):
 def test_dispersible_inputs_reach_the_model_without_recompiling(vehicle, mission):
     """Every quantity a campaign disperses is an array value: changing it changes the flight
     and compiles nothing new (one signature of the run kernel)."""
-    from refexmc.core.flight import run_flight
+    from refexmc.core import flight
 
     base_inputs = pack(vehicle, mission)
     base = fly(base_inputs)
@@ -248,6 +249,7 @@ def test_dispersible_inputs_reach_the_model_without_recompiling(vehicle, mission
     for name, edit in edits.items():
         result = perturbed(edit)
         assert not np.array_equal(result.history, base.history, equal_nan=True), f"{name} had no effect"
+    run_flight = flight.kernel(*flight.family(base_inputs))
     if hasattr(run_flight, "signatures"):  # absent when REFEXMC_DISABLE_JIT=1
         assert len(run_flight.signatures) == 1
 
@@ -286,3 +288,63 @@ def test_trajectory_in_the_flight_matches_solve_ivp(nominal, mission, vehicle):
     altitude_ref = np.hypot(ref.y[0], ref.y[1] - centre) - earth["radius_m"]
     assert np.max(np.abs(nominal.column("altitude_m") - altitude_ref)) < 1.0
     assert altitude_ref.max() == pytest.approx(131e3, abs=1e3)  # apogee ~131 km (reference-model sec. 5)
+
+
+# --- one compiled kernel per vehicle family (docs/families.md) ---------------------------------
+
+_FAMILY_CHECK = """
+import json, sys
+from refexmc import simulate
+from refexmc.config.load import load_campaign
+from refexmc.config.pack import pack
+from refexmc.core import allocation, environment, flight, lp_allocation, orbit_flight, switching, wheels
+
+STEPS = {  # each family's own step functions: compiled only by a kernel of that family
+    "pwpf_table": [switching.enforce, allocation.table_masks],
+    "lp_pwm": [lp_allocation.pulse_width, lp_allocation.allocate, allocation.nominal_arms],
+    "wheels": [wheels.drive, wheels.start, wheels.rk4_step],
+    "planar_drag": [environment.advance_nodes, environment.interpolate],
+    "orbit": [orbit_flight.start, orbit_flight.steer, orbit_flight.engine_period, orbit_flight.translate],
+}
+out = []
+for campaign in sys.argv[1:]:
+    c = load_campaign(campaign)
+    family = simulate.flight_family(pack(c["vehicle"], c["mission"]))
+    simulate.load_kernels([family])  # compiles: the cache directory is empty
+    out.append({"family": family, "compiled": {k: [len(f.signatures) for f in v] for k, v in STEPS.items()}})
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(_jit.DISABLED, reason="REFEXMC_DISABLE_JIT=1: nothing is compiled")
+def test_a_family_compiles_none_of_the_other_families_steps(tmp_path):
+    """Compile what is flown (style.md 11): in a fresh process with an empty numba cache, the
+    ReFEx kernel (pwpf_table, planar_drag) compiles no LP, wheel or orbit step, and the IRASSI
+    kernel compiled next (wheels, no trajectory) none of the LP, orbit, table or planar steps.
+    A branch left unpruned would type its steps (or fail to compile on a None tuple)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    env.pop("REFEXMC_DISABLE_JIT", None)
+    campaigns = [str(ROOT / "campaigns/nominal.yaml"), str(ROOT / "campaigns/irassi-fine-pointing.yaml")]
+    proc = subprocess.run(
+        [sys.executable, "-c", _FAMILY_CHECK, *campaigns], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr
+    refex, irassi = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert refex["family"] == [L.ACTUATION_PWPF_TABLE, L.TRAJECTORY_PLANAR_DRAG, 0]
+    assert irassi["family"] == [L.ACTUATION_WHEELS, L.TRAJECTORY_NONE, 1]
+    compiled = refex["compiled"]
+    for family in ("lp_pwm", "wheels", "orbit"):
+        assert compiled[family] == [0] * len(compiled[family]), f"the ReFEx kernel compiled {family} steps"
+    assert all(n >= 1 for n in compiled["pwpf_table"] + compiled["planar_drag"]), compiled
+    compiled = irassi["compiled"]  # after both kernels: the ReFEx family's steps are from the first
+    for family in ("lp_pwm", "orbit"):
+        assert compiled[family] == [0] * len(compiled[family]), f"the IRASSI kernel compiled {family} steps"
+    assert compiled["pwpf_table"] == refex["compiled"]["pwpf_table"], "the IRASSI kernel compiled table steps"
+    assert compiled["planar_drag"] == refex["compiled"]["planar_drag"], "the IRASSI kernel compiled planar steps"
+    assert all(n >= 1 for n in compiled["wheels"]), compiled

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from refexmc import simulate
+from refexmc import _jit, simulate
 from refexmc.campaign import run as run_module
 from refexmc.campaign import storage
 from refexmc.config.errors import ConfigError
@@ -38,8 +38,11 @@ def loky_workers(marker=None, parent=None):
     return found
 
 
-@pytest.mark.skipif(not hasattr(simulate.run_flight, "stats"), reason="REFEXMC_DISABLE_JIT=1: no kernels")
-def test_warm_up_loads_the_flight_kernel_from_the_cache_and_the_first_flight_adds_nothing(inputs):
+@pytest.mark.skipif(_jit.DISABLED, reason="REFEXMC_DISABLE_JIT=1: no kernels")
+def test_the_plan_loads_its_family_kernel_from_the_cache_and_the_first_flight_adds_nothing(inputs):
+    """A worker warms up without the campaign (no flight kernel), then its plan loads the kernel
+    of the campaign's vehicle family by signature from the disk cache (a hit, no compile) and no
+    other family's; the first flight needs nothing more."""
     simulate.fly(inputs)  # now in the disk cache, if it was not
     script = f"""
 from refexmc import simulate
@@ -48,16 +51,20 @@ from refexmc.config.load import load_mission, load_vehicle
 from refexmc.config.pack import pack
 
 worker.warm_up()
-stats = simulate.run_flight.stats
-print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), len(simulate.run_flight.signatures))
+print(len(simulate.flight.kernels()))
 configs = {str(ROOT / "configs")!r}
-simulate.fly(pack(load_vehicle(configs + "/vehicles/refex.yaml"), load_mission(configs + "/missions/refex-exo.yaml")))
-print(sum(stats.cache_misses.values()), len(simulate.run_flight.signatures))
+inputs = pack(load_vehicle(configs + "/vehicles/refex.yaml"), load_mission(configs + "/missions/refex-exo.yaml"))
+simulate.load_kernels([simulate.flight_family(inputs)])
+(run_flight,) = simulate.flight.kernels().values()
+stats = run_flight.stats
+print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), len(run_flight.signatures))
+simulate.fly(inputs)
+print(sum(stats.cache_misses.values()), len(run_flight.signatures), len(simulate.flight.kernels()))
 """
     lines = subprocess.run(
         [sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, check=True
     ).stdout.splitlines()
-    assert lines == ["1 0 1", "0 1"]  # loaded, not compiled; the flight then needs no other signature
+    assert lines == ["0", "1 0 1", "0 1 1"]  # loaded, not compiled; the flight then needs no other signature
 
 
 @needs_proc

@@ -29,6 +29,7 @@ class RunPlan:
         options = requirements.column_options(campaign["vehicle"], campaign["mission"])
         self.value_columns = requirements.run_value_columns(self.mode_names, **options)
         self.wheels = options["wheels"]  # the runs table has a failed_wheels column
+        self.family = simulate.flight_family(self.nominal_inputs)  # every run's: dispersions keep it
         self._warm_up()
 
     def _warm_up(self):
@@ -40,6 +41,11 @@ class RunPlan:
         if self.sampler.n_dispersed > 0:
             with contextlib.suppress(Exception):  # that run raises again when flown: an error row
                 self.sampler.values(self.sampler.offset)
+
+    def load_kernels(self):
+        """Load the flight kernel of the campaign's vehicle family (and only that) from numba's
+        disk cache, compiling it if it is not there: a worker does it before it flies."""
+        simulate.load_kernels([self.family])
 
     def inputs_with_failed_wheels(self, failed_wheels):
         """The undispersed inputs with ``failed_wheels`` (1-based ids) failed, and left out of the
@@ -154,6 +160,7 @@ def fly_chunk(campaign, run_ids):
     """Fly ``run_ids``; return (runs rows as dicts, the history table of the runs that flew, or None
     when none did). A run that raises is an error row."""
     plan = plan_for(campaign)
+    plan.load_kernels()
     rate = campaign["output"]["history_rate_hz"]
     rows, flown = [], {}
     for run_id, prepared in zip(run_ids, plan.prepare_runs(run_ids), strict=True):

@@ -80,7 +80,6 @@ class _Flight:
 _lock = threading.Lock()
 _current = None  # _Flight or None; set and cleared by fly_guarded, read by the watchdog
 _watchdog = None
-_kernels_ready = False
 _over_limit_hook = None  # called with the run id of a hung run before the watchdog ends the worker
 
 
@@ -102,13 +101,11 @@ def _call_over_limit_hook(run_id):
 
 
 def _kernels_compiled():
-    """True once the flight kernel is compiled or loaded from the cache (or JIT is disabled)."""
-    global _kernels_ready
-    if not _kernels_ready:
-        from refexmc.simulate import kernels_loaded
+    """True while every flight kernel this worker asked for is compiled or loaded from the cache
+    (or JIT is disabled): a campaign of another vehicle family compiles a kernel of its own."""
+    from refexmc.simulate import kernels_loaded
 
-        _kernels_ready = kernels_loaded()
-    return _kernels_ready
+    return kernels_loaded()
 
 
 def _watch():
@@ -195,9 +192,11 @@ def ignore_interrupts():
 
 
 def warm_up():
-    """Worker start-up that no run should pay for: imports, numba's target, the flight and
-    keyed-uniform kernels from the disk cache (~1 s on 2 cores). Each loky worker does it as it
-    starts (:mod:`refexmc.campaign.pool`), while the parent still prepares the campaign.
+    """Worker start-up that no run should pay for: imports, numba's target, the keyed-uniform
+    kernels from the disk cache (~1 s on 2 cores). Each loky worker does it as it starts
+    (:mod:`refexmc.campaign.pool`), while the parent still prepares the campaign, which it does
+    not know yet: the flight kernel of the campaign's vehicle family is loaded with the
+    campaign's plan, before the first run is watched (:func:`fly_guarded`).
 
     What it loaded lives as long as the worker: frozen, the garbage collector skips it (loky
     collects after a worker's first task, ~0.1 s with all this loaded).
@@ -221,6 +220,7 @@ def fly_guarded(campaign, run_ids, guard):
     from refexmc.campaign.chunk import plan_for  # here: the parent imports this module, never flies
 
     plan = plan_for(campaign)  # imports and sampling designs: not a run's time
+    plan.load_kernels()  # the campaign's flight kernel, from the disk cache: not a run's time either
     rate = campaign["output"]["history_rate_hz"]
     prepared = plan.prepare_runs(run_ids)
     _start_watchdog()

@@ -6,13 +6,21 @@ mode's start; ``core.modes``) -> actuate (controller, then PWPF + allocation tab
 per-thruster switching check, or LP allocation + pulse-width modulation; valve commands) ->
 record (a history row) -> integrate (the attitude over the period in segments that end on the
 thrust-profile breakpoints, each split into RK4 steps of at most ``integrator_max_step_s``).
-With reaction wheels, actuate hands the controller's torque to the wheels (``_drive_wheels``:
-core.wheels, held over the period) and integrate advances the wheels with the body.
-With the ``orbit`` trajectory, a burn mode first steers (``_steer``: core.deorbit at the guidance
-rate), and after the attitude the orbit is integrated over the same period (``_engine_period``,
-``_translate``: core.orbit), the thrust direction following the body.
-All inputs a campaign may disperse arrive as array values (``core.inputs.RunInputs``), so one
-compiled kernel serves every run. Outputs go to caller-owned arrays.
+With reaction wheels, actuate hands the controller's torque to the wheels (``wheels.drive``,
+held over the period) and integrate advances the wheels with the body.
+With the ``orbit`` trajectory, a burn mode first steers (``orbit_flight.steer``: core.deorbit at
+the guidance rate), and after the attitude the orbit is integrated over the same period
+(``orbit_flight.engine_period``, ``orbit_flight.translate``: core.orbit), the thrust direction
+following the body.
+
+Compile what is flown (docs/families.md): a vehicle family (actuation, trajectory, wheels or
+not) is a kernel of its own, :func:`kernel`, a closure over the family's ids. Its branches on
+them are pruned before typing, so it allocates only its family's work tuples and hands the
+loop ``None`` for every other family's; the loop and its steps test ``tuple is not None``, a
+test numba also prunes when the argument is typed ``none``. No other family's step is typed
+or compiled. All inputs a campaign may disperse arrive as array values
+(``core.inputs.RunInputs``), so one compiled kernel serves every run of its family. Outputs go
+to caller-owned arrays.
 """
 
 import math
@@ -24,7 +32,6 @@ from refexmc._jit import jit, jit_noalloc
 from refexmc.core import (
     allocation,
     control,
-    deorbit,
     dynamics,
     environment,
     guidance,
@@ -32,6 +39,7 @@ from refexmc.core import (
     modes,
     navigation,
     orbit,
+    orbit_flight,
     pulse_modulation,
     quaternion,
     rcs,
@@ -41,15 +49,12 @@ from refexmc.core import (
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     ACTUATION_LP_PWM,
+    ACTUATION_PWPF_TABLE,
     ACTUATION_WHEELS,
     F_ACCEL_MARGIN,
     F_ACTUATION,
     F_CONTROL_PERIOD,
     F_CONTROLLER,
-    F_ENGINE_AXIS,
-    F_GUIDANCE_PERIOD,
-    F_GUIDANCE_POSITION_GAIN,
-    F_GUIDANCE_VELOCITY_GAIN,
     F_INERTIA,
     F_MIN_OFF,
     F_MIN_ON,
@@ -78,20 +83,15 @@ from refexmc.core.layout import (
     LV_KD,
     LV_KP,
     LV_THRUST,
-    LV_THRUST_DESIGN,
     M_BURN_DURATION,
     M_BURN_START,
     M_CONSTANT_TORQUE,
-    M_EARTH_MU,
     M_EARTH_RADIUS,
-    M_EARTH_RATE,
-    M_ENTRY_ALTITUDE,
     M_GG_COEFFICIENT,
     M_GG_DIRECTION,
     M_HANDOVER_ANGLE,
     M_MAX_STEP,
     M_MAX_TIME,
-    M_ORBIT_STATE,
     M_POINTING_FROM,
     M_SEP_ATTITUDE,
     M_SEP_FLIGHT_PATH,
@@ -102,13 +102,10 @@ from refexmc.core.layout import (
     MD_KIND,
     MD_LEVEL,
     MD_TIMEOUT,
-    NOMINAL_SIZE,
     S_ALTITUDE_END,
     S_BURN_POINTING_MAX,
     S_BURN_POINTING_RMS,
     S_ENGINE_PROPELLANT_USED,
-    S_ENTRY,
-    S_ENTRY_TIME,
     S_FAILURE,
     S_FAILURE_MODE,
     S_FUEL_REMAINING,
@@ -129,51 +126,41 @@ from refexmc.core.layout import (
     S_WHEEL_MOMENTUM_PEAK,
     S_WHEEL_SATURATED_TIME,
     S_WHEEL_TORQUE_PEAK,
+    TRAJECTORY_NONE,
     TRAJECTORY_ORBIT,
     TRAJECTORY_PLANAR_DRAG,
-    V_COM_OFFSET,
-    V_ENGINE_DIRECTION,
-    V_ENGINE_ISP,
-    V_ENGINE_POSITION,
-    V_ENGINE_PROPELLANT,
-    V_ENGINE_THRUST,
     V_INERTIA,
     V_MASS,
     V_PROPELLANT,
 )
+from refexmc.core.status import (
+    MASK_ACTIVE,
+    MASK_OPEN,
+    ST_CALIBRATING,
+    ST_FAILURE,
+    ST_FAILURE_MODE,
+    ST_FUEL,
+    ST_HAS_FINAL,
+    ST_MODE,
+    ST_MODE_START,
+    ST_MODES_COMPLETED,
+    ST_NODE_INDEX,
+    ST_POINTING_COUNT,
+    ST_POINTING_MAX,
+    ST_POINTING_SUM2,
+    ST_POINTING_WINDOW_COUNT,
+    ST_POINTING_WINDOW_MAX,
+    ST_POINTING_WINDOW_SUM2,
+    ST_RK4_STEPS,
+    ST_STARTED,
+    ST_WHEEL_MOMENTUM_PEAK,
+    ST_WHEEL_SATURATED,
+    ST_WHEEL_TORQUE_PEAK,
+    STATUS_SIZE,
+)
 
 _DEG = 180.0 / math.pi
 _ARCSEC = 3600.0 * _DEG
-
-# --- flight status: the loop's scalars, one float64 array ------------------------------------
-ST_MODE = 0  # index of the mode flown; n_modes when the program is done
-ST_MODE_START = 1  # time the mode began (s)
-ST_FAILURE = 2  # layout.FAIL_*
-ST_FAILURE_MODE = 3
-ST_FUEL = 4  # propellant left (kg)
-ST_CALIBRATING = 5  # time spent in calibrating modes (s)
-ST_HAS_FINAL = 6  # 1: guidance has a target attitude (Guide.q_final)
-ST_MODES_COMPLETED = 7
-ST_RK4_STEPS = 8
-ST_NODE_INDEX = 9  # trajectory node a is at node_index * trajectory_step_s
-ST_STARTED = 10  # 1 once the first mode has started
-ST_GUIDANCE_TICK = 11  # orbit: time of the last burn-guidance step
-ST_POINTING_SUM2 = 12  # sum of squared pointing errors (rad^2) over control steps with the engine on
-ST_POINTING_COUNT = 13
-ST_POINTING_MAX = 14
-ST_ENTERED = 15  # 1 once the entry interface was crossed
-ST_ENGINE_ON = 16  # engine on-time in the coming control period: start, end (s)
-ST_ENGINE_OFF = 17
-ST_POINTING_WINDOW_SUM2 = 18  # per body axis: sum of squared pointing errors (rad^2) in the pointing window
-ST_POINTING_WINDOW_COUNT = 21
-ST_POINTING_WINDOW_MAX = 22  # largest total angle there (rad)
-ST_WHEEL_MOMENTUM_PEAK = 23  # largest |I_w Omega| of any wheel (N m s)
-ST_WHEEL_TORQUE_PEAK = 24  # largest motor torque demand before limits (N m)
-ST_WHEEL_SATURATED = 25  # time with a wheel limit acting (s)
-STATUS_SIZE = 26
-# --- thruster bit masks (bit i for thruster i), one int64 array --------------------------------
-MASK_OPEN = 0  # commanded open (switching.enforce)
-MASK_ACTIVE = 1  # not closed and settled (rcs.update)
 
 
 class Body(NamedTuple):
@@ -184,12 +171,13 @@ class Body(NamedTuple):
     inertia: np.ndarray  # truth, 3x3
     inertia_inv: np.ndarray
     torques: np.ndarray  # rows: thrust at segment start and end, RK4 step start and end, aerodynamic
+    scratch: np.ndarray  # (2, 3): the gravity gradient's without reaction wheels (core.wheels.gravity_gradient)
 
 
 class Trajectory(NamedTuple):
-    """Planar point-mass trajectory: RK4 nodes, Hermite-interpolated at the control rate."""
+    """Planar point-mass trajectory (trajectory ``planar_drag``): RK4 nodes, Hermite-interpolated
+    at the control rate into ``Work.trajectory_state``."""
 
-    state: np.ndarray  # interpolated [x, z, vx, vz] now
     nodes: np.ndarray  # (2, 4)
     node_accels: np.ndarray  # (2, 2)
     stage: np.ndarray  # RK4 stage scratch
@@ -219,7 +207,7 @@ class Guide(NamedTuple):
 
 
 class Actuation(NamedTuple):
-    """Controller to valves: errors, commands, modulator, switching and valve states."""
+    """Controller to valves: errors, commands, valve states."""
 
     q_error: np.ndarray
     rate_error: np.ndarray
@@ -228,149 +216,161 @@ class Actuation(NamedTuple):
     rotvec: np.ndarray  # history scratch
     gains: np.ndarray  # (levels, 2, 3): kp, kd per axis (contiguous rows for the controller)
     fsw_inertia: np.ndarray  # the inertia the flight software knows (000 eq. 30)
-    pwpf_state: np.ndarray
-    row_masks: np.ndarray  # allocation table rows as bit masks
-    switch_state: np.ndarray
     valve_state: np.ndarray
     arms: np.ndarray  # torque arms about the actual CoM
     smc: np.ndarray  # (3, 3): sliding-mode slope, gain, boundary layer per axis (001 eq. 12)
 
 
-class Optimiser(NamedTuple):
-    """LP allocation and its pulse-width modulation (actuation lp_pwm, core.lp_allocation)."""
+class Modulator(NamedTuple):
+    """PWPF + allocation table + switching check (actuation ``pwpf_table``)."""
 
-    arms: np.ndarray  # (3, n) torque arms the flight software knows: nominal geometry and CoM
-    u: np.ndarray  # thrust per thruster (N)
-    u_max: np.ndarray  # the flight software's thrust per thruster at the level flown (N)
-    scratch: np.ndarray  # lp_allocation.scratch_shape
-    basis: np.ndarray  # (3,) int64
-    in_basis: np.ndarray  # bool
-
-
-class Orbit(NamedTuple):
-    """The orbit trajectory (core.orbit) and the deorbit burn guidance (core.deorbit)."""
-
-    state: np.ndarray  # [r, v, m], ECI
-    prev: np.ndarray  # the state at the start of the control period
-    stage: np.ndarray  # (6, 7) RK4 scratch
-    measured: np.ndarray  # GPS position and velocity at the last guidance step
-    nominal: np.ndarray  # the nominal row then
-    command: np.ndarray  # commanded thrust direction (unit, ECI)
-    thrust_dirs: np.ndarray  # (2, 3) true thrust direction at the period's start and end (ECI)
-    torque: np.ndarray  # gravity-gradient + engine torque over the period (body, N m)
-    crossing: np.ndarray  # the state at the entry interface
-    work: np.ndarray  # (9, 3) scratch
+    pwpf_state: np.ndarray
+    row_masks: np.ndarray  # allocation table rows as bit masks
+    switch_state: np.ndarray
 
 
 class Work(NamedTuple):
+    """The work arrays every family's flight uses."""
+
     body: Body
-    trajectory: Trajectory
+    trajectory_state: np.ndarray  # [x, z, vx, vz] of the planar trajectory now (zeros without it)
     sensed: Sensed
     guide: Guide
     actuation: Actuation
     status: np.ndarray  # ST_*
     masks: np.ndarray  # MASK_*, int64
-    optimiser: Optimiser
-    orbit: Orbit
-    wheels: wheels.Plant
 
 
-@jit
-def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
-    """Fly ``inputs`` (``core.inputs.RunInputs``); fill ``summary``, ``pulse_counts`` and ``history``.
+_ACTUATIONS = (ACTUATION_PWPF_TABLE, ACTUATION_LP_PWM, ACTUATION_WHEELS)
+_TRAJECTORIES = (TRAJECTORY_NONE, TRAJECTORY_PLANAR_DRAG, TRAJECTORY_ORBIT)
+_kernels = {}  # (actuation, trajectory, wheels) -> the family's run_flight
 
-    ``summary`` has ``layout.summary_size(n_modes)`` slots; ``history`` one row per
-    ``history_every`` control steps (plus the final state) until it is full;
-    ``summary[S_HISTORY_ROWS]`` says how many rows were written.
-    """
-    n_thr = inputs.thrusters.shape[0]
-    n_levels = inputs.levels.shape[0]
-    n_wheels = inputs.wheels.shape[0]
-    work = Work(
-        Body(
-            np.empty(dynamics.STATE_SIZE),
-            np.empty((8, dynamics.STATE_SIZE)),
-            np.empty((3, 3)),
-            np.empty((3, 3)),
-            np.zeros((5, 3)),
-        ),
-        Trajectory(
-            np.empty(environment.TRAJECTORY_STATE_SIZE),
-            np.empty((2, environment.TRAJECTORY_STATE_SIZE)),
-            np.empty((2, 2)),
-            np.empty(environment.TRAJECTORY_STATE_SIZE),
-        ),
-        Sensed(np.zeros(4), np.zeros(3), np.zeros(modes.NOW_SIZE), np.empty(1, dtype=np.uint64), np.zeros(4)),
-        Guide(
-            np.zeros(guidance.GUIDANCE_STATE_SIZE),
-            np.zeros(4),
-            np.zeros(3),
-            np.zeros(3),
-            np.zeros(4),
-            np.zeros((3, 4)),
-            np.zeros((6, 4)),
-            np.empty((n_levels, 3)),
-        ),
-        Actuation(
-            np.zeros(4),
-            np.zeros(3),
-            np.zeros(3),
-            np.zeros(3),
-            np.zeros(3),
-            np.empty((n_levels, 2, 3)),
-            np.empty((3, 3)),
-            np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
-            np.empty(inputs.allocation.shape[0], dtype=np.int64),
-            np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
-            np.zeros((n_thr, rcs.VALVE_STATE_SIZE)),
-            np.empty((n_thr, 3)),
-            np.zeros((3, 3)),
-        ),
-        np.zeros(STATUS_SIZE),
-        np.zeros(2, dtype=np.int64),
-        Optimiser(
-            np.zeros((3, n_thr)),
-            np.zeros(n_thr),
-            np.zeros(n_thr),
-            # lp_allocation.scratch_shape(n_thr), written out: a Python function cannot run here
-            np.zeros((lp_allocation.N_ROWS + 8, max(n_thr + 1 + lp_allocation.N_ROWS, 6))),
-            np.zeros(lp_allocation.N_ROWS, dtype=np.int64),
-            np.zeros(n_thr + 1 + lp_allocation.N_ROWS, dtype=np.bool_),
-        ),
-        Orbit(
-            np.zeros(orbit.ORBIT_STATE_SIZE),
-            np.zeros(orbit.ORBIT_STATE_SIZE),
-            np.zeros((6, orbit.ORBIT_STATE_SIZE)),
-            np.zeros(6),
-            np.zeros(NOMINAL_SIZE),
-            np.zeros(3),
-            np.zeros((2, 3)),
-            np.zeros(3),
-            np.zeros(orbit.ORBIT_STATE_SIZE),
-            np.zeros((9, 3)),
-        ),
-        wheels.Plant(  # as wheels.plant(inputs.wheels) (a Python function cannot run here)
-            inputs.wheels,
-            np.zeros(n_wheels + wheels.IMPULSE),
-            np.zeros(n_wheels),
-            np.zeros(n_wheels),
-            np.zeros((3, 3)),
-            np.zeros((3, 3)),
-            np.zeros((3, 3)),
-            np.zeros(4),
-            np.zeros((5, 7)),
-            np.zeros((5, n_wheels + wheels.IMPULSE)),
-            np.zeros((5, 3)),
-            np.zeros((3, 3)),
-        ),
+
+def family(inputs):
+    """The vehicle family of packed inputs: (actuation id, trajectory id, 1 with reaction wheels
+    else 0), the arguments of :func:`kernel`."""
+    return (
+        int(inputs.fsw[F_ACTUATION]),
+        int(inputs.mission[M_TRAJECTORY_MODEL]),
+        1 if inputs.wheels.shape[0] > 0 else 0,
     )
-    _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work)
+
+
+def kernel(actuation, trajectory, wheels_flown):
+    """The flight kernel of one vehicle family, made once per process (disk-cached per family):
+    ``run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history)``.
+
+    ``actuation``: layout.ACTUATION_*; ``trajectory``: layout.TRAJECTORY_*; ``wheels_flown``:
+    1 when the vehicle has reaction wheels (``inputs.wheels`` has rows). :func:`family` derives
+    them from packed inputs.
+    """
+    key = (int(actuation), int(trajectory), int(wheels_flown))
+    if key[0] not in _ACTUATIONS or key[1] not in _TRAJECTORIES or key[2] not in (0, 1):
+        raise ValueError(f"no flight kernel for the family (actuation, trajectory, wheels) = {key}")
+    if key not in _kernels:
+        _kernels[key] = _make_kernel(*key)
+    return _kernels[key]
+
+
+def kernels():
+    """The flight kernels made in this process so far, by family."""
+    return dict(_kernels)
+
+
+def _make_kernel(actuation, trajectory, wheels_flown):
+    """:func:`kernel`: a closure over the family's ids only (numba's disk cache keys a closure by
+    its cell contents, so that each family's kernel is cached apart), compiled with
+    ``refexmc._jit.jit``. Its tests of the ids are constants numba prunes before typing."""
+    ACTUATION = actuation  # noqa: N806 - compile-time constants of the closure
+    TRAJECTORY = trajectory  # noqa: N806
+    WHEELS = wheels_flown  # noqa: N806
+
+    def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
+        """Fly ``inputs`` (``core.inputs.RunInputs``) of this kernel's family; fill ``summary``,
+        ``pulse_counts`` and ``history``.
+
+        ``summary`` has ``layout.summary_size(n_modes)`` slots; ``history`` one row per
+        ``history_every`` control steps (plus the final state) until it is full;
+        ``summary[S_HISTORY_ROWS]`` says how many rows were written.
+        """
+        n_thr = inputs.thrusters.shape[0]
+        n_levels = inputs.levels.shape[0]
+        work = Work(
+            Body(
+                np.empty(dynamics.STATE_SIZE),
+                np.empty((8, dynamics.STATE_SIZE)),
+                np.empty((3, 3)),
+                np.empty((3, 3)),
+                np.zeros((5, 3)),
+                np.zeros((2, 3)),
+            ),
+            np.empty(environment.TRAJECTORY_STATE_SIZE),
+            Sensed(np.zeros(4), np.zeros(3), np.zeros(modes.NOW_SIZE), np.empty(1, dtype=np.uint64), np.zeros(4)),
+            Guide(
+                np.zeros(guidance.GUIDANCE_STATE_SIZE),
+                np.zeros(4),
+                np.zeros(3),
+                np.zeros(3),
+                np.zeros(4),
+                np.zeros((3, 4)),
+                np.zeros((6, 4)),
+                np.empty((n_levels, 3)),
+            ),
+            Actuation(
+                np.zeros(4),
+                np.zeros(3),
+                np.zeros(3),
+                np.zeros(3),
+                np.zeros(3),
+                np.empty((n_levels, 2, 3)),
+                np.empty((3, 3)),
+                np.zeros((n_thr, rcs.VALVE_STATE_SIZE)),
+                np.empty((n_thr, 3)),
+                np.zeros((3, 3)),
+            ),
+            np.zeros(STATUS_SIZE),
+            np.zeros(2, dtype=np.int64),
+        )
+        if ACTUATION == ACTUATION_PWPF_TABLE:
+            table = Modulator(
+                np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
+                np.empty(inputs.allocation.shape[0], dtype=np.int64),
+                np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
+            )
+        else:
+            table = None
+        if ACTUATION == ACTUATION_LP_PWM:
+            opt = lp_allocation.optimiser(n_thr)
+        else:
+            opt = None
+        if WHEELS == 1:
+            wh = wheels.plant(inputs.wheels)
+        else:
+            wh = None
+        if TRAJECTORY == TRAJECTORY_PLANAR_DRAG:
+            traj = Trajectory(
+                np.empty((2, environment.TRAJECTORY_STATE_SIZE)),
+                np.empty((2, 2)),
+                np.empty(environment.TRAJECTORY_STATE_SIZE),
+            )
+        else:
+            traj = None
+        if TRAJECTORY == TRAJECTORY_ORBIT:
+            orb = orbit_flight.work()
+        else:
+            orb = None
+        _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work, table, opt, wh, traj, orb)
+
+    return jit(run_flight)
 
 
 @jit_noalloc
-def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks, wh):
+def _start(
+    inputs, nav_seed, summary, pulse_counts, body, traj_state, sensed, guide, act, status, masks, table, wh, traj
+):
     """Initial state: body x along the velocity, wings level, then the separation error; the
-    wheels' momenta and the total angular momentum."""
+    wheels' momenta and the total angular momentum. ``table``, ``wh``, ``traj``: the family's
+    work tuples, or None (:func:`kernel`)."""
     vehicle, fsw, mission = inputs.vehicle, inputs.fsw, inputs.mission
     for i in range(3):
         for j in range(3):
@@ -381,7 +381,8 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
         act.smc[0, i] = fsw[F_SMC_SLOPE + i]
         act.smc[1, i] = fsw[F_SMC_GAIN + i]
         act.smc[2, i] = fsw[F_SMC_LAYER + i]
-    allocation.table_masks(inputs.allocation, act.row_masks)
+    if table is not None:
+        allocation.table_masks(inputs.allocation, table.row_masks)
     margin = fsw[F_ACCEL_MARGIN]
     levels = inputs.levels
     for lv in range(levels.shape[0]):
@@ -391,7 +392,7 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
             guide.accels[lv, i] = margin * levels[lv, LV_ACCEL_MAX + i]
     sensed.rng_state[0] = np.uint64(nav_seed)
 
-    if int(mission[M_TRAJECTORY_MODEL]) == TRAJECTORY_PLANAR_DRAG:
+    if traj is not None:  # trajectory planar_drag
         span = mission[M_TRAJECTORY_STEP]
         environment.initial_state(mission, traj.nodes[1])
         traj.node_accels[1, 0], traj.node_accels[1, 1] = environment.acceleration(
@@ -399,11 +400,11 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
         )
         environment.advance_nodes(mission, vehicle, inputs.atmosphere, traj.nodes, traj.node_accels, span, traj.stage)
         environment.interpolate(
-            traj.nodes[0], traj.node_accels[0], traj.nodes[1], traj.node_accels[1], span, 0.0, traj.state
+            traj.nodes[0], traj.node_accels[0], traj.nodes[1], traj.node_accels[1], span, 0.0, traj_state
         )
     else:
-        for k in range(traj.state.shape[0]):
-            traj.state[k] = 0.0
+        for k in range(traj_state.shape[0]):
+            traj_state[k] = 0.0
     tmp4, sep_q = sensed.work4, guide.q_ref  # q_ref is free until the first mode with a reference
     quaternion.from_rotation_vector(0.0, mission[M_SEP_FLIGHT_PATH], 0.0, tmp4)
     sep = mission[M_SEP_ATTITUDE : M_SEP_ATTITUDE + 3]
@@ -413,8 +414,9 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
         body.x[4 + i] = mission[M_SEP_RATES + i]
     rcs.reset(act.valve_state)
     rcs.torque_arms(inputs.thrusters, vehicle, act.arms)
-    pulse_modulation.reset(act.pwpf_state)
-    switching.reset(act.switch_state)
+    if table is not None:
+        pulse_modulation.reset(table.pwpf_state)
+        switching.reset(table.switch_state)
     for i in range(pulse_counts.shape[0]):
         pulse_counts[i] = 0
     for k in range(summary.shape[0]):
@@ -424,20 +426,20 @@ def _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, a
     masks[MASK_OPEN] = 0
     masks[MASK_ACTIVE] = 0
     status[ST_FUEL] = vehicle[V_PROPELLANT]
-    if wh.table.shape[0] > 0:
+    if wh is not None:
         gg = M_GG_DIRECTION
         wheels.start(wh, body.inertia, body.x, mission[M_GG_COEFFICIENT], mission[gg : gg + 3])
 
 
 @jit_noalloc(force_inline=True)
-def _navigate(mission, vehicle, atmosphere, nav, x, traj, orbit_state, sensed, status, t):
-    """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and rates."""
+def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sensed, status, t):
+    """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and
+    rates. ``traj``: the planar trajectory's work (or None), ``orb`` the orbit's (or None)."""
     altitude, climb, qbar = 0.0, 0.0, 0.0
-    model = int(mission[M_TRAJECTORY_MODEL])
-    if model == TRAJECTORY_ORBIT:  # integrated with the attitude, period by period (_translate)
-        altitude = orbit.radius(orbit_state) - mission[M_EARTH_RADIUS]
-        climb = orbit.climb_rate(orbit_state)
-    elif model == TRAJECTORY_PLANAR_DRAG:
+    if orb is not None:  # integrated with the attitude, period by period (orbit_flight.translate)
+        altitude = orbit.radius(orb.state) - mission[M_EARTH_RADIUS]
+        climb = orbit.climb_rate(orb.state)
+    elif traj is not None:
         span = mission[M_TRAJECTORY_STEP]
         node_index = status[ST_NODE_INDEX]
         while t >= (node_index + 1) * span - 1e-9:
@@ -451,9 +453,9 @@ def _navigate(mission, vehicle, atmosphere, nav, x, traj, orbit_state, sensed, s
             traj.node_accels[1],
             span,
             t - node_index * span,
-            traj.state,
+            traj_state,
         )
-        altitude, climb, qbar = environment.flight_conditions(mission, atmosphere, traj.state)
+        altitude, climb, qbar = environment.flight_conditions(mission, atmosphere, traj_state)
     sensed.now[modes.NOW_TIME_IN_MODE] = t - status[ST_MODE_START]
     sensed.now[modes.NOW_ALTITUDE] = altitude
     sensed.now[modes.NOW_CLIMB] = climb
@@ -542,11 +544,14 @@ def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sens
 
 @jit_noalloc(force_inline=True)
 def _actuate(
-    fsw, levels, thrusters, sensed, guide, act, opt, masks, t, level, active, controlled, has_reference, pulse_counts
-):
+    fsw, levels, thrusters, sensed, guide, act, table, opt, masks, t, level, active, controlled, has_reference,
+    pulse_counts,
+):  # fmt: skip
     """Controller, actuation (pulse modulation + allocation), switching check and valve commands.
 
-    ``active``: False when the mode is locked, the program done or the run failed.
+    ``active``: False when the mode is locked, the program done or the run failed. ``table``:
+    the PWPF + allocation table's work (or None), ``opt`` the LP allocation's (or None); with
+    neither the wheels take ``act.torque_cmd`` (``wheels.drive``).
     """
     actuation = int(fsw[F_ACTUATION])
     if has_reference:
@@ -578,17 +583,16 @@ def _actuate(
             controlled,
             act.torque_cmd,
         )
-        if actuation != ACTUATION_LP_PWM and actuation != ACTUATION_WHEELS:
+        if table is not None:
             desired = allocation.thruster_commands(
-                actuation, fsw, levels[level], act.torque_cmd, act.pwpf_state, act.row_masks, t, act.pulse
+                actuation, fsw, levels[level], act.torque_cmd, table.pwpf_state, table.row_masks, t, act.pulse
             )
-    if actuation == ACTUATION_WHEELS:  # the wheels take act.torque_cmd (_drive_wheels)
-        return
-    if actuation == ACTUATION_LP_PWM:
-        _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts)
+    if opt is not None:
+        lp_allocation.pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts)
+    if table is None:  # lp_pwm, or the wheels take act.torque_cmd (wheels.drive)
         return
     valves_open = masks[MASK_OPEN]
-    opened, closed = switching.enforce(act.switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
+    opened, closed = switching.enforce(table.switch_state, desired, valves_open, t, fsw[F_MIN_ON], fsw[F_MIN_OFF])
     masks[MASK_OPEN] = (valves_open | opened) & ~closed
     masks[MASK_ACTIVE] |= opened | closed
     m = opened | closed
@@ -598,56 +602,6 @@ def _actuate(
         rcs.command(act.valve_state, thrusters, i, (opened >> i) & 1 != 0, t, level)
         if (opened >> i) & 1:
             pulse_counts[i] += 1
-
-
-@jit_noalloc
-def _pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts):
-    """LP allocation of the commanded torque (004 eq. 2-5), each thruster realised as one pulse
-    from the start of the control period: open at ``t``, closed after its on-time
-    (``allocation.pwm_on_time``; saturated thrusters stay open into the next period)."""
-    n = thrusters.shape[0]
-    dt = fsw[F_CONTROL_PERIOD]
-    if active:
-        design = levels[level, LV_THRUST_DESIGN]
-        for i in range(n):
-            opt.u_max[i] = design
-        lp_allocation.allocate(opt.arms, opt.u_max, act.torque_cmd, opt.u, opt.scratch, opt.basis, opt.in_basis)
-    for i in range(3):
-        act.pulse[i] = 0.0
-    was_open = masks[MASK_OPEN]
-    now_open = 0
-    touched = 0
-    for i in range(n):
-        on = allocation.pwm_on_time(opt.u[i], opt.u_max[i], dt, fsw[F_MIN_ON]) if active else 0.0
-        bit = 1 << i
-        if on > 0.0:
-            if was_open & bit == 0:
-                rcs.command(act.valve_state, thrusters, i, True, t, level)
-                pulse_counts[i] += 1
-            if on < dt - 1e-12:
-                rcs.command(act.valve_state, thrusters, i, False, t + on, level)
-            else:
-                now_open |= bit
-            touched |= bit
-        elif was_open & bit != 0:
-            rcs.command(act.valve_state, thrusters, i, False, t, level)
-            touched |= bit
-    masks[MASK_OPEN] = now_open
-    masks[MASK_ACTIVE] |= touched
-
-
-@jit_noalloc
-def _drive_wheels(distribution, wh, rate_meas, omega, torque_cmd, compensate, active, status, dt):
-    """Motor torques for this control period (core.wheels.command) and the wheel statistics; none
-    when ``active`` is False (a locked mode, the program done or the run failed)."""
-    if not active:
-        for i in range(wh.motor.shape[0]):
-            wh.motor[i] = 0.0
-        return
-    peak, limited = wheels.command(distribution, wh, rate_meas, omega, torque_cmd, compensate)
-    status[ST_WHEEL_TORQUE_PEAK] = max(status[ST_WHEEL_TORQUE_PEAK], peak)
-    if limited:
-        status[ST_WHEEL_SATURATED] += dt
 
 
 @jit_noalloc
@@ -684,30 +638,28 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
 
 
 @jit_noalloc(force_inline=True)
-def _integrate(
-    mission, vehicle, thrusters, thrust, max_step, dt, body, act, wh, status, masks, qbar, t, level, extra, has_extra
-):
+def _integrate(mission, vehicle, thrusters, thrust, max_step, dt, body, act, wh, orb, status, masks, qbar, t, level):
     """Integrate the attitude over one control period, segment by segment, ``thrust`` (N) being the
-    level's nominal thrust, ``extra`` a further disturbance torque when ``has_extra`` (the orbit's
-    gravity gradient and main engine), plus the mission's constant torque; with reaction wheels
-    the wheels' momenta too (core.wheels), the gravity gradient of 001 eq. 11 then evaluated at
-    every RK4 stage (else held over the period). Returns True when the propellant ran out."""
+    level's nominal thrust, with the orbit (``orb`` not None) a further disturbance torque
+    ``orb.torque`` (its gravity gradient and main engine), plus the mission's constant torque;
+    with reaction wheels (``wh`` not None) the wheels' momenta too (core.wheels), the gravity
+    gradient of 001 eq. 11 then evaluated at every RK4 stage (else held over the period).
+    Returns True when the propellant ran out."""
     n_thr = thrusters.shape[0]
-    has_wheels = wh.table.shape[0] > 0
     gg_coefficient = mission[M_GG_COEFFICIENT]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
     # division and subtraction are monotone and this bound divides to 1 + 1e-10 -+ 1 ulp).
     one_step_limit = max_step * (1.0 + 1e-10)
     tau0, tau1, tau_a, tau_b, aero = body.torques[0], body.torques[1], body.torques[2], body.torques[3], body.torques[4]
     environment.aerodynamic_torque(vehicle, qbar, aero)
-    if has_extra:
+    if orb is not None:
         for i in range(3):
-            aero[i] += extra[i]
+            aero[i] += orb.torque[i]
     for i in range(3):
         aero[i] += mission[M_CONSTANT_TORQUE + i]
-    if gg_coefficient != 0.0 and not has_wheels:
+    if gg_coefficient != 0.0 and wh is None:
         gg = M_GG_DIRECTION
-        wheels.gravity_gradient(body.x[0:4], gg_coefficient, mission[gg : gg + 3], body.inertia, wh.scratch[0:2], aero)
+        wheels.gravity_gradient(body.x[0:4], gg_coefficient, mission[gg : gg + 3], body.inertia, body.scratch, aero)
     fuel = status[ST_FUEL]
     valves_active = masks[MASK_ACTIVE]
     rk4_steps = 0
@@ -746,7 +698,7 @@ def _integrate(
             for i in range(3):
                 tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
                 tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb
-            if has_wheels:
+            if wh is not None:
                 wheels.rk4_step(body.x, h, tau_a, tau_b, wh)
             else:
                 dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
@@ -762,148 +714,35 @@ def _integrate(
     return exhausted
 
 
-# --- the orbit trajectory and the deorbit burn (004 sec. III) -----------------------------------
-
-
 @jit_noalloc
-def _start_orbit(mission, vehicle, orb, status, summary):
-    """Orbit state at t = 0 (mass: the vehicle's, main-engine propellant included); outputs NaN."""
-    for i in range(6):
-        orb.state[i] = mission[M_ORBIT_STATE + i]
-    orb.state[6] = vehicle[V_MASS]
-    status[ST_GUIDANCE_TICK] = -math.inf
-    for i in range(5):
-        summary[S_ENTRY + i] = math.nan
-    summary[S_ENTRY_TIME] = math.nan
-    summary[S_BURN_POINTING_RMS] = math.nan
-    summary[S_BURN_POINTING_MAX] = math.nan
+def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, table, opt, wh, traj, orb):
+    """The run loop of a :func:`kernel`'s ``run_flight`` on the work arrays it allocated (no
+    allocation, no reference counting: see ``refexmc._jit.jit_noalloc``). Each step gets the
+    arrays it uses only: every further array argument costs compile time (numba types each one).
 
-
-@jit_noalloc
-def _thrust_direction(vehicle, q, out):
-    """The engine's true force direction in ECI at attitude ``q``."""
-    quaternion.rotate(q, vehicle[V_ENGINE_DIRECTION : V_ENGINE_DIRECTION + 3], out)
-
-
-@jit_noalloc
-def _steer(nominal, fsw, nav, vehicle, x, orb, guide, rng_state, status, t, burning):
-    """Burn guidance every guidance period (core.deorbit): GPS, the nominal row, the commanded
-    direction and the attitude that points the engine's nominal axis along it (the mode's target
-    and reference). While the engine fires, the angle between its true force and the commanded
-    direction is accumulated (004 Fig. 5)."""
-    if t >= status[ST_GUIDANCE_TICK] + fsw[F_GUIDANCE_PERIOD] - 1e-9:
-        status[ST_GUIDANCE_TICK] = t
-        deorbit.measure(orb.state, nav, rng_state, orb.measured)
-        deorbit.nominal_at(nominal, t, orb.nominal)
-        deorbit.steer(
-            orb.measured, orb.nominal, fsw[F_GUIDANCE_POSITION_GAIN], fsw[F_GUIDANCE_VELOCITY_GAIN], orb.command
-        )
-        deorbit.thrust_attitude(
-            orb.command,
-            orb.measured[0:3],
-            orb.measured[3:6],
-            fsw[F_ENGINE_AXIS : F_ENGINE_AXIS + 3],
-            guide.q_final,
-            orb.work,
-        )
-        for i in range(4):
-            guide.q_ref[i] = guide.q_final[i]
-    if burning:
-        d = orb.work[0]
-        _thrust_direction(vehicle, x[0:4], d)
-        c = d[0] * orb.command[0] + d[1] * orb.command[1] + d[2] * orb.command[2]
-        angle = math.acos(max(-1.0, min(1.0, c)))
-        status[ST_POINTING_SUM2] += angle * angle
-        status[ST_POINTING_COUNT] += 1.0
-        status[ST_POINTING_MAX] = max(status[ST_POINTING_MAX], angle)
-
-
-@jit_noalloc
-def _engine_period(mission, vehicle, inertia, x, orb, status, t, dt, burn_mode):
-    """Before the attitude is integrated over ``[t, t + dt]``: the engine's on-time in it (the
-    burn mode, the planned ignition and cut-off, the propellant left), the true thrust direction
-    at its start, and the disturbance torque over it (gravity gradient at its start, engine torque
-    times the fraction of the period it fires)."""
-    on, off = t, t
-    if burn_mode:
-        mass_flow = vehicle[V_ENGINE_THRUST] / (vehicle[V_ENGINE_ISP] * orbit.G0)
-        left = vehicle[V_ENGINE_PROPELLANT] - (vehicle[V_MASS] - orb.state[6])
-        on = max(t, mission[M_BURN_START])
-        off = min(t + dt, mission[M_BURN_START] + mission[M_BURN_DURATION], t + left / mass_flow)
-        if off < on:
-            off = on
-    status[ST_ENGINE_ON] = on
-    status[ST_ENGINE_OFF] = off
-    _thrust_direction(vehicle, x[0:4], orb.thrust_dirs[0])
-    r_body = orb.work[0]
-    quaternion.rotate_inverse(x[0:4], orb.state[0:3], r_body)
-    orbit.gravity_gradient_torque(r_body, mission[M_EARTH_MU], inertia, orb.torque)
-    if off > on:
-        force = vehicle[V_ENGINE_THRUST] * (off - on) / dt  # mean over the period
-        arm = orb.work[1]
-        for i in range(3):
-            arm[i] = vehicle[V_ENGINE_POSITION + i] - vehicle[V_COM_OFFSET + i]
-        e = vehicle[V_ENGINE_DIRECTION : V_ENGINE_DIRECTION + 3]
-        orb.torque[0] += force * (arm[1] * e[2] - arm[2] * e[1])
-        orb.torque[1] += force * (arm[2] * e[0] - arm[0] * e[2])
-        orb.torque[2] += force * (arm[0] * e[1] - arm[1] * e[0])
-
-
-@jit_noalloc
-def _translate(mission, vehicle, x, orb, status, summary, t, dt):
-    """Integrate the orbit over ``[t, t + dt]`` after the attitude: coast / engine / coast
-    segments, the thrust direction following the body from the period's start to its end (004's
-    3+3 DOF); record the entry state where the radius first falls through the entry interface."""
-    _thrust_direction(vehicle, x[0:4], orb.thrust_dirs[1])
-    for i in range(orbit.ORBIT_STATE_SIZE):
-        orb.prev[i] = orb.state[i]
-    mu = mission[M_EARTH_MU]
-    on, off = status[ST_ENGINE_ON], status[ST_ENGINE_OFF]
-    thrust = vehicle[V_ENGINE_THRUST]
-    mass_flow = thrust / (vehicle[V_ENGINE_ISP] * orbit.G0)
-    d0, d1 = orb.thrust_dirs[0], orb.thrust_dirs[1]
-    if off <= on:
-        orbit.rk4_step(orb.state, dt, mu, 0.0, 0.0, d0, d1, 0.0, 1.0, orb.stage)
-    else:
-        if on > t:
-            orbit.rk4_step(orb.state, on - t, mu, 0.0, 0.0, d0, d1, 0.0, (on - t) / dt, orb.stage)
-        orbit.rk4_step(orb.state, off - on, mu, thrust, mass_flow, d0, d1, (on - t) / dt, (off - t) / dt, orb.stage)
-        if off < t + dt:
-            orbit.rk4_step(orb.state, t + dt - off, mu, 0.0, 0.0, d0, d1, (off - t) / dt, 1.0, orb.stage)
-    r_entry = mission[M_EARTH_RADIUS] + mission[M_ENTRY_ALTITUDE]
-    if status[ST_ENTERED] == 0.0 and orbit.radius(orb.state) < r_entry and orbit.climb_rate(orb.state) < 0.0:
-        status[ST_ENTERED] = 1.0  # the crossing is coasted to from the period's start (engine off)
-        h = orbit.coast_to_radius(orb.prev, r_entry, 0.5 * dt, mu, orb.stage, orb.crossing)
-        summary[S_ENTRY_TIME] = t + h
-        orbit.entry_state(orb.crossing, t + h, mission[M_EARTH_RATE], summary[S_ENTRY : S_ENTRY + 5])
-
-
-@jit_noalloc
-def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
-    """The run loop of :func:`run_flight` on the work arrays it allocated (no allocation, no
-    reference counting: see ``refexmc._jit.jit_noalloc``). Each step gets the arrays it uses
-    only: every further array argument costs compile time (numba types each one)."""
-    body, traj, sensed, guide, act, status, masks = (
+    ``table`` (PWPF + allocation table), ``opt`` (LP allocation), ``wh`` (reaction wheels),
+    ``traj`` (planar trajectory), ``orb`` (orbit trajectory): the family's work tuples, None for
+    the others. Every step of a family runs under ``if <its tuple> is not None``, which numba
+    prunes before typing where the argument is None: one compiled loop per family."""
+    body, traj_state, sensed, guide, act, status, masks = (
         w.body,
-        w.trajectory,
+        w.trajectory_state,
         w.sensed,
         w.guide,
         w.actuation,
         w.status,
         w.masks,
     )
-    opt = w.optimiser
-    orb = w.orbit
-    wh = w.wheels
-    n_wheels = wh.table.shape[0]
     vehicle, thrusters, fsw, mission = inputs.vehicle, inputs.thrusters, inputs.fsw, inputs.mission
     program, exits, atmosphere = inputs.modes, inputs.exits, inputs.atmosphere
-    _start(inputs, nav_seed, summary, pulse_counts, body, traj, sensed, guide, act, status, masks, wh)
-    orbit_model = int(mission[M_TRAJECTORY_MODEL]) == TRAJECTORY_ORBIT
-    if orbit_model:
-        _start_orbit(mission, vehicle, orb, status, summary)
+    _start(
+        inputs, nav_seed, summary, pulse_counts, body, traj_state, sensed, guide, act, status, masks, table, wh, traj
+    )
+    if orb is not None:
+        orbit_flight.start(mission, vehicle, orb, status, summary)
     cutoff = mission[M_BURN_START] + mission[M_BURN_DURATION]
-    allocation.nominal_arms(thrusters, opt.arms)
+    if opt is not None:
+        allocation.nominal_arms(thrusters, opt.arms)
     n_modes = program.shape[0]
     n_thr = thrusters.shape[0]
     dt = fsw[F_CONTROL_PERIOD]
@@ -917,9 +756,9 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
     t = 0.0
     while True:
         t = step * dt
-        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj, orb.state, sensed, status, t)
+        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj_state, traj, orb, sensed, status, t)
         controlled, has_reference = _advance_mode(
-            program, exits, mission, vehicle, atmosphere, traj.state, sensed, guide, status, summary, t
+            program, exits, mission, vehicle, atmosphere, traj_state, sensed, guide, status, summary, t
         )
         mode = int(status[ST_MODE])
         done = mode == n_modes
@@ -942,10 +781,14 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
         level = int(program[flown, MD_LEVEL])
         kind = int(program[flown, MD_KIND])
         active = not done and status[ST_FAILURE] == FAIL_NONE and kind != modes.KIND_LOCKED
-        burn_mode = orbit_model and active and kind == modes.KIND_BURN
-        if burn_mode:
-            firing = mission[M_BURN_START] <= t < cutoff
-            _steer(inputs.nominal, fsw, inputs.nav, vehicle, body.x, orb, guide, sensed.rng_state, status, t, firing)
+        burn_mode = False
+        if orb is not None:
+            burn_mode = active and kind == modes.KIND_BURN
+            if burn_mode:
+                firing = mission[M_BURN_START] <= t < cutoff
+                orbit_flight.steer(
+                    inputs.nominal, fsw, inputs.nav, vehicle, body.x, orb, guide, sensed.rng_state, status, t, firing
+                )
         _actuate(
             fsw,
             inputs.levels,
@@ -953,6 +796,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
             sensed,
             guide,
             act,
+            table,
             opt,
             masks,
             t,
@@ -962,9 +806,9 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
             has_reference,
             pulse_counts,
         )
-        if n_wheels > 0:
+        if wh is not None:
             compensate = fsw[F_WHEEL_FRICTION_COMPENSATION] != 0.0
-            _drive_wheels(
+            wheels.drive(
                 inputs.wheel_distribution, wh, sensed.rate_meas, body.x[4:7], act.torque_cmd, compensate, active,
                 status, dt,
             )  # fmt: skip
@@ -986,17 +830,16 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
 
         qbar = sensed.now[modes.NOW_QBAR]
         thrust = inputs.levels[level, LV_THRUST]
-        if orbit_model:
-            _engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
+        if orb is not None:
+            orbit_flight.engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
         exhausted = _integrate(
-            mission, vehicle, thrusters, thrust, max_step, dt, body, act, wh, status, masks, qbar, t, level, orb.torque,
-            orbit_model,
-        )  # fmt: skip
-        if n_wheels > 0:
+            mission, vehicle, thrusters, thrust, max_step, dt, body, act, wh, orb, status, masks, qbar, t, level
+        )
+        if wh is not None:
             peak = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
             status[ST_WHEEL_MOMENTUM_PEAK] = max(status[ST_WHEEL_MOMENTUM_PEAK], peak)
-        if orbit_model:
-            _translate(mission, vehicle, body.x, orb, status, summary, t, dt)
+        if orb is not None:
+            orbit_flight.translate(mission, vehicle, body.x, orb, status, summary, t, dt)
         summary[S_PER_MODE + mode] += dt
         if program[mode, MD_CALIBRATION] != 0.0:
             status[ST_CALIBRATING] += dt
@@ -1037,13 +880,13 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w):
         for i in range(3):
             summary[S_POINTING_RMS + i] = math.sqrt(status[ST_POINTING_WINDOW_SUM2 + i] / count) * _ARCSEC
         summary[S_POINTING_MAX] = status[ST_POINTING_WINDOW_MAX] * _ARCSEC
-    if n_wheels > 0:
+    if wh is not None:
         summary[S_WHEEL_MOMENTUM_PEAK] = status[ST_WHEEL_MOMENTUM_PEAK]
         summary[S_WHEEL_MOMENTUM_END] = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
         summary[S_WHEEL_TORQUE_PEAK] = status[ST_WHEEL_TORQUE_PEAK]
         summary[S_WHEEL_SATURATED_TIME] = status[ST_WHEEL_SATURATED]
         summary[S_MOMENTUM_RESIDUAL] = wheels.momentum_residual(body.x, wh)
-    if orbit_model:
+    if orb is not None:
         summary[S_ENGINE_PROPELLANT_USED] = vehicle[V_MASS] - orb.state[6]
         if status[ST_POINTING_COUNT] > 0.0:
             summary[S_BURN_POINTING_RMS] = math.sqrt(status[ST_POINTING_SUM2] / status[ST_POINTING_COUNT]) * _DEG

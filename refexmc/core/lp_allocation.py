@@ -15,9 +15,20 @@ phase A maximises s from the feasible start u = 0, s = 0 (three artificial varia
 zero form the first basis, so no feasibility phase is needed); phase B fixes s = s* and
 minimises sum(u) from phase A's basis. An attainable tau gives s* = 1 and 004's solution.
 Thrusters that have failed undetected stay in H: the flight software does not know (000 sec. 5).
+
+The actuation ``lp_pwm`` family's flight step lives here too (docs/families.md): its work arrays
+(:class:`Optimiser`, allocated by :func:`optimiser`) and :func:`pulse_width`, the LP allocation
+realised as one pulse per thruster per control period, which the run loop (core.flight) calls.
 """
 
-from refexmc._jit import jit_noalloc
+from typing import NamedTuple
+
+import numpy as np
+
+from refexmc._jit import jit, jit_noalloc
+from refexmc.core import allocation, rcs
+from refexmc.core.layout import F_CONTROL_PERIOD, F_MIN_ON, LV_THRUST_DESIGN
+from refexmc.core.status import MASK_ACTIVE, MASK_OPEN
 
 N_ROWS = 3  # torque components
 MAX_ITERATIONS = 200
@@ -198,3 +209,67 @@ def allocate(arms, u_max, torque, u_out, work, basis, in_basis):
 def scratch_shape(n_thrusters):
     """Shape of ``allocate``'s float scratch."""
     return (N_ROWS + 8, max(work_columns(n_thrusters), 6))
+
+
+# --- actuation lp_pwm: the LP allocation family's flight step ----------------------------------
+
+
+class Optimiser(NamedTuple):
+    """LP allocation and its pulse-width modulation (actuation lp_pwm, core.lp_allocation)."""
+
+    arms: np.ndarray  # (3, n) torque arms the flight software knows: nominal geometry and CoM
+    u: np.ndarray  # thrust per thruster (N)
+    u_max: np.ndarray  # the flight software's thrust per thruster at the level flown (N)
+    scratch: np.ndarray  # lp_allocation.scratch_shape
+    basis: np.ndarray  # (3,) int64
+    in_basis: np.ndarray  # bool
+
+
+@jit
+def optimiser(n_thrusters):
+    """The lp_pwm family's work arrays (allocated once per flight by core.flight's kernel);
+    scratch as :func:`scratch_shape`, written out: a Python function cannot run here."""
+    return Optimiser(
+        np.zeros((3, n_thrusters)),
+        np.zeros(n_thrusters),
+        np.zeros(n_thrusters),
+        np.zeros((N_ROWS + 8, max(n_thrusters + 1 + N_ROWS, 6))),
+        np.zeros(N_ROWS, dtype=np.int64),
+        np.zeros(n_thrusters + 1 + N_ROWS, dtype=np.bool_),
+    )
+
+
+@jit_noalloc
+def pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts):
+    """LP allocation of the commanded torque (004 eq. 2-5), each thruster realised as one pulse
+    from the start of the control period: open at ``t``, closed after its on-time
+    (``allocation.pwm_on_time``; saturated thrusters stay open into the next period)."""
+    n = thrusters.shape[0]
+    dt = fsw[F_CONTROL_PERIOD]
+    if active:
+        design = levels[level, LV_THRUST_DESIGN]
+        for i in range(n):
+            opt.u_max[i] = design
+        allocate(opt.arms, opt.u_max, act.torque_cmd, opt.u, opt.scratch, opt.basis, opt.in_basis)
+    for i in range(3):
+        act.pulse[i] = 0.0
+    was_open = masks[MASK_OPEN]
+    now_open = 0
+    touched = 0
+    for i in range(n):
+        on = allocation.pwm_on_time(opt.u[i], opt.u_max[i], dt, fsw[F_MIN_ON]) if active else 0.0
+        bit = 1 << i
+        if on > 0.0:
+            if was_open & bit == 0:
+                rcs.command(act.valve_state, thrusters, i, True, t, level)
+                pulse_counts[i] += 1
+            if on < dt - 1e-12:
+                rcs.command(act.valve_state, thrusters, i, False, t + on, level)
+            else:
+                now_open |= bit
+            touched |= bit
+        elif was_open & bit != 0:
+            rcs.command(act.valve_state, thrusters, i, False, t, level)
+            touched |= bit
+    masks[MASK_OPEN] = now_open
+    masks[MASK_ACTIVE] |= touched

@@ -15,6 +15,8 @@ accumulates (three more state components, ``IMPULSE``) so that every run checks 
 The flight software commands ``u`` (the controller) and the wheels realise it:
 ``tau_m = -D (u + omega x sum_i a_i h_i)`` (001 sec. 9.1, eq. 6), D the distribution matrix
 (pseudo-inverse of W). Each command is held over the control period (torque-commanded wheels).
+In the run loop (core.flight) the wheels family's work arrays are a :class:`Plant` (:func:`plant`)
+and its control step is :func:`drive` (docs/families.md).
 """
 
 import math
@@ -22,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from refexmc._jit import jit_noalloc
+from refexmc._jit import jit, jit_noalloc
 from refexmc.core import dynamics, quaternion
 from refexmc.core.layout import (
     W_AXIS,
@@ -37,6 +39,7 @@ from refexmc.core.layout import (
     W_VISCOUS,
     W_VISCOUS_DESIGN,
 )
+from refexmc.core.status import ST_WHEEL_SATURATED, ST_WHEEL_TORQUE_PEAK
 
 IMPULSE = 3  # the state array of the wheels is [h_1 .. h_n, p_x, p_y, p_z]: p = int R(q) tau_ext dt
 
@@ -58,9 +61,10 @@ class Plant(NamedTuple):
     momentum: np.ndarray  # (3, 3): total angular momentum (inertial) at t = 0, at the end; scratch
 
 
+@jit
 def plant(table):
-    """Work arrays for the wheels of ``table`` (zero rows: none), as core.flight.run_flight makes
-    them; :func:`start` fills them."""
+    """Work arrays for the wheels of ``table`` (zero rows: none): the wheels family's, allocated
+    once per flight by core.flight's kernel; :func:`start` fills them."""
     n = table.shape[0]
     return Plant(
         table,
@@ -76,6 +80,20 @@ def plant(table):
         np.zeros((5, 3)),
         np.zeros((3, 3)),
     )
+
+
+@jit_noalloc
+def drive(distribution, wh, rate_meas, omega, torque_cmd, compensate, active, status, dt):
+    """Motor torques for this control period (core.wheels.command) and the wheel statistics; none
+    when ``active`` is False (a locked mode, the program done or the run failed)."""
+    if not active:
+        for i in range(wh.motor.shape[0]):
+            wh.motor[i] = 0.0
+        return
+    peak, limited = command(distribution, wh, rate_meas, omega, torque_cmd, compensate)
+    status[ST_WHEEL_TORQUE_PEAK] = max(status[ST_WHEEL_TORQUE_PEAK], peak)
+    if limited:
+        status[ST_WHEEL_SATURATED] += dt
 
 
 @jit_noalloc
