@@ -297,9 +297,10 @@ import json, sys
 from refexmc import simulate
 from refexmc.config.load import load_campaign
 from refexmc.config.pack import pack
-from refexmc.core import allocation, environment, flight, lp_allocation, orbit_flight, switching, wheels
+from refexmc.core import allocation, environment, lp_allocation, orbit_flight, rcs, switching, wheels
 
 STEPS = {  # each family's own step functions: compiled only by a kernel of that family
+    "thrusters": [rcs.update, rcs.next_breakpoint, rcs.segment_thrust, rcs.open_mask, rcs.torque_arms],
     "pwpf_table": [switching.enforce, allocation.table_masks],
     "lp_pwm": [lp_allocation.pulse_width, lp_allocation.allocate, allocation.nominal_arms],
     "wheels": [wheels.drive, wheels.start, wheels.rk4_step],
@@ -320,9 +321,9 @@ print(json.dumps(out))
 @pytest.mark.skipif(_jit.DISABLED, reason="REFEXMC_DISABLE_JIT=1: nothing is compiled")
 def test_a_family_compiles_none_of_the_other_families_steps(tmp_path):
     """Compile what is flown (style.md 11): in a fresh process with an empty numba cache, the
-    ReFEx kernel (pwpf_table, planar_drag) compiles no LP, wheel or orbit step, and the IRASSI
-    kernel compiled next (wheels, no trajectory) none of the LP, orbit, table or planar steps.
-    A branch left unpruned would type its steps (or fail to compile on a None tuple)."""
+    IRASSI kernel (actuation wheels, no trajectory) compiles no thruster, table, LP, planar or
+    orbit step, and the ReFEx kernel compiled next (pwpf_table, planar_drag) none of the LP, wheel
+    or orbit steps. A branch left unpruned would type its steps (or fail to compile on a None)."""
     import json
     import os
     import subprocess
@@ -330,21 +331,20 @@ def test_a_family_compiles_none_of_the_other_families_steps(tmp_path):
 
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     env.pop("REFEXMC_DISABLE_JIT", None)
-    campaigns = [str(ROOT / "campaigns/nominal.yaml"), str(ROOT / "campaigns/irassi-fine-pointing.yaml")]
+    campaigns = [str(ROOT / "campaigns/irassi-fine-pointing.yaml"), str(ROOT / "campaigns/nominal.yaml")]
     proc = subprocess.run(
         [sys.executable, "-c", _FAMILY_CHECK, *campaigns], cwd=ROOT, env=env, capture_output=True, text=True
     )
     assert proc.returncode == 0, proc.stderr
-    refex, irassi = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert refex["family"] == [L.ACTUATION_PWPF_TABLE, L.TRAJECTORY_PLANAR_DRAG, 0]
+    irassi, refex = json.loads(proc.stdout.strip().splitlines()[-1])
     assert irassi["family"] == [L.ACTUATION_WHEELS, L.TRAJECTORY_NONE, 1]
-    compiled = refex["compiled"]
-    for family in ("lp_pwm", "wheels", "orbit"):
-        assert compiled[family] == [0] * len(compiled[family]), f"the ReFEx kernel compiled {family} steps"
-    assert all(n >= 1 for n in compiled["pwpf_table"] + compiled["planar_drag"]), compiled
-    compiled = irassi["compiled"]  # after both kernels: the ReFEx family's steps are from the first
+    assert refex["family"] == [L.ACTUATION_PWPF_TABLE, L.TRAJECTORY_PLANAR_DRAG, 0]
+    first = irassi["compiled"]
+    for family in ("thrusters", "pwpf_table", "lp_pwm", "planar_drag", "orbit"):
+        assert first[family] == [0] * len(first[family]), f"the IRASSI kernel compiled {family} steps: {first}"
+    assert all(n >= 1 for n in first["wheels"]), first
+    second = refex["compiled"]  # after both kernels: the wheel steps are the IRASSI kernel's
     for family in ("lp_pwm", "orbit"):
-        assert compiled[family] == [0] * len(compiled[family]), f"the IRASSI kernel compiled {family} steps"
-    assert compiled["pwpf_table"] == refex["compiled"]["pwpf_table"], "the IRASSI kernel compiled table steps"
-    assert compiled["planar_drag"] == refex["compiled"]["planar_drag"], "the IRASSI kernel compiled planar steps"
-    assert all(n >= 1 for n in compiled["wheels"]), compiled
+        assert second[family] == [0] * len(second[family]), f"the ReFEx kernel compiled {family} steps: {second}"
+    assert second["wheels"] == first["wheels"], "the ReFEx kernel compiled wheel steps"
+    assert all(n >= 1 for n in second["thrusters"] + second["pwpf_table"] + second["planar_drag"]), second
