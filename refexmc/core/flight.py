@@ -360,17 +360,17 @@ def _make_kernel(actuation, trajectory, wheels_flown):
         else:
             orb = None
         if ACTUATION == ACTUATION_WHEELS:  # no thruster fires: no valve step is compiled
-            valves = None
+            fire = None
         else:
-            valves = work.actuation.valve_state
-        _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work, valves, table, opt, wh, traj, orb)
+            fire = True
+        _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work, fire, table, opt, wh, traj, orb)
 
     return jit(run_flight)
 
 
 @jit_noalloc
 def _start(
-    inputs, nav_seed, summary, pulse_counts, body, traj_state, sensed, guide, act, status, masks, valves, table, wh,
+    inputs, nav_seed, summary, pulse_counts, body, traj_state, sensed, guide, act, status, masks, fire, table, wh,
     traj,
 ):  # fmt: skip
     """Initial state: body x along the velocity, wings level, then the separation error; the
@@ -417,8 +417,8 @@ def _start(
     quaternion.multiply(tmp4, sep_q, body.x[0:4])
     for i in range(3):
         body.x[4 + i] = mission[M_SEP_RATES + i]
-    if valves is not None:  # thrusters fire (with actuation wheels they never do: no valve is touched)
-        rcs.reset(valves)
+    if fire is not None:  # thrusters fire (with actuation wheels they never do: no valve is touched)
+        rcs.reset(act.valve_state)
         rcs.torque_arms(inputs.thrusters, vehicle, act.arms)
     if table is not None:
         pulse_modulation.reset(table.pwpf_state)
@@ -645,15 +645,15 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
 
 @jit_noalloc(force_inline=True)
 def _integrate(
-    mission, vehicle, thrusters, thrust, max_step, dt, body, act, valves, wh, orb, status, masks, qbar, t, level
+    mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level
 ):
     """Integrate the attitude over one control period, segment by segment, ``thrust`` (N) being the
     level's nominal thrust, with the orbit (``orb`` not None) a further disturbance torque
     ``orb.torque`` (its gravity gradient and main engine), plus the mission's constant torque;
     with reaction wheels (``wh`` not None) the wheels' momenta too (core.wheels), the gravity
     gradient of 001 eq. 11 then evaluated at every RK4 stage (else held over the period).
-    ``valves``: the valve states when thrusters fire (``act.valve_state``), None with actuation
-    wheels (no thrust: one coasting segment). Returns True when the propellant ran out."""
+    ``fire``: True when thrusters fire, None with actuation wheels (no thrust: one coasting
+    segment per period). Returns True when the propellant ran out."""
     n_thr = thrusters.shape[0]
     gg_coefficient = mission[M_GG_COEFFICIENT]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
@@ -676,19 +676,25 @@ def _integrate(
     t_end = t + dt
     exhausted = False
     while t_seg < t_end - 1e-12:
-        t_next = t_end  # coasting: the whole rest of the period is one thrust-free segment
-        impulse = 0.0
-        thrusting = False
-        if valves is not None:
-            valves_active = rcs.update(valves, thrusters, n_thr, t_seg, level, valves_active)
-            if valves_active != 0:
-                t_next = rcs.next_breakpoint(valves, n_thr, t_seg, t_end, valves_active)
-                if fuel > 0.0:
-                    impulse = rcs.segment_thrust(
-                        valves, thrusters, vehicle, act.arms, thrust, t_seg, t_next, tau0, tau1, valves_active
-                    )
-                    thrusting = True
-        if not thrusting:
+        if fire is not None:
+            valves_active = rcs.update(act.valve_state, thrusters, n_thr, t_seg, level, valves_active)
+            active = valves_active != 0
+            if active:
+                t_next = rcs.next_breakpoint(act.valve_state, n_thr, t_seg, t_end, valves_active)
+            else:  # coasting: the whole rest of the period is one thrust-free segment
+                t_next = t_end
+            if active and fuel > 0.0:
+                impulse = rcs.segment_thrust(
+                    act.valve_state, thrusters, vehicle, act.arms, thrust, t_seg, t_next, tau0, tau1, valves_active
+                )
+            else:
+                impulse = 0.0
+                for i in range(3):
+                    tau0[i] = 0.0
+                    tau1[i] = 0.0
+        else:  # no thruster fires: one thrust-free segment
+            t_next = t_end
+            impulse = 0.0
             for i in range(3):
                 tau0[i] = 0.0
                 tau1[i] = 0.0
@@ -713,7 +719,7 @@ def _integrate(
             else:
                 dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
             rk4_steps += 1
-        if valves is not None:  # without thrust: no propellant used
+        if fire is not None:  # without thrust: no propellant used
             fuel -= rcs.propellant_for_impulse(vehicle, impulse)
             if fuel <= 0.0 and impulse > 0.0:
                 fuel = 0.0
@@ -726,12 +732,12 @@ def _integrate(
 
 
 @jit_noalloc
-def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, valves, table, opt, wh, traj, orb):
+def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fire, table, opt, wh, traj, orb):
     """The run loop of a :func:`kernel`'s ``run_flight`` on the work arrays it allocated (no
     allocation, no reference counting: see ``refexmc._jit.jit_noalloc``). Each step gets the
     arrays it uses only: every further array argument costs compile time (numba types each one).
 
-    ``valves`` (the valve states, ``w.actuation.valve_state``, where thrusters fire), ``table``
+    ``fire`` (True where thrusters fire, None with actuation wheels), ``table``
     (PWPF + allocation table), ``opt`` (LP allocation), ``wh`` (reaction wheels), ``traj``
     (planar trajectory), ``orb`` (orbit trajectory): the family's work, None for the others.
     Every step of a family runs under ``if <its work> is not None``, which numba prunes before
@@ -748,7 +754,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, val
     vehicle, thrusters, fsw, mission = inputs.vehicle, inputs.thrusters, inputs.fsw, inputs.mission
     program, exits, atmosphere = inputs.modes, inputs.exits, inputs.atmosphere
     _start(
-        inputs, nav_seed, summary, pulse_counts, body, traj_state, sensed, guide, act, status, masks, valves, table,
+        inputs, nav_seed, summary, pulse_counts, body, traj_state, sensed, guide, act, status, masks, fire, table,
         wh, traj,
     )  # fmt: skip
     if orb is not None:
@@ -835,8 +841,8 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, val
         finished = done or status[ST_FAILURE] != FAIL_NONE
         if record:
             valves_open = 0
-            if valves is not None:
-                valves_open = rcs.open_mask(valves, n_thr, t)
+            if fire is not None:
+                valves_open = rcs.open_mask(act.valve_state, n_thr, t)
             fraction = status[ST_FUEL] / propellant0
             _record(
                 history, rows, t, flown, theta_t, controlled, fraction, valves_open, sensed.rate_meas, act, sensed.now
@@ -850,7 +856,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, val
         if orb is not None:
             orbit_flight.engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
         exhausted = _integrate(
-            mission, vehicle, thrusters, thrust, max_step, dt, body, act, valves, wh, orb, status, masks, qbar, t, level
+            mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level
         )
         if wh is not None:
             peak = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
