@@ -325,3 +325,21 @@ def test_the_detected_sweep_doc_lists_every_set_with_the_flown_pointing(failure_
                 assert float(printed) == pytest.approx(flown["burn_pointing_max_deg"], abs=5e-4)
             else:
                 assert printed == "—"
+
+
+def test_the_detected_sweep_runs_reports_and_reruns_from_the_cli(tmp_path):
+    """refexmc run stores failures.detected in campaign.resolved.yaml, report names the sets
+    detected, and rerun re-flies a detected run bit for bit (it applies the flag too: run 7 is a
+    failure of the LP's +x choice, 0.71 deg undetected)."""
+    out = tmp_path / "detected"
+    runner = CliRunner()
+    ran = runner.invoke(
+        main, ["run", str(ROOT / "campaigns/spore-failure-sweep-detected.yaml"), "-o", str(out), "-j", "1"]
+    )
+    assert ran.exit_code == 0, ran.output
+    resolved = yaml.safe_load((out / "campaign.resolved.yaml").read_text())
+    assert resolved["failures"]["detected"] is True
+    report = runner.invoke(main, ["report", str(out)])
+    assert "failure sets (detected): 79, every run succeeded in 73" in report.output, report.output
+    rerun = runner.invoke(main, ["rerun", str(out), "7"])
+    assert rerun.exit_code == 0, rerun.output
