@@ -8,6 +8,12 @@ kernels are compiled (cached on disk).
 
     .venv/bin/python docs/gen_spore_failure_sweep.py           # print the result
     .venv/bin/python docs/gen_spore_failure_sweep.py --write   # replace it in docs/spore.md
+
+With ``--detected`` it flies campaigns/spore-failure-sweep-detected.yaml too (the same sets, the
+flight software told: its LP leaves the failed thrusters out) and makes the comparison of the two
+sweeps, between the ``detected-sweep`` markers of docs/spore.md:
+
+    .venv/bin/python docs/gen_spore_failure_sweep.py --detected --write
 """
 
 import math
@@ -30,6 +36,9 @@ from scipy.optimize import linprog
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN = ROOT / "campaigns" / "spore-failure-sweep.yaml"
+DETECTED_CAMPAIGN = ROOT / "campaigns" / "spore-failure-sweep-detected.yaml"
+DETECTED_BEGIN = "<!-- detected-sweep:begin -->"
+DETECTED_END = "<!-- detected-sweep:end -->"
 DOC = Path(__file__).with_name("spore.md")
 POINTING_LIMIT_DEG = 2.0  # issue 13: the burn completes with the engine within 2 deg of the command
 AXES = "xyz"
@@ -163,5 +172,98 @@ def generate(campaign_file=CAMPAIGN):
     return f"{provenance(script)}\n\n{summary(campaign, rows)}\n{table(campaign, rows)}"
 
 
+def _pointing(row):
+    return number(row["burn_pointing_max_deg"], ".3f") if completes(row) else "—"
+
+
+def _outcome(row):
+    if within_limit(row):
+        return f"within {POINTING_LIMIT_DEG:g} deg"
+    return f"**{row['failure_reason'] or 'pointing above the limit'}**"
+
+
+def _worst(rows):
+    """The largest burn pointing max of the rows that complete, and its set."""
+    done = [r for r in rows if completes(r)]
+    if not done:
+        return "—"
+    worst = max(done, key=lambda r: r["burn_pointing_max_deg"])
+    return f"{worst['burn_pointing_max_deg']:.3f} ({_names([failed_set(worst)])})"
+
+
+def comparison(campaign, undetected, detected):
+    """The undetected and the detected sweep side by side: per set size, then per set."""
+    vehicle = campaign["vehicle"]
+    by_set = {failed_set(r): r for r in undetected}
+    lost = {failed_set(r): lost_torque_senses(vehicle, failed_set(r)) for r in detected}
+    failures = [r for r in detected if r["failed_thrusters"]]
+    agree = sum(within_limit(r) == (not lost[failed_set(r)]) for r in failures)
+    steerable = [r for r in failures if not lost[failed_set(r)]]
+    lines = [
+        f"- Nominal run (no failure): burn pointing max {detected[0]['burn_pointing_max_deg']:.3f} deg "
+        f"(undetected sweep: {undetected[0]['burn_pointing_max_deg']:.3f} deg).",
+        f"- Detected: a set completes within {POINTING_LIMIT_DEG:g} deg exactly when its thrusters left still make "
+        f"torque of both senses about every axis (linprog on the geometry): **{agree} of {len(failures)}** sets "
+        "agree.",
+        f"- Detected, the sets the geometry can still steer ({len(steerable)}): burn pointing max at most "
+        f"{max(r['burn_pointing_max_deg'] for r in steerable):.3f} deg, against "
+        f"{detected[0]['burn_pointing_max_deg']:.3f} deg without a failure.",
+        "",
+        f"| failed thrusters | sets | undetected: within {POINTING_LIMIT_DEG:g} deg | undetected: worst pointing max "
+        f"[deg] | detected: within {POINTING_LIMIT_DEG:g} deg | detected: worst pointing max [deg] |",
+        "|---|---:|---:|---|---:|---|",
+    ]
+    for size, label in ((1, "single"), (2, "double")):
+        new = [r for r in failures if len(failed_set(r)) == size]
+        old = [by_set[failed_set(r)] for r in new]
+        lines.append(
+            f"| {label} | {len(new)} | {sum(map(within_limit, old))} | {_worst(old)} "
+            f"| {sum(map(within_limit, new))} | {_worst(new)} |"
+        )
+    lines += [
+        "",
+        "| run | failed thrusters | torque senses lost | undetected: outcome | undetected: pointing max [deg] "
+        "| detected: outcome | detected: pointing max [deg] | detected: cold gas used [kg] |",
+        "|---:|---|---|---|---:|---|---:|---:|",
+    ]
+    for row in detected:
+        failed = failed_set(row)
+        old = by_set[failed]
+        cells = (
+            str(row["run_id"]),
+            f"[{', '.join(map(str, failed))}]" if failed else "none",
+            ", ".join(lost[failed]) or "none",
+            _outcome(old),
+            _pointing(old),
+            _outcome(row),
+            _pointing(row),
+            number(row["fuel_used_kg"], ".3f"),
+        )
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def generate_detected(undetected_file=CAMPAIGN, detected_file=DETECTED_CAMPAIGN):
+    """The comparison of docs/spore.md's detected-sweep section, both sweeps flown in this process."""
+    _, undetected = fly_sweep(undetected_file)
+    campaign, detected = fly_sweep(detected_file)
+    script = "docs/gen_spore_failure_sweep.py --detected"
+    return f"{provenance(script)}\n\n{comparison(campaign, undetected, detected)}"
+
+
+def write_detected(generated, doc=DOC):
+    """Replace the text between the detected-sweep markers of ``doc`` with ``generated``."""
+    head, rest = doc.read_text().split(DETECTED_BEGIN, 1)
+    _, tail = rest.split(DETECTED_END, 1)
+    doc.write_text(f"{head}{DETECTED_BEGIN}\n{generated}{DETECTED_END}{tail}")
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:], generate, DOC)
+    if "--detected" in sys.argv[1:]:
+        text = generate_detected()
+        if "--write" in sys.argv[1:]:
+            write_detected(text)
+        else:
+            sys.stdout.write(text)
+    else:
+        main(sys.argv[1:], generate, DOC)

@@ -1,13 +1,22 @@
 """Thruster allocation against 000 Table 3, typed in here from the paper."""
 
+import copy
 import itertools
+import math
+from pathlib import Path
 
 import naive
 import numpy as np
 import pytest
 
+from refexmc.campaign.chunk import RunPlan, fly_chunk
 from refexmc.config import derived
+from refexmc.config.load import load_campaign
 from refexmc.core import allocation, rcs
+from refexmc.core import layout as L
+
+FAILURE_1_8 = Path(__file__).resolve().parents[1] / "campaigns/failure-1-8.yaml"
+FAILURE_SWEEP = Path(__file__).resolve().parents[1] / "campaigns/failure-sweep.yaml"
 
 # 000 Table 3: thrusters opened for each commanded torque (diagonal) or pair of torques.
 TABLE_3 = {
@@ -93,3 +102,51 @@ def test_allocated_torque_has_the_commanded_signs(inputs, w):
             assert abs(torque[axis]) >= 0.171 - 1e-12  # at least one roll arm's worth
         else:
             assert abs(torque[axis]) < 1e-12, f"axis {'xyz'[axis]} disturbed: torque {torque}"
+
+
+# --- detected failures: what "knows the failure" means for the table ----------------------------
+
+
+@pytest.mark.parametrize("detected", [False, True])
+def test_a_detected_failure_leaves_the_table_and_marks_the_thruster_known(detected):
+    """failures.detected reaches the run's inputs: the thruster is marked failed either way, and
+    known with its column of the run's allocation table zero only when detected; the plan's own
+    (nominal) table is untouched (each run has its copy)."""
+    campaign = copy.deepcopy(load_campaign(FAILURE_1_8))
+    campaign["failures"]["detected"] = detected
+    plan = RunPlan(campaign)
+    _, failed, _, inputs = plan.prepare(0)
+    assert failed.thrusters == (1, 8)
+    assert inputs.thrusters[:, L.T_FAILED].tolist() == [1, 0, 0, 0, 0, 0, 0, 1]
+    known = [1, 0, 0, 0, 0, 0, 0, 1] if detected else [0] * 8
+    assert inputs.thrusters[:, L.T_FAILURE_KNOWN].tolist() == known
+    table = derived.allocation_table(campaign["vehicle"])
+    assert np.array_equal(plan.nominal_inputs.allocation, table)
+    if detected:
+        table[:, [0, 7]] = 0
+    assert np.array_equal(inputs.allocation, table)
+
+
+def test_a_detected_failure_changes_only_the_commands_to_the_dead_valves():
+    """ReFEx's failure sweep (campaigns/failure-sweep.yaml: all 36 single and double sets, 000
+    Table 4), undetected and detected. The table is not re-planned, so the detected flight opens
+    the same working valves at the same times: every runs column of every set is bit-identical
+    except the pulse counts of the failed thrusters, which are 0 detected (the undetected software
+    kept commanding valves that never open). 000 Table 4's verdicts therefore hold detected too."""
+    campaign = load_campaign(FAILURE_SWEEP)
+    told = copy.deepcopy(campaign)
+    told["failures"]["detected"] = True
+    undetected, _ = fly_chunk(campaign, range(campaign["runs"]))
+    detected, _ = fly_chunk(told, range(told["runs"]))
+
+    def same(a, b):
+        return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+
+    commanded = 0
+    for before, after in zip(undetected, detected, strict=True):
+        failed = [f"pulses_{t}" for t in before["failed_thrusters"].split(",") if t]
+        differing = {k for k in before if not same(before[k], after[k])}
+        assert differing <= set(failed), (before["failed_thrusters"], differing)
+        assert all(after[k] == 0 for k in failed)
+        commanded += sum(before[k] for k in failed)
+    assert len(detected) == 37 and commanded > 0  # undetected, the dead valves were commanded

@@ -68,6 +68,18 @@ CASES = [
         [],
         ["failures.thrusters.1", "thruster id 1..8, got 9"],
     ),
+    (
+        "detected-not-boolean",
+        _edit("failures:\n  mode: none", "failures:\n  mode: fixed\n  thrusters: [1]\n  detected: maybe"),
+        [],
+        ["failures.detected", "expected boolean", "'maybe'"],
+    ),
+    (
+        "detected-without-failures",
+        _edit("failures:\n  mode: none", "failures:\n  mode: none\n  detected: true"),
+        [],
+        ["failures.detected", "'detected' is not used with mode none"],
+    ),
     ("seed-not-integer", _edit("seed: 20231121", "seed: 1.5"), [], ["seed", "expected integer", "1.5"]),
     ("seed-option-not-integer", SMOKE, ["--seed", "abc"], ["--seed", "abc"]),
     (

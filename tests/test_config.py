@@ -147,6 +147,20 @@ def test_inline_vehicle_errors_carry_the_campaign_path(tmp_path):
     assert err.value.line is not None
 
 
+def test_pack_marks_detected_thrusters_known_and_leaves_them_out_of_the_table():
+    """pack(failed_thrusters, detected_thrusters): every failed thruster is failed, only the
+    detected ones are known to the flight software (failure_known) and have a zero column in its
+    allocation table; a detected id that has not failed is not a failure and changes nothing."""
+    vehicle, mission = load_vehicle(VEHICLE), load_mission(MISSION)
+    plain = pack(vehicle, mission, failed_thrusters=(1, 8))
+    told = pack(vehicle, mission, failed_thrusters=(1, 8), detected_thrusters=(8, 3))
+    assert told.thrusters[:, L.T_FAILED].tolist() == plain.thrusters[:, L.T_FAILED].tolist() == [1, 0, 0, 0, 0, 0, 0, 1]
+    assert plain.thrusters[:, L.T_FAILURE_KNOWN].tolist() == [0] * 8
+    assert told.thrusters[:, L.T_FAILURE_KNOWN].tolist() == [0, 0, 0, 0, 0, 0, 0, 1]
+    assert plain.allocation[:, 7].any() and not told.allocation[:, 7].any()
+    np.testing.assert_array_equal(np.delete(told.allocation, 7, axis=1), np.delete(plain.allocation, 7, axis=1))
+
+
 def test_pack_uses_every_field_of_the_layout():
     """Each named field of each input array is written by the packer (no silent zeros)."""
     inputs = pack(load_vehicle(VEHICLE), load_mission(MISSION))

@@ -258,3 +258,53 @@ def test_lp_pwm_refuses_a_rest_limit_it_cannot_honour(tmp_path):
     result = CliRunner().invoke(main, ["validate", str(tmp_path / "v.yaml")])
     assert result.exit_code == 2
     assert "rcs.switching_limits_ms.min_off: actuation lp_pwm pulses inside each control period" in result.output
+
+
+# --- detected failures: a zero column is the LP without that thruster --------------------------
+
+
+@pytest.mark.parametrize("name", GEOMETRIES)
+def test_a_zeroed_column_gives_exactly_the_lp_without_that_thruster(name):
+    """A thruster the flight software knows to have failed has a zero column in H
+    (allocation.nominal_arms). It never enters the basis, so every pivot is that of the LP with the
+    column removed: the thrusts are bit-identical, the failed one gets none, and the total equals
+    linprog's on the reduced problem (the tolerances of the module's docstring). Torques both
+    attainable and far outside, so phase A's scale is exercised too."""
+    arms, u_max = GEOMETRIES[name]()
+    rng = np.random.default_rng(21)
+    for failed in ([0], [3], [0, 5], [2, 7, 11]):
+        keep = [j for j in range(arms.shape[1]) if j not in failed]
+        zeroed = arms.copy()
+        zeroed[:, failed] = 0.0
+        with_zeros, reduced = Solver(zeroed, u_max), Solver(arms[:, keep], u_max[keep])
+        inside = attainable_torques(arms[:, keep], u_max[keep], 30, seed=len(failed))
+        for torque in [*inside, *(rng.normal(size=(10, 3)) * 50.0)]:
+            scale, u = with_zeros(torque)
+            scale_reduced, u_reduced = reduced(torque)
+            assert scale == scale_reduced
+            assert np.array_equal(u[keep], u_reduced) and not u[failed].any()
+            if scale == 1.0:
+                reference = linprog(
+                    np.ones(len(keep)), A_eq=arms[:, keep], b_eq=torque, bounds=bounds(u_max[keep]), method="highs"
+                )
+                assert reference.status == 0
+                assert u.sum() == pytest.approx(reference.fun, rel=OBJECTIVE_REL, abs=1e-15)
+
+
+def test_nominal_arms_zero_the_thrusters_whose_failure_is_known():
+    """core.allocation.nominal_arms: the column of a thruster marked failure_known is zero, every
+    other is r x d (derived.torque_arms, numpy's cross product); a failure not known keeps its
+    column (undetected: the flight software does not know)."""
+    from refexmc.config.pack import pack_thrusters
+    from refexmc.core import allocation
+
+    vehicle = load_vehicle(ROOT / "configs/vehicles/spore-sm.yaml")
+    expected = derived.torque_arms(vehicle).T
+    for failed, known in (((), ()), ((1, 8), ()), ((1, 8), (8,)), ((3, 4, 12), (3, 4, 12))):
+        thrusters = pack_thrusters(vehicle, failed, known)
+        out = np.full((3, 12), np.nan)
+        allocation.nominal_arms(thrusters, out)
+        columns = [t - 1 for t in known]
+        assert not out[:, columns].any()
+        others = [j for j in range(12) if j not in columns]
+        np.testing.assert_allclose(out[:, others], expected[:, others], rtol=0, atol=1e-15)

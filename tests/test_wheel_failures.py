@@ -275,8 +275,22 @@ def test_a_small_irassi_campaign_with_wheel_failures_runs_and_reruns(tmp_path):
             "wheels.friction",
             "'wheels.friction.coulomb_n_m': the vehicle file does not declare it",
         ),
+        (
+            IRASSI,
+            "wheel_failures:\n  mode: none\n  detected: true\n",
+            "  detected: true",
+            "wheel_failures.detected: 'detected' is not used with mode none (no wheel fails)",
+        ),
     ],
-    ids=["no-wheels", "unknown-id", "unknown-name", "too-many-probabilities", "unused-key", "wheel-path-on-refex"],
+    ids=[
+        "no-wheels",
+        "unknown-id",
+        "unknown-name",
+        "too-many-probabilities",
+        "unused-key",
+        "wheel-path-on-refex",
+        "detected-without-failures",
+    ],
 )
 def test_bad_wheel_failures_exit_2_with_file_line_and_key(tmp_path, vehicle, extra, fragment, words):
     mission = REFEX_MISSION if vehicle == REFEX else None

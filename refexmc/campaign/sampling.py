@@ -286,6 +286,10 @@ class Sampler:
         """Failed wheel ids (1-based, ascending) of run ``run_id``."""
         return self._failed_units(self.wheel_failures, WHEEL_FAILURES, self.n_wheels, self.wheel_failure_sets, run_id)
 
+    def failures_detected(self):
+        """Whether the flight software knows the failed thrusters (``failures.detected``)."""
+        return bool(self.campaign["failures"].get("detected", False))
+
     def wheel_failures_detected(self):
         """Whether the flight software knows the failed wheels (``wheel_failures.detected``)."""
         return bool(self.wheel_failures.get("detected", False))
@@ -294,7 +298,8 @@ class Sampler:
         """The run's own copy of the packed inputs with ``values`` and ``failed`` applied. Failed
         wheels are packed (``nominal_inputs`` is the pack of the run's wheel failures, which also
         sets the levels and the distribution matrix of detected ones); only the wheel table is
-        dispersed, so that is the one wheel table copied."""
+        dispersed, so that is the one wheel table copied. Failed thrusters are set here, known to
+        the flight software with ``failures.detected`` (the run's own allocation table then)."""
         inputs = nominal_inputs._replace(
             vehicle=nominal_inputs.vehicle.copy(),
             thrusters=nominal_inputs.thrusters.copy(),
@@ -304,9 +309,12 @@ class Sampler:
             atmosphere=nominal_inputs.atmosphere.copy(),
             wheels=nominal_inputs.wheels.copy(),
         )
+        detected = self.failures_detected()
+        if detected:
+            inputs = inputs._replace(allocation=nominal_inputs.allocation.copy())
         for path, value in values.items():
             dispersions.apply(inputs, path, value, nominal_inputs.atmosphere, self.levels)
-        dispersions.set_failed(inputs, failed)
+        dispersions.set_failed(inputs, failed, detected)
         return inputs
 
     def columns(self, values):

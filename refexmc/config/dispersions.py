@@ -203,12 +203,20 @@ def size(path, vehicle):
     return max(1, len(components(path, vehicle)))
 
 
-def set_failed(inputs, failed):
-    """Mark thrusters ``failed`` (1-based ids) failed and every other one working."""
+def set_failed(inputs, failed, detected=False):
+    """Mark thrusters ``failed`` (1-based ids) failed and every other one working. ``detected``:
+    the flight software knows them (failures.detected): they are marked known, which takes them
+    out of the LP (``core.allocation.nominal_arms``), and their column of the allocation table is
+    zero, so the table no longer commands them (``inputs.allocation`` must be the run's own copy)."""
     failed_column = L.THRUSTER.slices["failed"][0]
+    known_column = L.THRUSTER.slices["failure_known"][0]
     inputs.thrusters[:, failed_column] = 0.0
+    inputs.thrusters[:, known_column] = 0.0
     for tid in failed:
         inputs.thrusters[tid - 1, failed_column] = 1.0
+        if detected:
+            inputs.thrusters[tid - 1, known_column] = 1.0
+            inputs.allocation[:, tid - 1] = 0
 
 
 def columns(path, vehicle):

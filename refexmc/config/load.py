@@ -560,6 +560,8 @@ def _check_failures(failures, units, path, lines, kind=THRUSTER_FAILURES):
     for key in used:
         if key not in failures:
             fail(f"mode {mode} needs '{key}'")
+    if mode == "none" and "detected" in failures:
+        fail(f"'detected' is not used with mode none (no {word} fails)", "detected")
     if mode == "fixed":
         ids = {u.get("name", u["id"]): u["id"] for u in units}
         ids.update({u["id"]: u["id"] for u in units})

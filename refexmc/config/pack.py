@@ -123,10 +123,11 @@ def pack_vehicle(vehicle):
     return out
 
 
-def pack_thrusters(vehicle, failed=()):
+def pack_thrusters(vehicle, failed=(), known=()):
     """Thruster table (layout.THRUSTER, then the time constants per level), one row per thruster;
-    ``failed`` are 1-based ids; no rows without an rcs. The time constants are those of the rcs
-    levels (with actuation wheels the thrusters are carried, not fired)."""
+    ``failed`` are 1-based ids, ``known`` those of them the flight software knows (detected); no
+    rows without an rcs. The time constants are those of the rcs levels (with actuation wheels the
+    thrusters are carried, not fired)."""
     if "rcs" not in vehicle:
         return np.zeros((0, L.thruster_size(len(level_names(vehicle)))))
     rcs = vehicle["rcs"]
@@ -144,7 +145,19 @@ def pack_thrusters(vehicle, failed=()):
             for which, name in enumerate(L.TIME_CONSTANT_NAMES):
                 row[L.time_constant_column(k, which)] = tc[name] / 1e3
         _put(row, L.THRUSTER, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
+        _put(row, L.THRUSTER, "failure_known", 1.0 if (i + 1) in set(failed) & set(known) else 0.0)
     return out
+
+
+def pack_allocation(vehicle, known=()):
+    """The allocation table the flight software flies (``derived.allocation_table``, 000 Table 3)
+    without the thrusters it knows to have failed (1-based ``known`` ids, their column zero): a
+    row that needs one opens the others of its set. The table is not re-planned (000 describes no
+    reconfiguration), so a known failure only stops the commands to a valve that never opens."""
+    table = derived.allocation_table(vehicle)
+    for tid in known:
+        table[:, tid - 1] = 0
+    return table
 
 
 def pack_fsw(vehicle):
@@ -324,18 +337,20 @@ def _cached_plan(key):
     return deorbit.plan(vehicle, mission, 1.0 / fsw["control_rate_hz"], 1.0 / fsw["burn_guidance"]["rate_hz"])
 
 
-def pack(vehicle, mission, failed_thrusters=(), plan=None, failed_wheels=(), detected_wheels=()):
+def pack(vehicle, mission, failed_thrusters=(), plan=None, failed_wheels=(), detected_wheels=(), detected_thrusters=()):
     """All run inputs for the nominal (undispersed) vehicle and mission; ``plan``: the deorbit
     plan when already computed (:func:`deorbit_plan`). ``failed_thrusters``, ``failed_wheels``:
     1-based ids of what does not work; ``detected_wheels``: 1-based ids of wheels the flight
-    software knows to have failed and leaves out of its distribution (and of the levels' limits)."""
+    software knows to have failed and leaves out of its distribution (and of the levels' limits);
+    ``detected_thrusters``: failed thrusters it knows, left out of its LP and allocation table."""
+    detected_thrusters = tuple(t for t in detected_thrusters if t in set(failed_thrusters))
     plan = plan or deorbit_plan(vehicle, mission)
     burn_attitude = None if plan is None else derived.burn_start_attitude(vehicle, plan)
     mode_table, exit_table = pack_modes(mission, level_names(vehicle), burn_attitude)
     nominal = np.zeros((0, L.NOMINAL_SIZE)) if plan is None else plan.table
     return RunInputs(
         vehicle=pack_vehicle(vehicle),
-        thrusters=pack_thrusters(vehicle, failed_thrusters),
+        thrusters=pack_thrusters(vehicle, failed_thrusters, detected_thrusters),
         levels=pack_levels(vehicle, detected_wheels),
         fsw=pack_fsw(vehicle),
         mission=pack_mission(mission, vehicle.get("trajectory", "planar_drag"), plan),
@@ -343,7 +358,7 @@ def pack(vehicle, mission, failed_thrusters=(), plan=None, failed_wheels=(), det
         exits=exit_table,
         nav=pack_navigation(mission),
         atmosphere=pack_atmosphere(mission),
-        allocation=derived.allocation_table(vehicle),
+        allocation=pack_allocation(vehicle, detected_thrusters),
         nominal=nominal,
         wheels=pack_wheels(vehicle, failed_wheels),
         wheel_distribution=pack_wheel_distribution(vehicle, detected_wheels),

@@ -719,6 +719,11 @@ CAMPAIGN = obj(
             "thrusters",
             {"type": ["integer", "string"], "minimum": 1, "description": "thruster id or name"},
             "failed thrusters by id or name (mode fixed)",
+            detected={
+                "type": "boolean",
+                "description": "the flight software knows the failed thrusters: its LP allocation leaves them "
+                "out (004 eq. 2-5) and its allocation table no longer commands them; default false (undetected)",
+            },
         ),
         "wheel_failures": failures_schema(
             "reaction wheels whose motor gives no torque (friction still acts); vehicles with wheels only",

@@ -15,6 +15,7 @@ from refexmc.core.layout import (
     F_TAU_MIN_FRACTION,
     LV_TORQUE_MAX,
     T_DIRECTION,
+    T_FAILURE_KNOWN,
     T_POSITION,
 )
 
@@ -88,8 +89,21 @@ def pwm_on_time(u, u_max, period, min_on):
 @jit_noalloc
 def nominal_arms(thrusters, out):
     """(3, n) torque per newton the flight software assumes: nominal position x direction (the
-    nominal centre of mass is the origin; the actual one is not known to it)."""
+    nominal centre of mass is the origin; the actual one is not known to it).
+
+    A thruster whose failure the flight software knows (``T_FAILURE_KNOWN``, a detected failure)
+    makes no torque in its model: its column is zero. The LP (``core.lp_allocation``) then never
+    gives it thrust: a zero column's reduced cost is its own cost (0 in phase A, 1 in phase B), so
+    it never enters the basis and every pivot is the one of the LP without that column (Bland's
+    rule takes the lowest improving index). One kernel for every run; an undetected failure keeps
+    its column (000 sec. 5).
+    """
     for i in range(thrusters.shape[0]):
+        if thrusters[i, T_FAILURE_KNOWN] != 0.0:
+            out[0, i] = 0.0
+            out[1, i] = 0.0
+            out[2, i] = 0.0
+            continue
         rx, ry, rz = thrusters[i, T_POSITION], thrusters[i, T_POSITION + 1], thrusters[i, T_POSITION + 2]
         dx, dy, dz = thrusters[i, T_DIRECTION], thrusters[i, T_DIRECTION + 1], thrusters[i, T_DIRECTION + 2]
         out[0, i] = ry * dz - rz * dy

@@ -50,6 +50,9 @@ T_POSITION = THRUSTER.add("position_m", 3)  # nominal body frame (origin at nomi
 T_DIRECTION = THRUSTER.add("direction", 3)  # unit force direction, body axes
 T_SCALE = THRUSTER.add("thrust_scale")
 T_FAILED = THRUSTER.add("failed")  # 1: never opens, uses no propellant (000 sec. 5)
+# 1: the flight software knows the thruster has failed (campaign failures.detected): the LP leaves
+# it out of its matrix (allocation.nominal_arms), the allocation table has no entry for it (pack)
+T_FAILURE_KNOWN = THRUSTER.add("failure_known")
 T_TIME_CONSTANTS = THRUSTER.size  # then per thrust level: on-delay, rise, off-delay, fall (s)
 TIME_CONSTANTS_PER_LEVEL = 4
 ON_DELAY, RISE, OFF_DELAY, FALL = 0, 1, 2, 3

@@ -15,6 +15,8 @@ phase A maximises s from the feasible start u = 0, s = 0 (three artificial varia
 zero form the first basis, so no feasibility phase is needed); phase B fixes s = s* and
 minimises sum(u) from phase A's basis. An attainable tau gives s* = 1 and 004's solution.
 Thrusters that have failed undetected stay in H: the flight software does not know (000 sec. 5).
+One whose failure it knows (a detected failure) has a zero column in H (``allocation.nominal_arms``),
+which never enters the basis: the result is that of the LP without it.
 
 The actuation ``lp_pwm`` family's flight step lives here too (docs/families.md): its work arrays
 (:class:`Optimiser`, allocated by :func:`optimiser`) and :func:`pulse_width`, the LP allocation

@@ -272,7 +272,8 @@ def page(summary, figures, sensitivity_labels):
         kind = "detected: redistributed over the others" if summary["wheel_failure_sets"]["detected"] else "undetected"
         body += [f"<h2>Failed wheels ({e(kind)})</h2>", wheel_failure_sets_section(summary["wheel_failure_sets"])]
     if summary["failure_sets"]:
-        body += ["<h2>Failure sets</h2>", failure_sets_section(summary["failure_sets"])]
+        kind = "detected: left out of the allocation" if summary["campaign"].get("failures_detected") else "undetected"
+        body += [f"<h2>Failure sets ({e(kind)})</h2>", failure_sets_section(summary["failure_sets"])]
         table4 = summary.get("failure_sets_vs_000_table4")
         if table4:
             differ = ", ".join(f"[{d}]" for d in table4["disagree"]) or "none"

@@ -396,6 +396,7 @@ def build(campaign):
             "sampling": campaign.resolved.get("sampling"),
             "nominal_first": campaign.resolved.get("nominal_first", True),
             "failures": (campaign.resolved.get("failures") or {}).get("mode", "none"),
+            "failures_detected": bool((campaign.resolved.get("failures") or {}).get("detected", False)),
             "manifest_status": campaign.manifest.get("status"),
             "refexmc": campaign.manifest.get("refexmc"),
         },

@@ -150,7 +150,8 @@ def format_summary(summary, report_dir=None):
     sets = summary.get("failure_sets")
     if sets:
         complete = sum(s["successes"] == s["runs"] for s in sets)
-        lines.append(f"failure sets: {len(sets)}, every run succeeded in {complete}")
+        kind = "detected" if summary["campaign"].get("failures_detected") else "undetected"
+        lines.append(f"failure sets ({kind}): {len(sets)}, every run succeeded in {complete}")
         table4 = summary.get("failure_sets_vs_000_table4")
         if table4:
             lines.append(
