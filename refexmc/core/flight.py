@@ -47,6 +47,7 @@ from refexmc.core.layout import (
     F_CONTROL_PERIOD,
     F_CONTROLLER,
     F_ENGINE_AXIS,
+    F_GUIDANCE_LAW,
     F_GUIDANCE_PERIOD,
     F_GUIDANCE_POSITION_GAIN,
     F_GUIDANCE_VELOCITY_GAIN,
@@ -796,7 +797,12 @@ def _steer(nominal, fsw, nav, vehicle, x, orb, guide, rng_state, status, t, burn
         deorbit.measure(orb.state, nav, rng_state, orb.measured)
         deorbit.nominal_at(nominal, t, orb.nominal)
         deorbit.steer(
-            orb.measured, orb.nominal, fsw[F_GUIDANCE_POSITION_GAIN], fsw[F_GUIDANCE_VELOCITY_GAIN], orb.command
+            orb.measured,
+            orb.nominal,
+            int(fsw[F_GUIDANCE_LAW]),
+            fsw[F_GUIDANCE_POSITION_GAIN],
+            fsw[F_GUIDANCE_VELOCITY_GAIN],
+            orb.command,
         )
         deorbit.thrust_attitude(
             orb.command,
