@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import yaml
+from gen_failure_sweep import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = ROOT / "campaigns" / "spore-deorbit-iss.yaml"
@@ -274,7 +275,7 @@ def main(argv):
         return
     runs_dir = Path(argv[argv.index("--runs-dir") + 1]) if "--runs-dir" in argv else Path("/tmp/spore-readings")
     jobs = int(argv[argv.index("-j") + 1]) if "-j" in argv else 2
-    generated = table(fly(runs_dir, jobs))
+    generated = f"{provenance('docs/gen_spore_readings.py')}\n\n{table(fly(runs_dir, jobs))}"
     if "--write" in argv:
         head, rest = DOC.read_text().split(BEGIN, 1)
         _, tail = rest.split(END, 1)
