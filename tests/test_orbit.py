@@ -513,10 +513,13 @@ def test_steer_is_the_normalised_pd_command():
     assert np.abs(out - unit(nominal[NM_THRUST_ACCEL : NM_THRUST_ACCEL + 3])).max() <= 1e-15
 
 
-def test_open_loop_laws_ignore_the_state_errors():
-    """open_loop_retrograde: exactly -v_gps / |v_gps| (1e-15 relative, the bound 1e-13), whatever
-    the nominal; open_loop_planned: the nominal thrust direction, whatever the measured state and
-    the gains (the feedback terms are not computed at all)."""
+def test_every_law_matches_its_naive_twin():
+    """core.deorbit.steer against naive.burn_direction for each law (pack's ids), random states:
+    the same sums in another grouping, 1e-15 relative; the bound 1e-13. open_loop_retrograde is
+    -v_gps whatever the nominal, open_loop_planned the nominal thrust direction whatever the
+    measured state and the gains."""
+    from refexmc.config.pack import GUIDANCE_LAWS
+
     rng = np.random.default_rng(18)
     out = np.zeros(3)
     for _ in range(100):
@@ -524,11 +527,26 @@ def test_open_loop_laws_ignore_the_state_errors():
         nominal[NM_POSITION : NM_POSITION + 3] = random_unit(rng) * 6.8e6
         nominal[NM_VELOCITY : NM_VELOCITY + 3] = random_unit(rng) * 7.6e3
         nominal[NM_THRUST_ACCEL : NM_THRUST_ACCEL + 3] = random_unit(rng) * 0.55
-        measured = np.r_[random_unit(rng) * 6.8e6, random_unit(rng) * 7.6e3]
-        deorbit.steer(measured, nominal, L.GUIDANCE_LAW_OPEN_LOOP_RETROGRADE, 1e-3, 0.06, out)
-        assert np.abs(out + unit(measured[3:6])).max() <= 1e-13
-        deorbit.steer(measured, nominal, L.GUIDANCE_LAW_OPEN_LOOP_PLANNED, 1e-3, 0.06, out)
-        assert np.abs(out - unit(nominal[NM_THRUST_ACCEL : NM_THRUST_ACCEL + 3])).max() <= 1e-15
+        measured = np.r_[
+            nominal[NM_POSITION : NM_POSITION + 3] + rng.normal(0.0, 200.0, 3),
+            nominal[NM_VELOCITY : NM_VELOCITY + 3] + rng.normal(0.0, 2.0, 3),
+        ]
+        k_r, k_v = rng.uniform(0.0, 0.01), rng.uniform(0.0, 0.1)
+        for name, law in GUIDANCE_LAWS.items():
+            deorbit.steer(measured, nominal, law, k_r, k_v, out)
+            expected = naive.burn_direction(
+                name,
+                measured[0:3],
+                measured[3:6],
+                nominal[NM_POSITION : NM_POSITION + 3],
+                nominal[NM_VELOCITY : NM_VELOCITY + 3],
+                nominal[NM_THRUST_ACCEL : NM_THRUST_ACCEL + 3],
+                k_r,
+                k_v,
+            )
+            assert np.abs(out - expected).max() <= 1e-13, name
+        deorbit.steer(measured, nominal, L.GUIDANCE_LAW_OPEN_LOOP_RETROGRADE, k_r, k_v, out)
+        assert np.abs(out + unit(measured[3:6])).max() <= 1e-13  # anti-parallel to the measured velocity
 
 
 def test_nominal_at_interpolates_like_numpy_and_holds_the_ends():
