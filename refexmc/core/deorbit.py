@@ -8,7 +8,9 @@ period, from ignition to cut-off). Every guidance period it measures position an
 
 the PD law on the position and velocity errors of 004 sec. III added to the nominal thrust
 acceleration (the engine's thrust is constant, so only the direction is steered; the gains weigh
-position against velocity error). The attitude reference puts the engine's nominal axis along
+position against velocity error). Two open-loop laws fly the same plan without feedback
+(``steer``'s ``law``: along -v_gps, or along the plan's own thrust direction) for the readings of
+004 Table 2 in docs/spore.md. The attitude reference puts the engine's nominal axis along
 ``d_cmd`` with a second body axis toward the orbit normal. The nominal burn itself is flown here
 too (:func:`nominal_burn`), either opposite to the velocity or along the fixed "Hohmann
 direction" (tangential, opposite to the velocity at ignition, fixed in inertial space), 004 Fig. 7.
