@@ -496,3 +496,26 @@ def dispersed_inertia(nominal_components, moments_sigma_fraction, axes_sigma_deg
     j = turn @ np.diag(moments) @ turn.T
     j = 0.5 * (j + j.T)
     return np.array([j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]])
+
+
+# --------------------------------------------------------------------------------------------
+# Deorbit burn guidance laws (004 sec. III; core.deorbit.steer)
+# --------------------------------------------------------------------------------------------
+
+
+def burn_direction(law, r_gps, v_gps, r_nom, v_nom, a_nom, position_gain, velocity_gain):
+    """Unit thrust direction of a burn-guidance law: "pd" a_nom - k_r dr - k_v dv,
+    "open_loop_retrograde" -v_gps, "open_loop_planned" a_nom (numpy vectors)."""
+    if law == "pd":
+        a = (
+            np.asarray(a_nom)
+            - position_gain * (np.asarray(r_gps) - r_nom)
+            - velocity_gain * (np.asarray(v_gps) - v_nom)
+        )
+    elif law == "open_loop_retrograde":
+        a = -np.asarray(v_gps, dtype=float)
+    elif law == "open_loop_planned":
+        a = np.asarray(a_nom, dtype=float)
+    else:
+        raise ValueError(law)
+    return a / np.linalg.norm(a)

@@ -21,6 +21,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from refexmc.core import deorbit, orbit
+from refexmc.core import layout as L
 from refexmc.core.layout import (
     N_GPS_POSITION_BIAS,
     N_GPS_POSITION_NOISE,
@@ -505,11 +506,47 @@ def test_steer_is_the_normalised_pd_command():
             - k_r * (measured[0:3] - nominal[NM_POSITION : NM_POSITION + 3])
             - k_v * (measured[3:6] - nominal[NM_VELOCITY : NM_VELOCITY + 3])
         )
-        deorbit.steer(measured, nominal, k_r, k_v, out)
+        deorbit.steer(measured, nominal, L.GUIDANCE_LAW_PD, k_r, k_v, out)
         assert np.abs(out - unit(command)).max() <= 1e-13
     # with no error the command is the nominal thrust direction
-    deorbit.steer(nominal[NM_POSITION : NM_VELOCITY + 3].copy(), nominal, 0.3, 0.7, out)
+    deorbit.steer(nominal[NM_POSITION : NM_VELOCITY + 3].copy(), nominal, L.GUIDANCE_LAW_PD, 0.3, 0.7, out)
     assert np.abs(out - unit(nominal[NM_THRUST_ACCEL : NM_THRUST_ACCEL + 3])).max() <= 1e-15
+
+
+def test_every_law_matches_its_naive_twin():
+    """core.deorbit.steer against naive.burn_direction for each law (pack's ids), random states:
+    the same sums in another grouping, 1e-15 relative; the bound 1e-13. open_loop_retrograde is
+    -v_gps whatever the nominal, open_loop_planned the nominal thrust direction whatever the
+    measured state and the gains."""
+    from refexmc.config.pack import GUIDANCE_LAWS
+
+    rng = np.random.default_rng(18)
+    out = np.zeros(3)
+    for _ in range(100):
+        nominal = np.zeros(NOMINAL_SIZE)
+        nominal[NM_POSITION : NM_POSITION + 3] = random_unit(rng) * 6.8e6
+        nominal[NM_VELOCITY : NM_VELOCITY + 3] = random_unit(rng) * 7.6e3
+        nominal[NM_THRUST_ACCEL : NM_THRUST_ACCEL + 3] = random_unit(rng) * 0.55
+        measured = np.r_[
+            nominal[NM_POSITION : NM_POSITION + 3] + rng.normal(0.0, 200.0, 3),
+            nominal[NM_VELOCITY : NM_VELOCITY + 3] + rng.normal(0.0, 2.0, 3),
+        ]
+        k_r, k_v = rng.uniform(0.0, 0.01), rng.uniform(0.0, 0.1)
+        for name, law in GUIDANCE_LAWS.items():
+            deorbit.steer(measured, nominal, law, k_r, k_v, out)
+            expected = naive.burn_direction(
+                name,
+                measured[0:3],
+                measured[3:6],
+                nominal[NM_POSITION : NM_POSITION + 3],
+                nominal[NM_VELOCITY : NM_VELOCITY + 3],
+                nominal[NM_THRUST_ACCEL : NM_THRUST_ACCEL + 3],
+                k_r,
+                k_v,
+            )
+            assert np.abs(out - expected).max() <= 1e-13, name
+        deorbit.steer(measured, nominal, L.GUIDANCE_LAW_OPEN_LOOP_RETROGRADE, k_r, k_v, out)
+        assert np.abs(out + unit(measured[3:6])).max() <= 1e-13  # anti-parallel to the measured velocity
 
 
 def test_nominal_at_interpolates_like_numpy_and_holds_the_ends():

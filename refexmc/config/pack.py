@@ -41,6 +41,11 @@ CONTROLLERS = {
     "pd": L.CONTROLLER_PD,
     "smc": L.CONTROLLER_SMC,
 }
+GUIDANCE_LAWS = {  # flight_software.burn_guidance.law (schema enum) -> core.deorbit.steer's id
+    "pd": L.GUIDANCE_LAW_PD,
+    "open_loop_retrograde": L.GUIDANCE_LAW_OPEN_LOOP_RETROGRADE,
+    "open_loop_planned": L.GUIDANCE_LAW_OPEN_LOOP_PLANNED,
+}
 ACTUATIONS = {"pwpf_table": L.ACTUATION_PWPF_TABLE, "lp_pwm": L.ACTUATION_LP_PWM, "wheels": L.ACTUATION_WHEELS}
 
 
@@ -184,6 +189,7 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "guidance_period_s", 1.0 / burn["rate_hz"])
     _put(out, L.FSW, "guidance_position_gain_s2", burn["position_gain_s2"])
     _put(out, L.FSW, "guidance_velocity_gain_s", burn["velocity_gain_s"])
+    _put(out, L.FSW, "guidance_law_id", GUIDANCE_LAWS[burn.get("law", "pd")])
     _put(out, L.FSW, "smc_slope_s", smc["slope_s"])
     _put(out, L.FSW, "smc_gain_rad_s2", smc["gain_rad_s2"])
     _put(out, L.FSW, "smc_boundary_layer_rad_s", smc["boundary_layer_rad_s"])

@@ -294,7 +294,14 @@ VEHICLE = obj(
                         "rate_hz": number("guidance rate [Hz]", **POSITIVE),
                         "position_gain_s2": number("k_r [1/s^2]", minimum=0.0),
                         "velocity_gain_s": number("k_v [1/s]", minimum=0.0),
+                        "law": string(
+                            "pd (default: the law above on the GPS errors), open_loop_retrograde (along -v_gps, "
+                            "no feedback) or open_loop_planned (the nominal's thrust direction at t, no feedback); "
+                            "the burn time is the plan's in each",
+                            enum=["pd", "open_loop_retrograde", "open_loop_planned"],
+                        ),
                     },
+                    optional=("law",),
                 ),
                 "allocation": {
                     "type": "object",

@@ -8,7 +8,9 @@ period, from ignition to cut-off). Every guidance period it measures position an
 
 the PD law on the position and velocity errors of 004 sec. III added to the nominal thrust
 acceleration (the engine's thrust is constant, so only the direction is steered; the gains weigh
-position against velocity error). The attitude reference puts the engine's nominal axis along
+position against velocity error). Two open-loop laws fly the same plan without feedback
+(``steer``'s ``law``: along -v_gps, or along the plan's own thrust direction) for the readings of
+004 Table 2 in docs/spore.md. The attitude reference puts the engine's nominal axis along
 ``d_cmd`` with a second body axis toward the orbit normal. The nominal burn itself is flown here
 too (:func:`nominal_burn`), either opposite to the velocity or along the fixed "Hohmann
 direction" (tangential, opposite to the velocity at ignition, fixed in inertial space), 004 Fig. 7.
@@ -19,6 +21,8 @@ import math
 from refexmc._jit import jit_noalloc
 from refexmc.core import orbit, quaternion, rng
 from refexmc.core.layout import (
+    GUIDANCE_LAW_OPEN_LOOP_RETROGRADE,
+    GUIDANCE_LAW_PD,
     N_GPS_POSITION_BIAS,
     N_GPS_POSITION_NOISE,
     N_GPS_VELOCITY_BIAS,
@@ -67,14 +71,29 @@ def measure(state, nav, rng_state, out):
 
 
 @jit_noalloc
-def steer(measured, nominal, position_gain, velocity_gain, out):
-    """Commanded thrust direction (unit, inertial) from the measured state and the nominal row."""
-    for i in range(3):
-        out[i] = (
-            nominal[NM_THRUST_ACCEL + i]
-            - position_gain * (measured[i] - nominal[NM_POSITION + i])
-            - velocity_gain * (measured[3 + i] - nominal[NM_VELOCITY + i])
-        )
+def steer(measured, nominal, law, position_gain, velocity_gain, out):
+    """Commanded thrust direction (unit, inertial) of guidance law ``law`` (layout.GUIDANCE_LAW_*)
+    from the measured state and the nominal row:
+
+    - ``GUIDANCE_LAW_PD``: a_nom - k_r (r_gps - r_nom) - k_v (v_gps - v_nom), 004 sec. III;
+    - ``GUIDANCE_LAW_OPEN_LOOP_RETROGRADE``: -v_gps, 004 sec. III's "opposite to velocity thrusting"
+      flown without the nominal (the burn time stays the plan's);
+    - ``GUIDANCE_LAW_OPEN_LOOP_PLANNED``: the plan's own thrust direction at t, no feedback (with
+      the ``hohmann_direction`` approach the fixed inertial "Hohmann direction thrusting").
+    """
+    if law == GUIDANCE_LAW_OPEN_LOOP_RETROGRADE:
+        for i in range(3):
+            out[i] = -measured[3 + i]
+    elif law == GUIDANCE_LAW_PD:
+        for i in range(3):
+            out[i] = (
+                nominal[NM_THRUST_ACCEL + i]
+                - position_gain * (measured[i] - nominal[NM_POSITION + i])
+                - velocity_gain * (measured[3 + i] - nominal[NM_VELOCITY + i])
+            )
+    else:
+        for i in range(3):
+            out[i] = nominal[NM_THRUST_ACCEL + i]
     n = math.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
     for i in range(3):
         out[i] /= n

@@ -113,6 +113,7 @@ F_ENGINE_AXIS = FSW.add("engine_axis", 3)  # the main engine's nominal force dir
 F_GUIDANCE_PERIOD = FSW.add("guidance_period_s")  # deorbit burn guidance (004 sec. III: 1 Hz)
 F_GUIDANCE_POSITION_GAIN = FSW.add("guidance_position_gain_s2")  # k_r (1/s^2)
 F_GUIDANCE_VELOCITY_GAIN = FSW.add("guidance_velocity_gain_s")  # k_v (1/s)
+F_GUIDANCE_LAW = FSW.add("guidance_law_id")  # GUIDANCE_LAW_* (core.deorbit.steer)
 F_SMC_SLOPE = FSW.add("smc_slope_s", 3)  # 001 eq. 12: Lambda, sliding-surface slope (1/s)
 F_SMC_GAIN = FSW.add("smc_gain_rad_s2", 3)  # G (rad/s^2)
 F_SMC_LAYER = FSW.add("smc_boundary_layer_rad_s", 3)  # epsilon of sat(sigma, epsilon) (rad/s)
@@ -125,6 +126,9 @@ CONTROLLER_SMC = 2  # 001 eq. 12: sliding mode with boundary layer
 ACTUATION_PWPF_TABLE = 0  # PWPF per axis (eq. 41-48) + allocation table (Table 3)
 ACTUATION_LP_PWM = 1  # LP allocation (004 eq. 2-5) + pulse-width modulation in the control period
 ACTUATION_WHEELS = 2  # reaction wheels: RunInputs.wheel_distribution (001 sec. 9.1), held over the period
+GUIDANCE_LAW_PD = 0  # deorbit burn: a_nom - k_r dr - k_v dv on the GPS errors (004 sec. III)
+GUIDANCE_LAW_OPEN_LOOP_RETROGRADE = 1  # open loop: along -v_gps (004 sec. III "opposite to velocity")
+GUIDANCE_LAW_OPEN_LOOP_PLANNED = 2  # open loop: the plan's thrust direction at t (hohmann_direction: fixed)
 
 # --- mission ----------------------------------------------------------------------------------
 MISSION = Fields()

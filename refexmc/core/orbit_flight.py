@@ -19,6 +19,7 @@ from refexmc.core.layout import (
     F_ENGINE_AXIS,
     F_GUIDANCE_PERIOD,
     F_GUIDANCE_POSITION_GAIN,
+    F_GUIDANCE_LAW,
     F_GUIDANCE_VELOCITY_GAIN,
     M_BURN_DURATION,
     M_BURN_START,
@@ -114,7 +115,12 @@ def steer(nominal, fsw, nav, vehicle, x, orb, guide, rng_state, status, t, burni
         deorbit.measure(orb.state, nav, rng_state, orb.measured)
         deorbit.nominal_at(nominal, t, orb.nominal)
         deorbit.steer(
-            orb.measured, orb.nominal, fsw[F_GUIDANCE_POSITION_GAIN], fsw[F_GUIDANCE_VELOCITY_GAIN], orb.command
+            orb.measured,
+            orb.nominal,
+            int(fsw[F_GUIDANCE_LAW]),
+            fsw[F_GUIDANCE_POSITION_GAIN],
+            fsw[F_GUIDANCE_VELOCITY_GAIN],
+            orb.command,
         )
         deorbit.thrust_attitude(
             orb.command,
