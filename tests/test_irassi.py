@@ -211,3 +211,30 @@ def test_three_wheels_have_no_null_space_and_fly_the_same_bits(irassi):
     assert managed.keys() == plain.keys()
     for key, value in plain.items():
         assert managed[key] == value or (value != value and managed[key] != managed[key]), key
+
+
+@pytest.mark.parametrize("wheel", [1, 2])
+def test_an_undetected_dead_wheel_makes_the_capped_null_space_torque_a_body_torque(irassi, wheel):
+    """With wheel 1 or 2 dead and undetected, the three working wheels' momenta are fixed by H_B and
+    the n the flight software sees grows past the deadband (66 N m s at the end) to the cap: every
+    wheel is told cap, the dead one's share is missing, so the body gets d = cap a_f (W tau_n = 0
+    gives -sum_{i != f} a_i tau_i = a_f tau_f; the sign: n_4 . h < 0 there, tau_f = +cap). The end
+    error is then the closed form of the undetected test with u_d + d, to the same 2e-3."""
+    mission = load_mission(ROOT / "configs/missions/irassi-small-angle.yaml")
+    axes = derived.wheel_axes(irassi)
+    failed_axes = axes.copy()
+    failed_axes[:, wheel - 1] = 0.0
+    realised = failed_axes @ np.linalg.pinv(axes)
+    smc = irassi["flight_software"]["smc"]
+    cap = irassi["wheels"]["null_space_management"]["torque_max_n_m"]
+    disturbance = np.asarray(mission["disturbances"]["constant_torque_n_m"]) + cap * axes[:, wheel - 1]
+    scale = 2.0 * np.asarray(smc["boundary_layer_rad_s"]) / np.asarray(smc["slope_s"])
+    expected = np.abs(
+        scale
+        * np.linalg.solve(realised, disturbance)
+        / (np.diag(irassi["inertia_kg_m2"]) * np.asarray(smc["gain_rad_s2"]))
+    )
+    values = fly(pack(irassi, mission, failed_wheels=(wheel,)), 0, 1.0 / 600.0, mode_names(mission)).runs_values()
+    end = np.abs([values[f"pointing_end_{a}_arcsec"] for a in "xyz"])
+    np.testing.assert_allclose(end, expected / ARCSEC, rtol=2e-3, atol=1e-4)
+    assert values["angular_momentum_residual"] < 1e-9

@@ -291,6 +291,11 @@ def test_inspect_shows_the_wheels():
     assert "f_min_fraction" not in info  # no PWPF without thrusters
     text = CliRunner().invoke(main, ["inspect", str(IRASSI)]).output
     assert "reaction wheels: 4" in text and "null space 1" in text
+    assert info["wheels"]["null_space_management"] == vehicle["wheels"]["null_space_management"]
+    assert (
+        "null-space momentum management: target zero, time constant 1000 s, deadband 20 N m s, "
+        "at most 0.003 N m per wheel" in text
+    )
     torque = CliRunner().invoke(main, ["inspect", str(IRASSI), "--torque", "0.1,0,0", "--json"])
     alloc = json.loads(torque.output)["allocation"]
     np.testing.assert_allclose(alloc["realised_torque_n_m"], [0.1, 0.0, 0.0], atol=EXACT)
