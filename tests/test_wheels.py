@@ -398,6 +398,17 @@ def test_null_space_torque_of_001s_pyramid_is_along_n4():
     np.testing.assert_allclose(out, -2e-3 * n4, rtol=1e-14, atol=1e-18)  # |n_4 component| = 1/2: 1e-3 per wheel
 
 
+def test_null_space_torque_of_wheels_that_do_not_span_three_axes_is_zero():
+    """Five wheels of which four are used but lie in one plane (D of rank 2): no projector, no torque."""
+    axes = np.array([[1.0, 0.0, 1.0, 1.0, 0.0], [0.0, 1.0, 1.0, -1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]])
+    axes /= np.linalg.norm(axes, axis=0)
+    distribution = np.zeros((5, 3))
+    distribution[:4] = np.linalg.pinv(axes[:, :4])  # wheel 5 (the only one off the plane) left out
+    out = np.full(5, np.nan)
+    used = wheels.null_space_torque(distribution, _managed(wheel_table(axes), 1e-3), np.arange(5.0), np.zeros(3), out)
+    assert used == 4 and np.all(out == 0.0)
+
+
 def test_managed_commands_add_the_null_space_torque_and_keep_the_body_torque():
     """command() with management = the naive command plus the naive null-space torque; unlimited
     wheels still realise u exactly (-W tau_m - omega x W h = u), with or without the bias."""

@@ -296,7 +296,8 @@ def null_space_torque(distribution, wheels, h, rate_meas, out):
     space of ``W_u``, so P projects on its null space (001 sec. 9.1's n, sec. 8.1's n_4) and
     ``W_u out = 0``: no body torque with the axes the flight software knows. P is built from D
     alone, never from the true axes. With three wheels used or fewer there is no null space and
-    ``out`` is zero. Returns the number of wheels D uses."""
+    ``out`` is zero; so it is when the used wheels do not span the three axes (a D of rank < 3 left
+    by detected failures: the attitude is lost anyway). Returns the number of wheels D uses."""
     n = wheels.shape[0]
     used = 0
     g00, g01, g02, g11, g12, g22 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -330,6 +331,11 @@ def null_space_torque(distribution, wheels, h, rate_meas, out):
     c12 = g01 * g02 - g00 * g12
     c22 = g00 * g11 - g01 * g01
     det = g00 * c00 + g01 * c01 + g02 * c02
+    trace = g00 + g11 + g22
+    if det <= 1e-12 * trace * trace * trace:  # the used wheels do not span 3 axes: P undefined, no torque
+        for i in range(n):
+            out[i] = 0.0
+        return used
     y0 = (c00 * s0 + c01 * s1 + c02 * s2) / det
     y1 = (c01 * s0 + c11 * s1 + c12 * s2) / det
     y2 = (c02 * s0 + c12 * s1 + c22 * s2) / det
