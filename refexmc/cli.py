@@ -457,6 +457,11 @@ def _format_wheels(wheels, vec):
         lines.append(
             f"    null-space momentum management: target {target}, time constant {managed['time_constant_s']:g} s, "
             f"deadband {managed.get('deadband_n_m_s', 0.0):g} N m s, at most {cap:g} N m per wheel"
+            + (
+                f", gives up {managed['give_up_beyond_n_m_s']:g} N m s beyond the deadband"
+                if "give_up_beyond_n_m_s" in managed
+                else ""
+            )
         )
     lines.append(f"    largest body torque [N m]   {vec(wheels['torque_max_n_m'], '8.4g')}")
     return lines

@@ -308,8 +308,9 @@ def test_friction_compensation_cancels_the_design_friction():
 
 
 # --- null-space momentum management (001 sec. 9.1: H_W = W^+ H_B + n) ------------------------
-def _managed(table, rate, bias=0.0, deadband=0.0, cap=math.inf):
+def _managed(table, rate, bias=0.0, deadband=0.0, cap=math.inf, give_up=math.inf):
     table = table.copy()
+    table[:, L.W_NULL_SPACE_GIVE_UP] = give_up
     table[:, L.W_NULL_SPACE_RATE] = rate
     table[:, L.W_NULL_SPACE_BIAS] = bias
     table[:, L.W_NULL_SPACE_DEADBAND] = deadband
@@ -358,7 +359,7 @@ def test_null_space_torque_is_scipys_null_space_projection_and_makes_no_body_tor
     relative = rng.normal(0.0, 30.0, n)
     h = relative + SPIN_INERTIA * (axes.T @ omega)
     out = np.full(n, np.nan)
-    count = wheels.null_space_torque(distribution, table, h, omega, out)
+    count, size, capped = wheels.null_space_torque(distribution, table, h, omega, out)
     assert count == used.sum()
     expected = naive.wheel_null_space_torque(axes, used, relative, bias, rate, deadband, cap)
     scale = rate * np.linalg.norm(relative - bias)
@@ -366,6 +367,12 @@ def test_null_space_torque_is_scipys_null_space_projection_and_makes_no_body_tor
     np.testing.assert_allclose(axes @ out, 0.0, rtol=0.0, atol=1e-12 * scale)
     assert np.all(out[~used] == 0.0)
     assert np.abs(out).max() <= cap * (1.0 + 1e-15)
+    if used.sum() > 3:  # |e_n| as the flight software measures it, and whether the cap acted
+        basis = scipy.linalg.null_space(axes[:, used])
+        error = basis.T @ (relative - bias)[used]
+        assert size == pytest.approx(np.linalg.norm(error), rel=1e-12)
+        uncapped = naive.wheel_null_space_torque(axes, used, relative, bias, rate, deadband)
+        assert capped == (np.abs(uncapped).max() > cap)
     if used.sum() == 3:  # no null space: nothing at all, not rounding
         assert np.all(out == 0.0)
     elif deadband == 0.0 and cap == math.inf:  # it takes the null-space error back: d/dt (N^T e) = -rate N^T e
@@ -405,8 +412,10 @@ def test_null_space_torque_of_wheels_that_do_not_span_three_axes_is_zero():
     distribution = np.zeros((5, 3))
     distribution[:4] = np.linalg.pinv(axes[:, :4])  # wheel 5 (the only one off the plane) left out
     out = np.full(5, np.nan)
-    used = wheels.null_space_torque(distribution, _managed(wheel_table(axes), 1e-3), np.arange(5.0), np.zeros(3), out)
-    assert used == 4 and np.all(out == 0.0)
+    used, size, capped = wheels.null_space_torque(
+        distribution, _managed(wheel_table(axes), 1e-3), np.arange(5.0), np.zeros(3), out
+    )
+    assert used == 4 and size == 0.0 and not capped and np.all(out == 0.0)
 
 
 def test_managed_commands_add_the_null_space_torque_and_keep_the_body_torque():
@@ -426,6 +435,39 @@ def test_managed_commands_add_the_null_space_torque_and_keep_the_body_torque():
             null = naive.wheel_null_space_torque(axes, np.ones(4, bool), relative, np.broadcast_to(bias, 4), 1e-3)
             np.testing.assert_allclose(motor, nmotor + null, rtol=1e-12, atol=1e-15)
             assert not limited
+
+
+def test_management_gives_up_when_the_capped_error_still_grows():
+    """Give-up: at the cap, beyond deadband + margin and growing since the last period (a dead wheel
+    the flight software does not know of makes n grow whatever it commands). Then the command is the
+    plain one for the rest of the flight. Shrinking at the cap (a healthy set catching up) or
+    growing below the cap does not count, nor does the first period."""
+    axes = pyramid_axes(45.0)
+    n4 = np.array([0.5, -0.5, 0.5, -0.5])
+    distribution = np.linalg.pinv(axes)
+    table = _managed(wheel_table(axes), 1e-3, deadband=20.0, cap=3e-3, give_up=8.0)
+    plain_table = wheel_table(axes)
+    u, zero = np.array([1e-4, -2e-4, 3e-4]), np.zeros(3)
+
+    def step(plant, n):
+        plant.h[:4] = n * n4
+        wheels.command(distribution, plant, zero, zero, u, False)
+        return plant.motor.copy()
+
+    def plain(n):
+        return _command(plain_table, distribution, n * n4, zero, zero, u)[0]
+
+    plant = started(table, np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    assert plant.null_space[0] == 0.0
+    np.testing.assert_allclose(step(plant, 40.0), plain(40.0) - 3e-3 * n4 / 0.5, rtol=1e-12)  # first: capped
+    step(plant, 39.0)  # shrinking at the cap: goes on
+    assert plant.null_space[0] == 0.0
+    step(plant, 27.0)  # capped (3.5 mN m asked) and growing, but only 7 and 7.5 beyond the deadband
+    step(plant, 27.5)
+    assert plant.null_space[0] == 0.0
+    np.testing.assert_array_equal(step(plant, 29.0), plain(29.0))  # capped, 9 > 8 beyond, growing
+    assert plant.null_space[0] == 1.0
+    np.testing.assert_array_equal(step(plant, 21.0), plain(21.0))  # for good
 
 
 def test_management_off_commands_the_same_bits():

@@ -92,6 +92,7 @@ def pack_wheels(vehicle, failed=()):
         out[:, L.W_NULL_SPACE_BIAS] = managed.get("bias_n_m_s", 0.0)
         out[:, L.W_NULL_SPACE_DEADBAND] = managed.get("deadband_n_m_s", 0.0)
         out[:, L.W_NULL_SPACE_TORQUE_MAX] = managed.get("torque_max_n_m", wheels["torque_max_n_m"])
+        out[:, L.W_NULL_SPACE_GIVE_UP] = managed.get("give_up_beyond_n_m_s", math.inf)
     return out
 
 

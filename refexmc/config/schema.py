@@ -175,8 +175,14 @@ WHEELS = obj(
                     "torque_max_n_m) [N m]",
                     **POSITIVE,
                 ),
+                "give_up_beyond_n_m_s": number(
+                    "stop for the rest of the flight once the torque is at its cap and the null-space error, "
+                    "still growing, lies this far beyond the deadband: the null space does not respond, as "
+                    "with a dead wheel the flight software does not know of (default: never) [N m s]",
+                    minimum=0.0,
+                ),
             },
-            optional=("bias_n_m_s", "deadband_n_m_s", "torque_max_n_m"),
+            optional=("bias_n_m_s", "deadband_n_m_s", "torque_max_n_m", "give_up_beyond_n_m_s"),
         ),
     },
     optional=("null_space_management",),

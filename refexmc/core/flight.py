@@ -362,6 +362,7 @@ def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
             np.zeros((5, n_wheels + wheels.IMPULSE)),
             np.zeros((5, 3)),
             np.zeros((3, 3)),
+            np.zeros(2),
         ),
     )
     _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work)

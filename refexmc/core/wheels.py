@@ -39,6 +39,7 @@ from refexmc.core.layout import (
     W_MOMENTUM_MAX,
     W_NULL_SPACE_BIAS,
     W_NULL_SPACE_DEADBAND,
+    W_NULL_SPACE_GIVE_UP,
     W_NULL_SPACE_RATE,
     W_NULL_SPACE_TORQUE_MAX,
     W_SPIN_INERTIA,
@@ -65,6 +66,7 @@ class Plant(NamedTuple):
     hwork: np.ndarray  # (5, len(h)) RK4 scratch
     scratch: np.ndarray  # (5, 3)
     momentum: np.ndarray  # (3, 3): total angular momentum (inertial) at t = 0, at the end; scratch
+    null_space: np.ndarray  # (2,): [1 once null-space management gave up, its error |e_n| last period]
 
 
 def plant(table):
@@ -84,6 +86,7 @@ def plant(table):
         np.zeros((5, n + IMPULSE)),
         np.zeros((5, 3)),
         np.zeros((3, 3)),
+        np.zeros(2),
     )
 
 
@@ -127,6 +130,8 @@ def start(plant, inertia, x, gg_coefficient, gg_direction):
         plant.demand[i] = 0.0
     for k in range(IMPULSE):
         h[n + k] = 0.0
+    plant.null_space[0] = 0.0
+    plant.null_space[1] = math.inf  # no last period: the first cannot count as growing
     angular_momentum(x, plant, plant.momentum[0:2])
 
 
@@ -297,7 +302,8 @@ def null_space_torque(distribution, wheels, h, rate_meas, out):
     ``W_u out = 0``: no body torque with the axes the flight software knows. P is built from D
     alone, never from the true axes. With three wheels used or fewer there is no null space and
     ``out`` is zero; so it is when the used wheels do not span the three axes (a D of rank < 3 left
-    by detected failures: the attitude is lost anyway). Returns the number of wheels D uses."""
+    by detected failures: the attitude is lost anyway). Returns (the number of wheels D uses,
+    ``|e_n|``, True when the cap scaled the torque)."""
     n = wheels.shape[0]
     used = 0
     g00, g01, g02, g11, g12, g22 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -322,7 +328,7 @@ def null_space_torque(distribution, wheels, h, rate_meas, out):
     if used <= 3:
         for i in range(n):
             out[i] = 0.0
-        return used
+        return used, 0.0, False
     # y = (D^T D)^-1 D^T e by cofactors (D^T D symmetric, positive definite when D has rank 3)
     c00 = g11 * g22 - g12 * g12
     c01 = g02 * g12 - g01 * g22
@@ -335,7 +341,7 @@ def null_space_torque(distribution, wheels, h, rate_meas, out):
     if det <= 1e-12 * trace * trace * trace:  # the used wheels do not span 3 axes: P undefined, no torque
         for i in range(n):
             out[i] = 0.0
-        return used
+        return used, 0.0, False
     y0 = (c00 * s0 + c01 * s1 + c02 * s2) / det
     y1 = (c01 * s0 + c11 * s1 + c12 * s2) / det
     y2 = (c02 * s0 + c12 * s1 + c22 * s2) / det
@@ -354,10 +360,11 @@ def null_space_torque(distribution, wheels, h, rate_meas, out):
         out[i] *= gain
         peak = max(peak, abs(out[i]))
     cap = wheels[0, W_NULL_SPACE_TORQUE_MAX]
-    if peak > cap:
+    capped = peak > cap
+    if capped:
         for i in range(n):
             out[i] *= cap / peak
-    return used
+    return used, size, capped
 
 
 @jit_noalloc
@@ -369,7 +376,10 @@ def command(distribution, plant, rate_meas, omega, torque_cmd, compensate):
     With ``compensate`` the demand also cancels the friction the flight software assumes at the
     wheel's speed (tachometer and measured body rate; the design coefficients of the table).
     With null-space management on (the table's W_NULL_SPACE_RATE non-zero) the demand also holds
-    :func:`null_space_torque`, before the limits (the scaling keeps it in the null space).
+    :func:`null_space_torque`, before the limits (the scaling keeps it in the null space). It gives
+    up for the rest of the flight (``plant.null_space[0] = 1``) when its torque is at the cap, the
+    error beyond the deadband by more than W_NULL_SPACE_GIVE_UP and still growing: a null space
+    that does not respond, as with a dead wheel the flight software does not know of.
     A failed wheel gives no torque; the flight software does not know unless D leaves it out. The
     flight software reads the wheel momenta (tachometers) exactly and the body rate as measured.
     Returns (largest |demand|, True when a limit acted)."""
@@ -386,9 +396,15 @@ def command(distribution, plant, rate_meas, omega, torque_cmd, compensate):
     v2 = torque_cmd[2] + (w0 * hb1 - w1 * hb0)
     peak = 0.0
     scale = 1.0
-    manage = n > 0 and wheels[0, W_NULL_SPACE_RATE] != 0.0
+    manage = n > 0 and wheels[0, W_NULL_SPACE_RATE] != 0.0 and plant.null_space[0] == 0.0
     if manage:
-        null_space_torque(distribution, wheels, h, rate_meas, demand)
+        _, size, capped = null_space_torque(distribution, wheels, h, rate_meas, demand)
+        beyond = size - wheels[0, W_NULL_SPACE_DEADBAND]
+        if capped and beyond > wheels[0, W_NULL_SPACE_GIVE_UP] and size > plant.null_space[1]:
+            plant.null_space[0] = 1.0
+            for i in range(n):
+                demand[i] = 0.0
+        plant.null_space[1] = size
     for i in range(n):
         d = -(distribution[i, 0] * v0 + distribution[i, 1] * v1 + distribution[i, 2] * v2)
         if compensate:
