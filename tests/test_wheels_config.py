@@ -194,6 +194,7 @@ def test_pack_null_space_management():
     np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_BIAS], 0.0)  # target zero
     np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_DEADBAND], managed["deadband_n_m_s"])
     np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_TORQUE_MAX], managed["torque_max_n_m"])
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_GIVE_UP], managed["give_up_beyond_n_m_s"])
     vehicle["wheels"]["null_space_management"] = {
         "time_constant_s": 500.0,
         "target": "bias",
@@ -203,9 +204,16 @@ def test_pack_null_space_management():
     np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_BIAS], [15.0, -15.0, 15.0, -15.0])
     np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_DEADBAND], 0.0)
     np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_TORQUE_MAX], vehicle["wheels"]["torque_max_n_m"])
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_GIVE_UP], math.inf)  # never
     del vehicle["wheels"]["null_space_management"]
     table = pack(vehicle, load_mission(SMALL)).wheels
-    for column in (L.W_NULL_SPACE_RATE, L.W_NULL_SPACE_BIAS, L.W_NULL_SPACE_DEADBAND, L.W_NULL_SPACE_TORQUE_MAX):
+    for column in (
+        L.W_NULL_SPACE_RATE,
+        L.W_NULL_SPACE_BIAS,
+        L.W_NULL_SPACE_DEADBAND,
+        L.W_NULL_SPACE_TORQUE_MAX,
+        L.W_NULL_SPACE_GIVE_UP,
+    ):
         np.testing.assert_array_equal(table[:, column], 0.0)
 
 
@@ -293,8 +301,8 @@ def test_inspect_shows_the_wheels():
     assert "reaction wheels: 4" in text and "null space 1" in text
     assert info["wheels"]["null_space_management"] == vehicle["wheels"]["null_space_management"]
     assert (
-        "null-space momentum management: target zero, time constant 1000 s, deadband 20 N m s, "
-        "at most 0.003 N m per wheel" in text
+        "null-space momentum management: target zero, time constant 1000 s, deadband 25 N m s, "
+        "at most 0.0035 N m per wheel, gives up 8 N m s beyond the deadband" in text
     )
     torque = CliRunner().invoke(main, ["inspect", str(IRASSI), "--torque", "0.1,0,0", "--json"])
     alloc = json.loads(torque.output)["allocation"]
