@@ -448,6 +448,21 @@ def _format_wheels(wheels, vec):
         lines.append(f"    {i + 1:5d}  {vec(axis, '8.4f')}   {vec(row, '8.4f')}")
     for k, null in enumerate(zip(*wheels["null_space"], strict=True)):
         lines.append(f"    null space {k + 1}: {vec(null, '8.4f')} (wheel torques that turn no body axis)")
+    managed = wheels["null_space_management"]
+    if managed is None:
+        lines.append("    null-space momentum management: off")
+    else:
+        target = "zero" if managed["target"] == "zero" else f"bias {managed['bias_n_m_s']} N m s"
+        cap = managed.get("torque_max_n_m", wheels["wheel_torque_max_n_m"])
+        lines.append(
+            f"    null-space momentum management: target {target}, time constant {managed['time_constant_s']:g} s, "
+            f"deadband {managed.get('deadband_n_m_s', 0.0):g} N m s, at most {cap:g} N m per wheel"
+            + (
+                f", gives up {managed['give_up_beyond_n_m_s']:g} N m s beyond the deadband"
+                if "give_up_beyond_n_m_s" in managed
+                else ""
+            )
+        )
     lines.append(f"    largest body torque [N m]   {vec(wheels['torque_max_n_m'], '8.4g')}")
     return lines
 

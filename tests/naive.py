@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from numpy.polynomial import Polynomial
 
 # --------------------------------------------------------------------------------------------
@@ -408,6 +409,23 @@ def wheel_commands(distribution, wheels, h, rate_meas, omega, torque_cmd):
     relative = h_w - wheels.spin_inertia * (wheels.axes.T @ np.asarray(omega))
     at_limit = (np.abs(relative) >= wheels.momentum_max) & (motor * relative > 0)
     return np.where(at_limit, 0.0, motor), demand
+
+
+def wheel_null_space_torque(axes, used, h_relative, bias, rate, deadband=0.0, cap=math.inf):
+    """Null-space momentum management, from scipy: N an orthonormal basis of the null space of the
+    used wheels' axes (scipy.linalg.null_space), the error e_n = N N^T (h_relative - bias) on the
+    used wheels; torque -rate (1 - deadband / |e_n|) e_n beyond the deadband, else 0, scaled down
+    so that no wheel's exceeds ``cap``; 0 on the other wheels (and everywhere with three: N is empty)."""
+    used = np.asarray(used, bool)
+    out = np.zeros(len(used))
+    basis = scipy.linalg.null_space(np.asarray(axes)[:, used])
+    error = basis @ (basis.T @ (np.asarray(h_relative, float) - np.asarray(bias, float))[used])
+    size = np.linalg.norm(error)
+    if size <= deadband:
+        return out
+    out[used] = -rate * (1.0 - deadband / size) * error
+    peak = np.abs(out).max()
+    return out * (cap / peak) if peak > cap else out
 
 
 def sliding_mode_torque(q_error, rate_error, rate_meas, accel_ref, slope, gain, layer, inertia):

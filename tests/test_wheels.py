@@ -7,6 +7,9 @@ import math
 import naive
 import numpy as np
 import pytest
+import scipy.linalg
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
@@ -302,3 +305,180 @@ def test_friction_compensation_cancels_the_design_friction():
         truth[:, L.W_COULOMB] *= 1.5
         again, _, _, _ = _command(truth, distribution, h, omega, omega, u, compensate=True)
         np.testing.assert_array_equal(again, compensated)
+
+
+# --- null-space momentum management (001 sec. 9.1: H_W = W^+ H_B + n) ------------------------
+def _managed(table, rate, bias=0.0, deadband=0.0, cap=math.inf, give_up=math.inf):
+    table = table.copy()
+    table[:, L.W_NULL_SPACE_GIVE_UP] = give_up
+    table[:, L.W_NULL_SPACE_RATE] = rate
+    table[:, L.W_NULL_SPACE_BIAS] = bias
+    table[:, L.W_NULL_SPACE_DEADBAND] = deadband
+    table[:, L.W_NULL_SPACE_TORQUE_MAX] = cap
+    return table
+
+
+def _spanning_axes(rng, n):
+    """``n`` random unit axes whose W W^T is well conditioned (cond < 100), as any usable wheel set."""
+    while True:
+        axes = rng.normal(size=(3, n))
+        axes /= np.linalg.norm(axes, axis=0)
+        if np.linalg.cond(axes @ axes.T) < 100.0:
+            return axes
+
+
+@settings(deadline=None, max_examples=60)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(3, 7),
+    excluded=st.sampled_from([None, 0, 2]),
+    rate=st.floats(1e-5, 1.0),
+    deadband=st.sampled_from([0.0, 10.0, 1e6]),
+    cap=st.sampled_from([math.inf, 1e-3]),
+)
+def test_null_space_torque_is_scipys_null_space_projection_and_makes_no_body_torque(
+    seed, n, excluded, rate, deadband, cap
+):
+    """The kernel's projector, built from D alone, against scipy.linalg.null_space of the used axes
+    (tests/naive.py). Both are orthogonal projections of the same error in double precision: with
+    cond(W W^T) < 100 they agree to ~1e3 eps relative, so 1e-12 of rate |e|. W_u tau is zero to the
+    same relative rounding: the body feels nothing from the axes the flight software knows. The
+    deadband and the cap only scale the vector, so both hold with them."""
+    rng = np.random.default_rng(seed)
+    axes = _spanning_axes(rng, n)
+    used = np.ones(n, bool)
+    if excluded is not None and excluded < n and n > 3:
+        used[excluded] = False
+        while np.linalg.cond(axes[:, used] @ axes[:, used].T) >= 100.0:
+            axes = _spanning_axes(rng, n)
+    distribution = np.zeros((n, 3))
+    distribution[used] = np.linalg.pinv(axes[:, used])
+    bias = rng.normal(0.0, 20.0, n)
+    table = _managed(wheel_table(axes), rate, bias, deadband, cap)
+    omega = rng.normal(0.0, 1e-3, 3)
+    relative = rng.normal(0.0, 30.0, n)
+    h = relative + SPIN_INERTIA * (axes.T @ omega)
+    out = np.full(n, np.nan)
+    count, size, capped = wheels.null_space_torque(distribution, table, h, omega, out)
+    assert count == used.sum()
+    expected = naive.wheel_null_space_torque(axes, used, relative, bias, rate, deadband, cap)
+    scale = rate * np.linalg.norm(relative - bias)
+    np.testing.assert_allclose(out, expected, rtol=0.0, atol=1e-12 * scale)
+    np.testing.assert_allclose(axes @ out, 0.0, rtol=0.0, atol=1e-12 * scale)
+    assert np.all(out[~used] == 0.0)
+    assert np.abs(out).max() <= cap * (1.0 + 1e-15)
+    if used.sum() > 3:  # |e_n| as the flight software measures it, and whether the cap acted
+        basis = scipy.linalg.null_space(axes[:, used])
+        error = basis.T @ (relative - bias)[used]
+        assert size == pytest.approx(np.linalg.norm(error), rel=1e-12)
+        uncapped = naive.wheel_null_space_torque(axes, used, relative, bias, rate, deadband)
+        assert capped == (np.abs(uncapped).max() > cap)
+    if used.sum() == 3:  # no null space: nothing at all, not rounding
+        assert np.all(out == 0.0)
+    elif deadband == 0.0 and cap == math.inf:  # it takes the null-space error back: d/dt (N^T e) = -rate N^T e
+        basis = scipy.linalg.null_space(axes[:, used])
+        np.testing.assert_allclose(
+            basis.T @ out[used], -rate * basis.T @ (relative - bias)[used], rtol=0.0, atol=1e-12 * scale
+        )
+    elif deadband == 1e6:  # no error that large: nothing
+        assert np.all(out == 0.0)
+
+
+def test_null_space_torque_of_001s_pyramid_is_along_n4():
+    """001 sec. 8.1: n_4 = [c, -b, c, -b] / sqrt(2 (b^2 + c^2)) spans the null space of W_4; a momentum
+    error along n_4 is taken back along n_4 at the rate, one orthogonal to it gives nothing."""
+    axes = pyramid_axes(45.0)
+    b = c = math.cos(math.radians(45.0))
+    n4 = np.array([c, -b, c, -b]) / math.sqrt(2.0 * (b * b + c * c))
+    table = _managed(wheel_table(axes), 1e-3)
+    distribution = np.linalg.pinv(axes)
+    out = np.zeros(4)
+    wheels.null_space_torque(distribution, table, 7.0 * n4, np.zeros(3), out)
+    np.testing.assert_allclose(out, -7e-3 * n4, rtol=1e-14, atol=1e-18)
+    wheels.null_space_torque(distribution, table, distribution @ np.array([1.0, -2.0, 3.0]), np.zeros(3), out)
+    np.testing.assert_allclose(out, 0.0, rtol=0.0, atol=1e-17)  # W^+ H_B has no part along n_4
+    # a 4 N m s deadband: 7 along n_4 leaves 3 to take back; a 1 mN m cap scales that to 1 mN m
+    wheels.null_space_torque(distribution, _managed(wheel_table(axes), 1e-3, deadband=4.0), 7.0 * n4, np.zeros(3), out)
+    np.testing.assert_allclose(out, -3e-3 * n4, rtol=1e-14, atol=1e-18)
+    capped = _managed(wheel_table(axes), 1e-3, deadband=4.0, cap=1e-3)
+    wheels.null_space_torque(distribution, capped, 7.0 * n4, np.zeros(3), out)
+    np.testing.assert_allclose(out, -2e-3 * n4, rtol=1e-14, atol=1e-18)  # |n_4 component| = 1/2: 1e-3 per wheel
+
+
+def test_null_space_torque_of_wheels_that_do_not_span_three_axes_is_zero():
+    """Five wheels of which four are used but lie in one plane (D of rank 2): no projector, no torque."""
+    axes = np.array([[1.0, 0.0, 1.0, 1.0, 0.0], [0.0, 1.0, 1.0, -1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]])
+    axes /= np.linalg.norm(axes, axis=0)
+    distribution = np.zeros((5, 3))
+    distribution[:4] = np.linalg.pinv(axes[:, :4])  # wheel 5 (the only one off the plane) left out
+    out = np.full(5, np.nan)
+    used, size, capped = wheels.null_space_torque(
+        distribution, _managed(wheel_table(axes), 1e-3), np.arange(5.0), np.zeros(3), out
+    )
+    assert used == 4 and size == 0.0 and not capped and np.all(out == 0.0)
+
+
+def test_managed_commands_add_the_null_space_torque_and_keep_the_body_torque():
+    """command() with management = the naive command plus the naive null-space torque; unlimited
+    wheels still realise u exactly (-W tau_m - omega x W h = u), with or without the bias."""
+    rng = np.random.default_rng(23)
+    axes = pyramid_axes()
+    distribution = np.linalg.pinv(axes)
+    for bias in (0.0, np.array([15.0, -15.0, 15.0, -15.0])):
+        table = _managed(wheel_table(axes), 1e-3, bias)
+        for _ in range(10):
+            h, omega, u = rng.normal(0, 30, 4), rng.normal(0, 1e-3, 3), rng.normal(0, 0.1, 3)
+            motor, demand, _, limited = _command(table, distribution, h, omega, omega, u)
+            np.testing.assert_allclose(-axes @ motor - np.cross(omega, axes @ h), u, atol=1e-15)
+            nmotor, _ = naive.wheel_commands(distribution, naive_wheels(table), h, omega, omega, u)
+            relative = h - SPIN_INERTIA * (axes.T @ omega)
+            null = naive.wheel_null_space_torque(axes, np.ones(4, bool), relative, np.broadcast_to(bias, 4), 1e-3)
+            np.testing.assert_allclose(motor, nmotor + null, rtol=1e-12, atol=1e-15)
+            assert not limited
+
+
+def test_management_gives_up_when_the_capped_error_still_grows():
+    """Give-up: at the cap, beyond deadband + margin and growing since the last period (a dead wheel
+    the flight software does not know of makes n grow whatever it commands). Then the command is the
+    plain one for the rest of the flight. Shrinking at the cap (a healthy set catching up) or
+    growing below the cap does not count, nor does the first period."""
+    axes = pyramid_axes(45.0)
+    n4 = np.array([0.5, -0.5, 0.5, -0.5])
+    distribution = np.linalg.pinv(axes)
+    table = _managed(wheel_table(axes), 1e-3, deadband=20.0, cap=3e-3, give_up=8.0)
+    plain_table = wheel_table(axes)
+    u, zero = np.array([1e-4, -2e-4, 3e-4]), np.zeros(3)
+
+    def step(plant, n):
+        plant.h[:4] = n * n4
+        wheels.command(distribution, plant, zero, zero, u, False)
+        return plant.motor.copy()
+
+    def plain(n):
+        return _command(plain_table, distribution, n * n4, zero, zero, u)[0]
+
+    plant = started(table, np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    assert plant.null_space[0] == 0.0
+    np.testing.assert_allclose(step(plant, 40.0), plain(40.0) - 3e-3 * n4 / 0.5, rtol=1e-12)  # first: capped
+    step(plant, 39.0)  # shrinking at the cap: goes on
+    assert plant.null_space[0] == 0.0
+    step(plant, 27.0)  # capped (3.5 mN m asked) and growing, but only 7 and 7.5 beyond the deadband
+    step(plant, 27.5)
+    assert plant.null_space[0] == 0.0
+    np.testing.assert_array_equal(step(plant, 29.0), plain(29.0))  # capped, 9 > 8 beyond, growing
+    assert plant.null_space[0] == 1.0
+    np.testing.assert_array_equal(step(plant, 21.0), plain(21.0))  # for good
+
+
+def test_management_off_commands_the_same_bits():
+    """Rate 0 (no null_space_management in the vehicle file) leaves the command bit for bit."""
+    rng = np.random.default_rng(24)
+    axes = pyramid_axes()
+    distribution = np.linalg.pinv(axes)
+    table = wheel_table(axes, torque_max=0.2, momentum_max=68.0)
+    for _ in range(10):
+        h, omega, u = rng.normal(0, 30, 4), rng.normal(0, 1e-3, 3), rng.normal(0, 0.1, 3)
+        off = _command(_managed(table, 0.0, 5.0), distribution, h, omega, omega, u, compensate=True)
+        plain = _command(table, distribution, h, omega, omega, u, compensate=True)
+        np.testing.assert_array_equal(off[0], plain[0])
+        np.testing.assert_array_equal(off[1], plain[1])

@@ -184,6 +184,39 @@ def test_pack_with_failed_and_detected_wheels():
     np.testing.assert_allclose(undetected.wheel_distribution, derived.wheel_distribution(vehicle), atol=0.0)
 
 
+def test_pack_null_space_management():
+    """The vehicle file's null_space_management reaches every row of the wheel table (1 / time
+    constant, bias, deadband, cap); without the block the columns are 0: no management."""
+    vehicle = load_vehicle(IRASSI)
+    managed = vehicle["wheels"]["null_space_management"]
+    table = pack(vehicle, load_mission(SMALL)).wheels
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_RATE], 1.0 / managed["time_constant_s"])
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_BIAS], 0.0)  # target zero
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_DEADBAND], managed["deadband_n_m_s"])
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_TORQUE_MAX], managed["torque_max_n_m"])
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_GIVE_UP], managed["give_up_beyond_n_m_s"])
+    vehicle["wheels"]["null_space_management"] = {
+        "time_constant_s": 500.0,
+        "target": "bias",
+        "bias_n_m_s": [15.0, -15.0, 15.0, -15.0],
+    }
+    table = pack(vehicle, load_mission(SMALL)).wheels
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_BIAS], [15.0, -15.0, 15.0, -15.0])
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_DEADBAND], 0.0)
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_TORQUE_MAX], vehicle["wheels"]["torque_max_n_m"])
+    np.testing.assert_array_equal(table[:, L.W_NULL_SPACE_GIVE_UP], math.inf)  # never
+    del vehicle["wheels"]["null_space_management"]
+    table = pack(vehicle, load_mission(SMALL)).wheels
+    for column in (
+        L.W_NULL_SPACE_RATE,
+        L.W_NULL_SPACE_BIAS,
+        L.W_NULL_SPACE_DEADBAND,
+        L.W_NULL_SPACE_TORQUE_MAX,
+        L.W_NULL_SPACE_GIVE_UP,
+    ):
+        np.testing.assert_array_equal(table[:, column], 0.0)
+
+
 @pytest.mark.parametrize(("mission", "target_deg"), [(SMALL, [13.0, 13.0, 13.0]), (LARGE, [30.0, -20.0, 1.0])])
 def test_pack_irassi_missions(mission, target_deg):
     inputs = pack(load_vehicle(IRASSI), load_mission(mission))
@@ -266,6 +299,11 @@ def test_inspect_shows_the_wheels():
     assert "f_min_fraction" not in info  # no PWPF without thrusters
     text = CliRunner().invoke(main, ["inspect", str(IRASSI)]).output
     assert "reaction wheels: 4" in text and "null space 1" in text
+    assert info["wheels"]["null_space_management"] == vehicle["wheels"]["null_space_management"]
+    assert (
+        "null-space momentum management: target zero, time constant 1000 s, deadband 25 N m s, "
+        "at most 0.0035 N m per wheel, gives up 8 N m s beyond the deadband" in text
+    )
     torque = CliRunner().invoke(main, ["inspect", str(IRASSI), "--torque", "0.1,0,0", "--json"])
     alloc = json.loads(torque.output)["allocation"]
     np.testing.assert_allclose(alloc["realised_torque_n_m"], [0.1, 0.0, 0.0], atol=EXACT)
@@ -285,6 +323,41 @@ def _edit(text, old, new):
 
 # (case id, "vehicle" or "mission", edited text, the line's fragment, words the message must contain)
 BAD_FILES = [
+    (
+        "null-space-bias-without-values",
+        "vehicle",
+        _edit(IRASSI_TEXT, "    target: zero", "    target: bias"),
+        "  null_space_management:",
+        ["wheels.null_space_management", "expected bias_n_m_s with target bias"],
+    ),
+    (
+        "null-space-bias-not-per-wheel",
+        "vehicle",
+        _edit(IRASSI_TEXT, "    target: zero", "    target: bias\n    bias_n_m_s: [10.0, -10.0, 10.0]"),
+        "bias_n_m_s",
+        ["wheels.null_space_management.bias_n_m_s", "expected one bias per wheel (4), got 3"],
+    ),
+    (
+        "null-space-bias-beyond-the-limit",
+        "vehicle",
+        _edit(IRASSI_TEXT, "    target: zero", "    target: bias\n    bias_n_m_s: [70.0, -10.0, 10.0, -10.0]"),
+        "bias_n_m_s",
+        ["wheels.null_space_management.bias_n_m_s", "expected every |bias| below momentum_max_n_m_s (68 N m s)"],
+    ),
+    (
+        "null-space-misspelt-key",
+        "vehicle",
+        _edit(IRASSI_TEXT, "    time_constant_s: 1000.0", "    time_constant: 1000.0"),
+        "time_constant: 1000.0",
+        ["wheels.null_space_management.time_constant", "unknown key", "did you mean 'time_constant_s'"],
+    ),
+    (
+        "null-space-zero-time-constant",
+        "vehicle",
+        _edit(IRASSI_TEXT, "    time_constant_s: 1000.0", "    time_constant_s: 0.0"),
+        "time_constant_s: 0.0",
+        ["wheels.null_space_management.time_constant_s"],
+    ),
     (
         "wheels-with-actuation-pwpf_table",
         "vehicle",

@@ -274,6 +274,7 @@ def _wheel_design(vehicle):
         "wheel_torque_max_n_m": wheels["torque_max_n_m"],
         "wheel_momentum_max_n_m_s": wheels["momentum_max_n_m_s"],
         "speed_max_rpm": wheels["momentum_max_n_m_s"] / wheels["spin_inertia_kg_m2"] * 30.0 / np.pi,
+        "null_space_management": wheels.get("null_space_management"),  # None: off
     }
 
 

@@ -314,6 +314,25 @@ def _check_wheels(vehicle, fail):
     message = wheel_problem(vehicle)
     if message:
         fail(message, "wheels", "units")
+    managed = wheels.get("null_space_management")
+    if managed is not None:
+        bias = managed.get("bias_n_m_s")
+        if (managed["target"] == "bias") != (bias is not None):
+            fail("expected bias_n_m_s with target bias, and only then", "wheels", "null_space_management")
+        if bias is not None and len(bias) != len(units):
+            fail(
+                f"expected one bias per wheel ({len(units)}), got {len(bias)}",
+                "wheels",
+                "null_space_management",
+                "bias_n_m_s",
+            )
+        if bias is not None and max(abs(b) for b in bias) >= wheels["momentum_max_n_m_s"]:
+            fail(
+                f"expected every |bias| below momentum_max_n_m_s ({wheels['momentum_max_n_m_s']:g} N m s)",
+                "wheels",
+                "null_space_management",
+                "bias_n_m_s",
+            )
 
 
 def check_modes(modes, fail):

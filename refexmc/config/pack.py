@@ -91,6 +91,13 @@ def pack_wheels(vehicle, failed=()):
         _put(row, L.WHEEL, "viscous_friction_design_n_m_s", wheels["friction"]["viscous_n_m_s"])
         _put(row, L.WHEEL, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
         _put(row, L.WHEEL, "initial_momentum_n_m_s", unit.get("initial_momentum_n_m_s", 0.0))
+    managed = wheels.get("null_space_management")
+    if managed is not None:  # else the columns stay 0: no management
+        out[:, L.W_NULL_SPACE_RATE] = 1.0 / managed["time_constant_s"]
+        out[:, L.W_NULL_SPACE_BIAS] = managed.get("bias_n_m_s", 0.0)
+        out[:, L.W_NULL_SPACE_DEADBAND] = managed.get("deadband_n_m_s", 0.0)
+        out[:, L.W_NULL_SPACE_TORQUE_MAX] = managed.get("torque_max_n_m", wheels["torque_max_n_m"])
+        out[:, L.W_NULL_SPACE_GIVE_UP] = managed.get("give_up_beyond_n_m_s", math.inf)
     return out
 
 

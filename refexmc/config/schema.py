@@ -143,7 +143,49 @@ WHEELS = obj(
             "minItems": 3,
             "maxItems": MAX_WHEELS,
         },
+        "null_space_management": obj(
+            "flight software, optional (absent: off): the part of the wheel momenta I_w Omega - target in the "
+            "null space of the distribution's wheels (001 sec. 9.1: H_W = W^+ H_B + n) decays with a time "
+            "constant, by motor torques in that null space (no body torque with the known axes); no null "
+            "space with three wheels used",
+            {
+                "time_constant_s": number(
+                    "time constant of the decay: torque = -(null-space error) / it [s]", **POSITIVE
+                ),
+                "target": string(
+                    "zero: the null-space momentum n = 0 (the pseudo-inverse momentum law, least wheel "
+                    "momenta); bias: the null-space part of bias_n_m_s (wheel speeds kept off zero)",
+                    enum=["zero", "bias"],
+                ),
+                "bias_n_m_s": {
+                    "type": "array",
+                    "items": number("I_w Omega of this wheel [N m s]"),
+                    "minItems": 3,
+                    "maxItems": MAX_WHEELS,
+                    "description": "target bias, one relative momentum per wheel in id order; only its null-space "
+                    "part counts (target bias only) [N m s]",
+                },
+                "deadband_n_m_s": number(
+                    "no torque while the null-space error's norm is within it; beyond, the error less "
+                    "the deadband decays (default 0) [N m s]",
+                    minimum=0.0,
+                ),
+                "torque_max_n_m": number(
+                    "cap on the null-space torque of any wheel, the vector scaled (default: the wheels' "
+                    "torque_max_n_m) [N m]",
+                    **POSITIVE,
+                ),
+                "give_up_beyond_n_m_s": number(
+                    "stop for the rest of the flight once the torque is at its cap and the null-space error, "
+                    "still growing, lies this far beyond the deadband: the null space does not respond, as "
+                    "with a dead wheel the flight software does not know of (default: never) [N m s]",
+                    minimum=0.0,
+                ),
+            },
+            optional=("bias_n_m_s", "deadband_n_m_s", "torque_max_n_m", "give_up_beyond_n_m_s"),
+        ),
     },
+    optional=("null_space_management",),
 )
 
 # flight_software keys of the thruster design: required with an rcs, refused without one

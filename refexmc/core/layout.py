@@ -92,6 +92,12 @@ W_COULOMB_DESIGN = WHEEL.add("coulomb_friction_design_n_m")  # what the flight s
 W_VISCOUS_DESIGN = WHEEL.add("viscous_friction_design_n_m_s")
 W_FAILED = WHEEL.add("failed")  # 1: the motor gives no torque (friction still acts)
 W_MOMENTUM0 = WHEEL.add("initial_momentum_n_m_s")  # I_w Omega at t = 0, relative to the body
+# flight software: null-space momentum management (core.wheels.null_space_torque), same in every row
+W_NULL_SPACE_RATE = WHEEL.add("null_space_rate_1_s")  # 1 / time constant; 0: no management
+W_NULL_SPACE_BIAS = WHEEL.add("null_space_bias_n_m_s")  # b_i: the null-space part of I_w Omega - b is driven to 0
+W_NULL_SPACE_DEADBAND = WHEEL.add("null_space_deadband_n_m_s")  # no torque while |P (I_w Omega - b)| is within it
+W_NULL_SPACE_TORQUE_MAX = WHEEL.add("null_space_torque_max_n_m")  # largest null-space torque on any wheel
+W_NULL_SPACE_GIVE_UP = WHEEL.add("null_space_give_up_n_m_s")  # give up, capped and growing this far beyond the deadband
 WHEEL_SIZE = WHEEL.size
 # The flight software's wheel distribution is a separate (wheels, 3) table (RunInputs.wheel_distribution):
 # motor torque commands = -D (u + omega x H_wheels), D = W^+ over the wheels it uses (001 sec. 9.1).

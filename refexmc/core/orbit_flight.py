@@ -17,9 +17,9 @@ from refexmc._jit import jit, jit_noalloc
 from refexmc.core import deorbit, orbit, quaternion
 from refexmc.core.layout import (
     F_ENGINE_AXIS,
+    F_GUIDANCE_LAW,
     F_GUIDANCE_PERIOD,
     F_GUIDANCE_POSITION_GAIN,
-    F_GUIDANCE_LAW,
     F_GUIDANCE_VELOCITY_GAIN,
     M_BURN_DURATION,
     M_BURN_START,

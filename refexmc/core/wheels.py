@@ -17,6 +17,11 @@ The flight software commands ``u`` (the controller) and the wheels realise it:
 (pseudo-inverse of W). Each command is held over the control period (torque-commanded wheels).
 In the run loop (core.flight) the wheels family's work arrays are a :class:`Plant` (:func:`plant`)
 and its control step is :func:`drive` (docs/families.md).
+
+001 sec. 9.1 distributes momentum as ``H_W = W^+ H_B + n``, n any vector in W's null space. The
+pseudo-inverse alone leaves n to whatever friction makes of it; :func:`null_space_torque` (the
+flight software's null-space momentum management, optional) drives it to a target with torques in
+that null space, which the body does not feel (with the axes the flight software knows).
 """
 
 import math
@@ -34,6 +39,11 @@ from refexmc.core.layout import (
     W_FAILED,
     W_MOMENTUM0,
     W_MOMENTUM_MAX,
+    W_NULL_SPACE_BIAS,
+    W_NULL_SPACE_DEADBAND,
+    W_NULL_SPACE_GIVE_UP,
+    W_NULL_SPACE_RATE,
+    W_NULL_SPACE_TORQUE_MAX,
     W_SPIN_INERTIA,
     W_TORQUE_MAX,
     W_VISCOUS,
@@ -59,6 +69,7 @@ class Plant(NamedTuple):
     hwork: np.ndarray  # (5, len(h)) RK4 scratch
     scratch: np.ndarray  # (5, 3)
     momentum: np.ndarray  # (3, 3): total angular momentum (inertial) at t = 0, at the end; scratch
+    null_space: np.ndarray  # (2,): [1 once null-space management gave up, its error |e_n| last period]
 
 
 @jit
@@ -79,6 +90,7 @@ def plant(table):
         np.zeros((5, n + IMPULSE)),
         np.zeros((5, 3)),
         np.zeros((3, 3)),
+        np.zeros(2),
     )
 
 
@@ -136,6 +148,8 @@ def start(plant, inertia, x, gg_coefficient, gg_direction):
         plant.demand[i] = 0.0
     for k in range(IMPULSE):
         h[n + k] = 0.0
+    plant.null_space[0] = 0.0
+    plant.null_space[1] = math.inf  # no last period: the first cannot count as growing
     angular_momentum(x, plant, plant.momentum[0:2])
 
 
@@ -295,6 +309,83 @@ def rk4_step(x, step, torque_start, torque_end, plant):
 
 
 @jit_noalloc
+def null_space_torque(distribution, wheels, h, rate_meas, out):
+    """Null-space momentum management: ``out = -r (1 - Z / |e_n|) e_n`` (N m per wheel) with the
+    null-space error ``e_n = P (I_w Omega - b)`` when ``|e_n| > Z``, else 0; then scaled as one
+    vector so that no wheel's exceeds the cap. ``r`` (1/s), ``b`` (N m s), ``Z`` (N m s) and the
+    cap (N m) are the table's W_NULL_SPACE columns, ``I_w Omega`` as the tachometers and the
+    measured body rate give it. ``P = I - D (D^T D)^-1 D^T`` over the wheels the distribution
+    ``D`` uses (its non-zero rows; 0 for the others): with ``D = W_u^+`` the range of D is the row
+    space of ``W_u``, so P projects on its null space (001 sec. 9.1's n, sec. 8.1's n_4) and
+    ``W_u out = 0``: no body torque with the axes the flight software knows. P is built from D
+    alone, never from the true axes. With three wheels used or fewer there is no null space and
+    ``out`` is zero; so it is when the used wheels do not span the three axes (a D of rank < 3 left
+    by detected failures: the attitude is lost anyway). Returns (the number of wheels D uses,
+    ``|e_n|``, True when the cap scaled the torque)."""
+    n = wheels.shape[0]
+    used = 0
+    g00, g01, g02, g11, g12, g22 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    s0, s1, s2 = 0.0, 0.0, 0.0
+    for i in range(n):
+        d0, d1, d2 = distribution[i, 0], distribution[i, 1], distribution[i, 2]
+        out[i] = 0.0
+        if d0 == 0.0 and d1 == 0.0 and d2 == 0.0:
+            continue
+        used += 1
+        e = relative_momentum(wheels, i, h, rate_meas) - wheels[i, W_NULL_SPACE_BIAS]
+        out[i] = e
+        s0 += d0 * e
+        s1 += d1 * e
+        s2 += d2 * e
+        g00 += d0 * d0
+        g01 += d0 * d1
+        g02 += d0 * d2
+        g11 += d1 * d1
+        g12 += d1 * d2
+        g22 += d2 * d2
+    if used <= 3:
+        for i in range(n):
+            out[i] = 0.0
+        return used, 0.0, False
+    # y = (D^T D)^-1 D^T e by cofactors (D^T D symmetric, positive definite when D has rank 3)
+    c00 = g11 * g22 - g12 * g12
+    c01 = g02 * g12 - g01 * g22
+    c02 = g01 * g12 - g02 * g11
+    c11 = g00 * g22 - g02 * g02
+    c12 = g01 * g02 - g00 * g12
+    c22 = g00 * g11 - g01 * g01
+    det = g00 * c00 + g01 * c01 + g02 * c02
+    trace = g00 + g11 + g22
+    if det <= 1e-12 * trace * trace * trace:  # the used wheels do not span 3 axes: P undefined, no torque
+        for i in range(n):
+            out[i] = 0.0
+        return used, 0.0, False
+    y0 = (c00 * s0 + c01 * s1 + c02 * s2) / det
+    y1 = (c01 * s0 + c11 * s1 + c12 * s2) / det
+    y2 = (c02 * s0 + c12 * s1 + c22 * s2) / det
+    size = 0.0
+    for i in range(n):
+        d0, d1, d2 = distribution[i, 0], distribution[i, 1], distribution[i, 2]
+        if d0 == 0.0 and d1 == 0.0 and d2 == 0.0:
+            continue
+        out[i] = out[i] - (d0 * y0 + d1 * y1 + d2 * y2)  # e_n
+        size += out[i] * out[i]
+    size = math.sqrt(size)
+    deadband = wheels[0, W_NULL_SPACE_DEADBAND]
+    gain = 0.0 if size <= deadband else -wheels[0, W_NULL_SPACE_RATE] * (1.0 - deadband / size)
+    peak = 0.0
+    for i in range(n):
+        out[i] *= gain
+        peak = max(peak, abs(out[i]))
+    cap = wheels[0, W_NULL_SPACE_TORQUE_MAX]
+    capped = peak > cap
+    if capped:
+        for i in range(n):
+            out[i] *= cap / peak
+    return used, size, capped
+
+
+@jit_noalloc
 def command(distribution, plant, rate_meas, omega, torque_cmd, compensate):
     """Motor torques for the body torque ``torque_cmd`` (001 eq. 6, sec. 9.1):
     ``demand = -D (u + omega x sum_i a_i h_i)``, then the limits: the whole vector scaled so that
@@ -302,6 +393,11 @@ def command(distribution, plant, rate_meas, omega, torque_cmd, compensate):
     its momentum limit (the drive's speed limiter, on the true rate ``omega``) not driven further.
     With ``compensate`` the demand also cancels the friction the flight software assumes at the
     wheel's speed (tachometer and measured body rate; the design coefficients of the table).
+    With null-space management on (the table's W_NULL_SPACE_RATE non-zero) the demand also holds
+    :func:`null_space_torque`, before the limits (the scaling keeps it in the null space). It gives
+    up for the rest of the flight (``plant.null_space[0] = 1``) when its torque is at the cap, the
+    error beyond the deadband by more than W_NULL_SPACE_GIVE_UP and still growing: a null space
+    that does not respond, as with a dead wheel the flight software does not know of.
     A failed wheel gives no torque; the flight software does not know unless D leaves it out. The
     flight software reads the wheel momenta (tachometers) exactly and the body rate as measured.
     Returns (largest |demand|, True when a limit acted)."""
@@ -318,12 +414,23 @@ def command(distribution, plant, rate_meas, omega, torque_cmd, compensate):
     v2 = torque_cmd[2] + (w0 * hb1 - w1 * hb0)
     peak = 0.0
     scale = 1.0
+    manage = n > 0 and wheels[0, W_NULL_SPACE_RATE] != 0.0 and plant.null_space[0] == 0.0
+    if manage:
+        _, size, capped = null_space_torque(distribution, wheels, h, rate_meas, demand)
+        beyond = size - wheels[0, W_NULL_SPACE_DEADBAND]
+        if capped and beyond > wheels[0, W_NULL_SPACE_GIVE_UP] and size > plant.null_space[1]:
+            plant.null_space[0] = 1.0
+            for i in range(n):
+                demand[i] = 0.0
+        plant.null_space[1] = size
     for i in range(n):
         d = -(distribution[i, 0] * v0 + distribution[i, 1] * v1 + distribution[i, 2] * v2)
         if compensate:
             speed = relative_momentum(wheels, i, h, rate_meas) / wheels[i, W_SPIN_INERTIA]
             width = wheels[i, W_COULOMB_WIDTH]
             d -= friction_law(speed, wheels[i, W_COULOMB_DESIGN], wheels[i, W_VISCOUS_DESIGN], width)
+        if manage:
+            d += demand[i]  # the null-space torque
         demand[i] = d
         peak = max(peak, abs(d))
         if wheels[i, W_FAILED] == 0.0 and abs(d) * scale > wheels[i, W_TORQUE_MAX]:
