@@ -10,8 +10,12 @@ without FMA (``OPENBLAS_CORETYPE=Nehalem``), glibc's libm without its FMA/AVX2 v
 each of these changed some draws by an ulp on an AVX-512 machine with FMA.
 """
 
+import itertools
 import json
 import os
+import re
+import shutil
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -236,3 +240,80 @@ def test_rotations_agree_with_scipy():
     expected = Rotation.from_quat(quat)
     np.testing.assert_allclose(Rotation.from_rotvec(mine, degrees=True).as_matrix(), expected.as_matrix(), atol=1e-14)
     assert np.linalg.norm(mine, axis=1).max() <= 180.0
+
+
+# --- the flight kernels: no fast-math, no SVML, no FMA ----------------------------------------
+
+FMA = re.compile(r"\bv?fn?m(?:add|sub)\w*")
+
+
+def _kernel_objects(cache, into):
+    """Write the machine code (ELF objects) of numba's on-disk cache ``cache`` into ``into``; return
+    the files. A ``.nbc`` file pickles each kernel's object code as one bytes object (opcode ``B``,
+    4-byte length, the bytes)."""
+    files = []
+    for data in sorted(Path(cache).rglob("*.nbc")):
+        raw = data.read_bytes()
+        start = 0
+        while (i := raw.find(b"\x7fELF", start)) >= 5:
+            start = i + 4
+            if raw[i - 5] != ord("B"):
+                continue
+            (length,) = struct.unpack("<I", raw[i - 4 : i])
+            files.append(into / f"{len(files)}-{data.stem}.o")
+            files[-1].write_bytes(raw[i : i + length])
+    return files
+
+
+def _fma_in(objects):
+    """{object file name: FMA mnemonics in its disassembly}, for those that have any."""
+    found = {}
+    for batch in itertools.batched(objects, 200) if hasattr(itertools, "batched") else [objects]:
+        listing = subprocess.run(["objdump", "-d", *map(str, batch)], capture_output=True, text=True, check=True).stdout
+        for part in re.split(r"\n(?=\S+\.o:\s+file format)", listing):
+            name = part.split(":", 1)[0].strip()
+            if FMA.search(part):
+                found[Path(name).name] = sorted(set(FMA.findall(part)))
+    return found
+
+
+CONTROL = """
+import numba
+
+@numba.njit(fastmath=True, cache=True)
+def multiply_add(a, b, c):
+    return a * b + c
+
+multiply_add(1.0, 2.0, 3.0)
+"""
+
+
+@pytest.mark.skipif(shutil.which("objdump") is None, reason="needs binutils' objdump")
+def test_the_flight_kernels_have_no_fast_math_no_svml_and_no_fma(tmp_path):
+    """Same bits on any CPU needs each kernel's arithmetic as written: numba compiles without
+    fast-math (refexmc._jit), so LLVM contracts no a * b + c into an FMA, which would round once
+    where the source rounds twice and only where the CPU has FMA; and without Intel's SVML (its
+    vector sin, exp, ... are not libm's). Scanned: the machine code of every kernel in the
+    on-disk cache after flying ReFEx and IRASSI runs. The scan finds the FMA that a fast-math
+    kernel gets on a CPU with FMA (the control)."""
+    import numba
+
+    from refexmc._jit import JIT_OPTIONS, cache_dir
+    from refexmc.campaign.chunk import fly_chunk
+    from refexmc.config.load import load_campaign
+
+    assert JIT_OPTIONS["fastmath"] is False
+    assert not numba.config.USING_SVML
+    for name in ("smoke", "irassi-fine-pointing"):
+        campaign = load_campaign(ROOT / "campaigns" / f"{name}.yaml")
+        campaign["runs"] = 2
+        fly_chunk(campaign, range(2))
+    (tmp_path / "kernels").mkdir()
+    objects = _kernel_objects(cache_dir(), tmp_path / "kernels")
+    assert len(objects) >= 20, f"{len(objects)} kernels in {cache_dir()}"
+    assert not _fma_in(objects), "kernels with FMA instructions"
+    if "fma" in Path("/proc/cpuinfo").read_text().split():
+        (tmp_path / "control").mkdir()
+        (tmp_path / "control.py").write_text(CONTROL)
+        _python("import control", [], {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(tmp_path)})
+        assert _fma_in(_kernel_objects(tmp_path / "cache", tmp_path / "control"))
