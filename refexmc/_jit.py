@@ -10,13 +10,20 @@ file's kernel calls would leave a stale cache behind. The cache therefore lives 
 named by a hash of every core source file: any change to the core starts a fresh cache.
 Location: ``$NUMBA_CACHE_DIR/refexmc-<hash>`` if that variable is set, else
 ``$XDG_CACHE_HOME/refexmc/numba-<hash>`` (default ``~/.cache``).
+
+Same bits on any CPU (docs/campaigns.md): without fast-math LLVM contracts no multiply-add into
+an FMA; Intel's SVML (numba uses it where the ``icc_rt`` package is installed) would replace
+libm's exp, sin, ... in vectorised loops with its own, so it is turned off before numba is
+imported (``numba -s`` shows ``config.USING_SVML``). ``tests/test_cpu_independence.py`` checks both.
 """
 
 import hashlib
 import os
 from pathlib import Path
 
-import numba
+os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # before numba reads its configuration
+
+import numba  # noqa: E402
 
 JIT_OPTIONS = {"cache": True, "fastmath": False, "nogil": True, "error_model": "numpy"}
 DISABLED = os.environ.get("REFEXMC_DISABLE_JIT", "0") not in ("", "0")

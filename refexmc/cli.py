@@ -84,7 +84,7 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
     """
     if resume and overwrite:
         _bad_input("--resume and --overwrite exclude each other")
-    from refexmc.campaign import pool  # loky alone: before the campaign machinery is imported
+    from refexmc.campaign import pool  # joblib's executor alone: before the campaign machinery is imported
 
     if backend == "loky" and (jobs is None or jobs >= 1):
         pool.start_early(jobs or pool.usable_cores())  # they warm up while this process validates (~1 s)

@@ -80,3 +80,30 @@ def test_report_campaign_and_cli_never_import_the_core():
         if module.startswith(("refexmc.report", "refexmc.campaign")) or module == "refexmc.cli"
     }
     assert not {m: i for m, i in offenders.items() if i}
+
+
+def test_runs_fan_out_through_joblib_not_a_separate_loky():
+    """The design names joblib for fanning out runs: refexmc imports its loky executor
+    (``joblib.externals.loky``), never the standalone ``loky`` package, which pyproject.toml does
+    not depend on."""
+    standalone = {}
+    for name, path in module_files().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            modules = []
+            if isinstance(node, ast.ImportFrom) and node.level == 0:
+                modules = [node.module or ""]
+            elif isinstance(node, ast.Import):
+                modules = [alias.name for alias in node.names]
+            if any(module == "loky" or module.startswith("loky.") for module in modules):
+                standalone.setdefault(name, []).extend(modules)
+    assert not standalone
+    from joblib.externals.loky.reusable_executor import _ReusablePoolExecutor
+
+    from refexmc.campaign import pool
+
+    try:
+        assert isinstance(pool.executor(1), _ReusablePoolExecutor)
+    finally:
+        pool.stop()
+    pyproject = (PACKAGE.parent / "pyproject.toml").read_text()
+    assert '"joblib>=' in pyproject and '"loky' not in pyproject

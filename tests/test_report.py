@@ -406,7 +406,7 @@ def test_mode_names_from_the_manifest_or_the_runs_columns():
     for bad in ([], "NCM", ["slew", "SLEW"], ["slew", ""], ["slew", 3], ["end"]):
         with pytest.raises(ConfigError, match="modes"):
             data.mode_names({"modes": bad}, columns, file="manifest.json")
-    assert data.load(ROOT / "baselines" / "smoke").modes == list(REFEX_MODES)  # written before "modes"
+    assert data.load(ROOT / "baselines" / "smoke").modes == list(REFEX_MODES)
 
 
 def test_manifest_modes_without_their_time_columns_are_bad_input(tmp_path):

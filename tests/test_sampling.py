@@ -29,6 +29,9 @@ NOMINAL = ROOT / "campaigns/nominal.yaml"
 # wrong transform (wrong sigma, missing truncation, a biased rotation) fails them by orders of
 # magnitude at these sample sizes.
 P_MIN = 1e-3
+# The sampler's inertia tensor and naive.dispersed_inertia (LAPACK's eigh, scipy's rotation, BLAS
+# products with FMA) round ~15 operations differently: a few ulp of the largest component, not more.
+INERTIA_TWIN_RTOL = 1e-14
 
 
 @pytest.fixture(scope="module")
@@ -199,7 +202,8 @@ EVERY_DISTRIBUTION = {
 def test_a_chunk_draws_each_run_as_it_would_be_drawn_alone(base, sampling):
     """values_for_runs transforms a chunk's uniforms path by path in one go; every run's values
     are, bit for bit, those of its own uniforms (numpy's keyed generator for random sampling, its
-    design row otherwise) transformed alone, the inertia by the one-tensor twin (tests/naive.py)."""
+    design row otherwise) transformed alone; the inertia is also the one-tensor twin's (tests/naive.py:
+    scipy's rotation, LAPACK's eigh and BLAS products) to rounding."""
     campaign = campaign_with(base, EVERY_DISTRIBUTION, runs=80, sampling=sampling, nominal_first=True)
     sampler = Sampler(campaign)
     run_ids, bounds = list(range(80)), [0, 13, 45, 80]  # chunks of 13, 32 and 35 runs
@@ -216,13 +220,13 @@ def test_a_chunk_draws_each_run_as_it_would_be_drawn_alone(base, sampling):
             else:
                 u = sampler.uniforms(path, run_id, n)
             u = np.clip(u, dispersions.UNIFORM_EPS, 1.0 - dispersions.UNIFORM_EPS)
+            alone = transform(spec, u, sampler.nominal[path])
             if spec["dist"] == "inertia":
-                alone = naive.dispersed_inertia(sampler.nominal[path], 0.3, 20.0, u)
+                twin = naive.dispersed_inertia(sampler.nominal[path], 0.3, 20.0, u)
+                np.testing.assert_allclose(alone, twin, rtol=0, atol=INERTIA_TWIN_RTOL * np.abs(twin).max())
                 if inertia_problem(dispersions.inertia_matrix(alone)) is not None:
                     redrawn += 1
                     continue  # drawn again with attempt 1, 2, ...: checked by the test below
-            else:
-                alone = transform(spec, u, sampler.nominal[path])
             np.testing.assert_array_equal(values[path], alone, err_msg=f"{path} of run {run_id}")
     assert redrawn > 0  # the large inertia sigma makes some first draws unphysical
 
@@ -237,7 +241,9 @@ def test_inertia_is_redrawn_alone_until_physical(base):
     for run_id, values in enumerate(drawn):
         for attempt in range(1000):
             u = np.clip(keyed_rng(sampler.seed, run_id, "inertia_kg_m2", attempt).random(6), 2.0**-53, 1.0 - 2.0**-53)
-            expected = naive.dispersed_inertia(nominal, 0.3, 20.0, u)
+            expected = transform(sampler.specs["inertia_kg_m2"], u, nominal)
+            twin = naive.dispersed_inertia(nominal, 0.3, 20.0, u)
+            np.testing.assert_allclose(expected, twin, rtol=0, atol=INERTIA_TWIN_RTOL * np.abs(twin).max())
             if inertia_problem(dispersions.inertia_matrix(expected)) is None:
                 break
         np.testing.assert_array_equal(values["inertia_kg_m2"], expected, err_msg=f"run {run_id}")

@@ -8,7 +8,7 @@ yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` in com
 rows sorted by run id, and keeps only a bounded number of chunks in flight so that memory does
 not grow with the campaign. ``check_backend(name, **options)`` runs before anything is written: ConfigError for an
 unknown backend, an option it does not take, or one it cannot start with (dask: the extra missing,
-a malformed or unreachable scheduler). ``loky`` (below) runs on this machine; ``dask``
+a malformed or unreachable scheduler). ``loky`` (below: joblib's loky executor) runs on this machine; ``dask``
 (:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster.
 ``start_workers(name, workers)`` starts a backend's workers before the campaign is prepared, so
 that they warm up meanwhile (loky: :mod:`refexmc.campaign.pool`).
@@ -27,7 +27,7 @@ import re
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, wait
 
-from loky.process_executor import TerminatedWorkerError
+from joblib.externals.loky.process_executor import TerminatedWorkerError
 
 from refexmc.campaign import pool
 from refexmc.campaign.assembly import TASKS_PER_WORKER, ChunkAssembler, Task, error_row

@@ -1,12 +1,18 @@
-"""This process's pool of loky worker processes: started early, warm before the first chunk, killed when done.
+"""This process's pool of worker processes (joblib's loky executor): started early, warm before the first chunk,
+killed when done.
 
 A worker takes ~1 s to be ready for its first run on 2 cores: spawning and importing (~0.5 s),
 numba's target and the kernels from the disk cache (~0.5 s). Each worker does that start-up in
 its initializer (:func:`refexmc.campaign.worker.warm_up`), without waiting for a task, so that
 starting the pool early hides it behind the parent's own start-up: ``refexmc run`` starts its
 workers (one per job) before it imports the campaign machinery (pyarrow) and validates the
-campaign, which is why this module imports nothing but loky (not joblib, whose package import
-costs each process ~0.15 s).
+campaign, which is why this module imports nothing but joblib's executor.
+
+The runs fan out through joblib, the design's choice for it: its reusable executor
+(``joblib.externals.loky``, the one behind ``joblib.Parallel``'s default backend), used directly
+rather than through ``Parallel``, because the backend needs what ``Parallel`` hides: workers
+started before the first task with an initializer, a bounded window of futures handled in
+completion order, and a crashed worker's exit codes (``TerminatedWorkerError``).
 
 Every user asks for the executor through :func:`executor`, with the same initializer: loky
 replaces an executor asked for with other arguments, killing its workers. A complete campaign
@@ -17,7 +23,7 @@ kills them at once.
 import os
 import threading
 
-from loky import get_reusable_executor
+from joblib.externals.loky import get_reusable_executor
 
 _executor = None  # the executor this process asked for last: what stop() kills
 _early = 0  # workers start_early() started for the command under way (0: none)
@@ -37,7 +43,7 @@ def _start_worker():
 
 
 def executor(workers):
-    """The reusable loky executor with ``workers`` worker processes (spawned with its first task)."""
+    """joblib's reusable loky executor with ``workers`` worker processes (spawned with its first task)."""
     global _executor
     _executor = get_reusable_executor(max_workers=workers, initializer=_start_worker)
     return _executor

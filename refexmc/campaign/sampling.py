@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from refexmc import crmath
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem, level_names, thruster_count, unphysical_inertias, wheel_count
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
@@ -82,12 +83,83 @@ def dims(spec, n_components):
 
 def so3_rotation_vector_deg(u):
     """Uniformly random rotation (Shoemake 1992, 'Uniform random rotations') as a rotation vector."""
-    r1, r2 = math.sqrt(1.0 - u[0]), math.sqrt(u[0])
-    a, b = 2.0 * math.pi * u[1], 2.0 * math.pi * u[2]
-    quat = [r1 * math.sin(a), r1 * math.cos(a), r2 * math.sin(b), r2 * math.cos(b)]  # scalar last
-    from scipy.spatial.transform import Rotation
+    return so3_rotation_vectors_deg(np.asarray(u, dtype=float)[np.newaxis, :])[0]
 
-    return Rotation.from_quat(quat).as_rotvec(degrees=True)
+
+def so3_rotation_vectors_deg(u):
+    """:func:`so3_rotation_vector_deg` of each row of ``u`` (n x 3): Shoemake's quaternion
+    (x, y, z, w) = (r1 sin a, r1 cos a, r2 sin b, r2 cos b), r1 = sqrt(1 - u0), r2 = sqrt(u0),
+    a = 2 pi u1, b = 2 pi u2, turned into the rotation vector of angle 2 atan2(|(x, y, z)|, |w|)
+    (the shorter of q and -q). Correctly rounded sin, cos and atan2 (refexmc.crmath): the same
+    bits on every CPU."""
+    r1, r2 = np.sqrt(1.0 - u[:, 0]), np.sqrt(u[:, 0])
+    a, b = (2.0 * math.pi) * u[:, 1], (2.0 * math.pi) * u[:, 2]
+    vector = np.stack([r1 * crmath.sin(a), r1 * crmath.cos(a), r2 * crmath.sin(b)], axis=1)
+    w = r2 * crmath.cos(b)
+    vector[w < 0.0] *= -1.0
+    norm = np.sqrt(vector[:, 0] * vector[:, 0] + vector[:, 1] * vector[:, 1] + vector[:, 2] * vector[:, 2])
+    angle_deg = (2.0 * crmath.atan2(norm, np.abs(w))) * (180.0 / math.pi)
+    scale = np.divide(angle_deg, norm, out=np.zeros_like(norm), where=norm > 0.0)
+    return vector * scale[:, np.newaxis]
+
+
+def symmetric_eigen(matrix):
+    """(eigenvalues ascending, unit eigenvectors as columns) of a symmetric 3 x 3 matrix.
+
+    Cyclic Jacobi rotations (Golub & Van Loan, *Matrix Computations*, 4th ed., Algorithms 8.5.1
+    and 8.5.3) in Python floats: + - * / and sqrt only, so the same bits on every CPU (LAPACK's
+    eigh runs the BLAS kernels of the CPU, FMA or not). A diagonal matrix keeps its axes.
+    """
+    a = [[float(value) for value in row] for row in np.asarray(matrix, dtype=float)]
+    v = [[1.0 if i == k else 0.0 for k in range(3)] for i in range(3)]
+    for _sweep in range(64):
+        rotated = False
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            if abs(a[p][q]) <= 2.0**-60 * (abs(a[p][p]) + abs(a[q][q])):
+                a[p][q] = a[q][p] = 0.0
+                continue
+            rotated = True
+            tau = (a[q][q] - a[p][p]) / (2.0 * a[p][q])
+            t = (1.0 if tau >= 0.0 else -1.0) / (abs(tau) + math.sqrt(1.0 + tau * tau))
+            c = 1.0 / math.sqrt(1.0 + t * t)
+            s = t * c
+            for k in range(3):  # A J: columns p and q
+                akp, akq = a[k][p], a[k][q]
+                a[k][p], a[k][q] = c * akp - s * akq, s * akp + c * akq
+            for k in range(3):  # J^T (A J): rows p and q
+                apk, aqk = a[p][k], a[q][k]
+                a[p][k], a[q][k] = c * apk - s * aqk, s * apk + c * aqk
+            a[p][q] = a[q][p] = 0.0
+            for k in range(3):
+                vkp, vkq = v[k][p], v[k][q]
+                v[k][p], v[k][q] = c * vkp - s * vkq, s * vkp + c * vkq
+        if not rotated:
+            break
+    order = sorted(range(3), key=lambda i: (a[i][i], -i))  # equal moments: the later axis first, as LAPACK's eigh
+    values = np.array([a[i][i] for i in order])
+    vectors = np.array([[v[k][i] for i in order] for k in range(3)])
+    return values, vectors
+
+
+def rotation_matrices(rotvec_rad):
+    """n x 3 x 3 rotation matrices of the rotation vectors (rows, radians): the unit quaternion
+    (sin(angle/2) axis, cos(angle/2)) and its matrix, elementwise (correctly rounded sin and cos)."""
+    x, y, z = rotvec_rad[:, 0], rotvec_rad[:, 1], rotvec_rad[:, 2]
+    angle = np.sqrt(x * x + y * y + z * z)
+    half = 0.5 * angle
+    scale = np.divide(crmath.sin(half), angle, out=np.full_like(angle, 0.5), where=angle > 0.0)
+    qx, qy, qz, qw = scale * x, scale * y, scale * z, crmath.cos(half)
+    r = np.empty((len(angle), 3, 3))
+    r[:, 0, 0] = 1.0 - 2.0 * (qy * qy + qz * qz)
+    r[:, 0, 1] = 2.0 * (qx * qy - qz * qw)
+    r[:, 0, 2] = 2.0 * (qx * qz + qy * qw)
+    r[:, 1, 0] = 2.0 * (qx * qy + qz * qw)
+    r[:, 1, 1] = 1.0 - 2.0 * (qx * qx + qz * qz)
+    r[:, 1, 2] = 2.0 * (qy * qz - qx * qw)
+    r[:, 2, 0] = 2.0 * (qx * qz - qy * qw)
+    r[:, 2, 1] = 2.0 * (qy * qz + qx * qw)
+    r[:, 2, 2] = 1.0 - 2.0 * (qx * qx + qy * qy)
+    return r
 
 
 def dispersed_inertia(nominal_components, spec, u):
@@ -98,22 +170,27 @@ def dispersed_inertia(nominal_components, spec, u):
 def dispersed_inertia_rows(nominal_components, spec, u):
     """:func:`dispersed_inertia` of each row of ``u`` (n x 6), as n x 6 components.
 
-    Batched, numpy and scipy make each row's tensor with the same operations as alone (the same
-    bits: tests/test_sampling.py checks it).
+    J = T diag(m (1 + sigma z)) T^T with T = R(axes_sigma z) A, A the nominal principal axes:
+    sums of products written out in a fixed order (no BLAS, whose kernels differ per CPU), each
+    component once (the tensor is symmetric by construction). Each row gets the same operations
+    batched as alone (the same bits: tests/test_sampling.py checks it).
     """
     from scipy import special
-    from scipy.spatial.transform import Rotation
 
     if len(u) == 0:
         return np.empty((0, 6))
-    moments, axes = np.linalg.eigh(dispersions.inertia_matrix(nominal_components))
+    moments, axes = symmetric_eigen(dispersions.inertia_matrix(nominal_components))
     z = special.ndtri(u)
-    diagonal = np.zeros((len(u), 3, 3))
-    diagonal[:, (0, 1, 2), (0, 1, 2)] = moments * (1.0 + spec["moments_sigma_fraction"] * z[:, :3])
-    turn = Rotation.from_rotvec(spec["axes_sigma_deg"] * z[:, 3:], degrees=True).as_matrix() @ axes
-    j = turn @ diagonal @ np.swapaxes(turn, 1, 2)
-    j = 0.5 * (j + np.swapaxes(j, 1, 2))
-    return j[:, dispersions.INERTIA_ROWS, dispersions.INERTIA_COLUMNS]
+    diagonal = moments * (1.0 + spec["moments_sigma_fraction"] * z[:, :3])
+    rotation = rotation_matrices((spec["axes_sigma_deg"] * z[:, 3:]) * (math.pi / 180.0))
+    turn = np.empty_like(rotation)
+    for i, k in itertools.product(range(3), range(3)):
+        turn[:, i, k] = rotation[:, i, 0] * axes[0, k] + rotation[:, i, 1] * axes[1, k] + rotation[:, i, 2] * axes[2, k]
+    out = np.empty((len(u), 6))
+    for column, (i, k) in enumerate(dispersions.INERTIA_INDEX):
+        terms = [(turn[:, i, m] * diagonal[:, m]) * turn[:, k, m] for m in range(3)]
+        out[:, column] = (terms[0] + terms[1]) + terms[2]
+    return out
 
 
 def truncated_normal_ppf(u, a, b):
@@ -140,7 +217,8 @@ def transform_rows(spec, u, nominal_value):
     """Values (user units, one row per draw) of the draws whose uniforms are the rows of ``u``.
 
     The elementwise distributions and the inertia tensors transform all rows at once, with the
-    same operations on each row as alone (so the same bits); uniform rotations go row by row.
+    same operations on each row as alone (so the same bits). No numpy transcendental ufunc and no
+    BLAS: exp, sin, cos and atan2 are correctly rounded (refexmc.crmath), the same bits on every CPU.
     """
     from scipy import special
 
@@ -156,7 +234,7 @@ def transform_rows(spec, u, nominal_value):
     if dist == "uniform":
         return spec["low"] + (spec["high"] - spec["low"]) * u
     if dist == "lognormal":
-        return spec["median"] * np.exp(spec["sigma"] * special.ndtri(u))
+        return spec["median"] * crmath.exp(spec["sigma"] * special.ndtri(u))
     if dist == "choice":
         cumulative = np.cumsum(spec["probabilities"])
         index = np.minimum(np.searchsorted(cumulative, u, side="right"), len(cumulative) - 1)
@@ -165,7 +243,7 @@ def transform_rows(spec, u, nominal_value):
             return values[index, np.arange(values.shape[1])]
         return values[index[:, 0]]
     if dist == "uniform_so3":
-        return np.array([so3_rotation_vector_deg(row) for row in u]).reshape(len(u), 3)
+        return so3_rotation_vectors_deg(u)
     if dist == "inertia":
         return dispersed_inertia_rows(nominal_value, spec, u)
     raise KeyError(dist)  # pragma: no cover - the campaign was validated

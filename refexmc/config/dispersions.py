@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from refexmc import crmath
 from refexmc.config import derived, schema
 from refexmc.config.errors import ConfigError
 from refexmc.core import layout as L
@@ -508,7 +509,7 @@ def check(dispersions, vehicle, mission, file, lines):
                 fail("expected a median > 0 (lognormal draws are positive)", "median" if "median" in spec else "dist")
             if (resolved["sigma"] < 0).any():
                 fail(f"expected sigma >= 0 (of ln x), got {spec['sigma']!r}", "sigma")
-            spread = np.exp(Z_MAX * resolved["sigma"])
+            spread = crmath.exp(Z_MAX * resolved["sigma"])  # the sampler's exp: the same bits on every CPU
             support = (resolved["median"] / spread, resolved["median"] * spread)
         elif dist == "choice":
             values = spec["values"]
