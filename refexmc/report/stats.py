@@ -46,6 +46,20 @@ TAIL_STATS = {
         "p1_lower95",
         "p0.135_lower95",
     ),
+    "both": (  # an output without a bad end (an entry state): both ends
+        "count",
+        "median",
+        "mean",
+        "std",
+        "p0.135",
+        "p1",
+        "min",
+        "p99",
+        "p99.865",
+        "max",
+        "mean_minus_3sd",
+        "mean_plus_3sd",
+    ),
 }
 
 
@@ -210,6 +224,12 @@ def describe(values, tail, confidence=CONFIDENCE):
     """The statistics of one column for its worse ``tail`` ("upper" or "lower"): a dict (NaN where
     not computable), with ``tolerance_99_95`` and ``tolerance_99_95_method`` from :func:`tolerance_bound`."""
     result = {name: column_stat(values, name, confidence) for name in TAIL_STATS[tail]}
+    if tail == "both":
+        lower, method = tolerance_bound(values, "lower", TOLERANCE_COVERAGE, confidence)
+        upper, _ = tolerance_bound(values, "upper", TOLERANCE_COVERAGE, confidence)
+        result.update(tolerance_99_95=math.nan, tolerance_99_95_lower=lower, tolerance_99_95_upper=upper)
+        result["tolerance_99_95_method"] = method
+        return result
     bound, method = tolerance_bound(values, tail, TOLERANCE_COVERAGE, confidence)
     result["tolerance_99_95"] = bound
     result["tolerance_99_95_method"] = method
@@ -295,6 +315,39 @@ def spearman(x, y):
         return rho, 0.0
     t = rho * math.sqrt((n - 2) / ((1.0 - rho) * (1.0 + rho)))
     return rho, float(2.0 * sps.t.sf(abs(t), n - 2))
+
+
+def partial_rank_correlation(inputs, output):
+    """Partial rank correlation (PRCC) of each input column with the output, and its p-value.
+
+    Ranks of every input and of the output; the PRCC of input j is the correlation of the parts of
+    rank(x_j) and rank(y) that the other inputs' ranks do not explain linearly (Marino et al. 2008,
+    J. Theor. Biol. 254, eq. 2), computed as -P_jy / sqrt(P_jj P_yy) with P the inverse of the rank
+    correlation matrix. p-value: t = r sqrt(dof / (1 - r^2)), dof = n - 2 - (k - 1) for k inputs.
+    ``inputs``: array [n, k] of inputs that vary; rows with a non-finite value are dropped.
+    Returns two arrays of k values, NaN where not computable (n < k + 3, or inputs linearly dependent).
+    """
+    inputs = np.asarray(inputs, dtype=float)
+    output = np.asarray(output, dtype=float)
+    k = inputs.shape[1]
+    keep = np.isfinite(inputs).all(axis=1) & np.isfinite(output)
+    inputs, output = inputs[keep], output[keep]
+    n = len(output)
+    rho, p = np.full(k, np.nan), np.full(k, np.nan)
+    if k == 0 or n < k + 3 or np.ptp(output) == 0:
+        return rho, p
+    ranks = np.column_stack([sps.rankdata(inputs, axis=0), sps.rankdata(output)])
+    correlation = np.corrcoef(ranks, rowvar=False)
+    if not np.isfinite(correlation).all() or np.linalg.cond(correlation) > 1e12:
+        return rho, p
+    precision = np.linalg.inv(correlation)
+    rho = -precision[:k, k] / np.sqrt(np.diag(precision)[:k] * precision[k, k])
+    rho = np.clip(rho, -1.0, 1.0)
+    dof = n - 2 - (k - 1)
+    with np.errstate(divide="ignore"):
+        t = rho * np.sqrt(dof / np.maximum(1.0 - rho * rho, 1e-300))
+    p = 2.0 * sps.t.sf(np.abs(t), dof)
+    return rho, p
 
 
 def spearman_critical(n, confidence=CONFIDENCE):
