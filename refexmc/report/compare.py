@@ -56,7 +56,8 @@ import numpy as np
 from scipy import stats as sps
 
 from refexmc.config.errors import ConfigError
-from refexmc.report import data, stats
+from refexmc.config.requirements import parse_requirement
+from refexmc.report import data, outputs, stats, tails
 from refexmc.report.stats import ks_p, median_interval, newcombe_interval, welch_interval, wilcoxon_p
 from refexmc.report.text import number
 
@@ -87,12 +88,69 @@ METRICS = {
     )
 }
 COLUMN_BETTER = {"fuel_used_kg": "lower", "modes_completed": "higher"}  # extra columns; default "either"
+BETTER_BY_TAIL = {"upper": "lower", "lower": "higher", "both": "either"}  # report/tails.py's worse tail
+# a requirement metric without a default tolerance regresses when it loses more than this share of
+# the baseline's margin to the requirement (median to bound): small against the margin the
+# requirement leaves, large against run-to-run noise, which moves the median by far less
+REQUIREMENT_MARGIN_SHARE = 0.1
 
 
 def _column_better(column):
     if column.startswith("pulses_"):
         return "lower"
-    return COLUMN_BETTER.get(column, "either")
+    tail = tails.worse_tail(column)
+    return COLUMN_BETTER.get(column, BETTER_BY_TAIL[tail] if tail else "either")
+
+
+def _requirements(campaign):
+    """The campaign's requirements as the dicts ``outputs`` reads (metric, op, value, requirement);
+    a malformed one is left out here (``refexmc report`` says what is wrong with it)."""
+    columns = list(campaign.runs.columns)
+    result = []
+    for text in campaign.resolved.get("requirements") or []:
+        try:
+            r = parse_requirement(text, columns, "campaign")
+        except ConfigError:
+            continue
+        result.append({"metric": r.metric, "op": r.op, "value": r.value, "requirement": r.text})
+    return result
+
+
+def requirement_tolerance(column, requirements, baseline):
+    """``REQUIREMENT_MARGIN_SHARE`` of the smallest margin between the baseline's median of
+    ``column`` (successful flights) and a bound of its requirements; inf when not computable."""
+    values = baseline.successful[column].to_numpy(dtype=float)
+    values = values[np.isfinite(values)]
+    if not len(values):
+        return math.inf
+    median = float(np.median(values))
+    margins = [abs(r["value"] - median) for r in outputs.requirements_of(column, requirements) if r["op"] != "=="]
+    margins = [m for m in margins if m > 0.0]
+    return REQUIREMENT_MARGIN_SHARE * min(margins) if margins else math.inf
+
+
+def mission_metrics(baseline, current):
+    """MetricSpecs of the mission's own metrics both runs tables have: the requirements' columns
+    (both campaigns'), then the other outputs (``outputs.plan``) that vary in either campaign.
+    Defaults: ``METRICS`` where it names the column; a requirement column
+    ``requirement_tolerance``; any other output inf (shown, never a regression by default)."""
+    requirements = _requirements(current) + [r for r in _requirements(baseline) if r not in _requirements(current)]
+    plans = [outputs.plan(campaign, requirements) for campaign in (baseline, current)]
+    both = set(baseline.runs.columns) & set(current.runs.columns)
+    judged = [c for c in outputs.requirement_columns(requirements) if c in both]
+    others = []
+    for plan in plans:
+        others += [c for c in plan["other_columns"] if c in both and c not in judged and c not in others]
+    specs = {}
+    for column in [*judged, *others]:
+        if column in METRICS:
+            specs[column] = METRICS[column]
+            continue
+        tail = plans[1]["tails"].get(column) or plans[0]["tails"].get(column) or "both"
+        better = BETTER_BY_TAIL[tail]
+        tolerance = requirement_tolerance(column, requirements, baseline) if column in judged else math.inf
+        specs[column] = MetricSpec(column, "distribution", better, tolerance, 4)
+    return specs
 
 
 @dataclass
@@ -320,6 +378,7 @@ def parse_tolerances(texts, baseline, current):
     """
     columns = [c for c in _numeric_columns(baseline) if c in set(_numeric_columns(current))]
     known = list(METRICS) + [c for c in columns if c not in METRICS]
+    mission = mission_metrics(baseline, current) if texts else {}
     specs = {}
     for text in texts:
         where = {"path": ("--tolerance",)}
@@ -335,6 +394,8 @@ def parse_tolerances(texts, baseline, current):
             raise ConfigError(f"expected a tolerance >= 0 (or inf), got '{value_text}' in '{text}'", **where)
         if metric in METRICS:
             base = METRICS[metric]
+        elif metric in mission:
+            base = mission[metric]
         elif metric in columns:
             base = MetricSpec(metric, "distribution", _column_better(metric), value)
         else:
@@ -370,13 +431,14 @@ def compare(baseline_out, current_out, tolerances=()):
     baseline = data.load(baseline_out)
     current = data.load(current_out)
     overrides = parse_tolerances(tolerances, baseline, current)
-    specs = {**METRICS, **overrides}
+    rates = {name: METRICS[name] for name in ("success_rate", "error_rate")}
+    specs = {**rates, **mission_metrics(baseline, current), **overrides}
     pairs = pairing(baseline, current)
     b, c = _describe(baseline), _describe(current)
     results = []
     for spec in specs.values():
-        if spec.name == "success_rate":
-            results.append(compare_proportion(spec, b["success"], b["ok"], c["success"], c["ok"], spec.tolerance))
+        if spec.name == "success_rate":  # over all runs, an errored run unsuccessful: as the report
+            results.append(compare_proportion(spec, b["success"], b["runs"], c["success"], c["runs"], spec.tolerance))
         elif spec.name == "error_rate":
             results.append(compare_proportion(spec, b["errored"], b["runs"], c["errored"], c["runs"], spec.tolerance))
         elif spec.name in baseline.runs and spec.name in current.runs:
@@ -438,7 +500,7 @@ def _p(value):
 
 def _tolerance(m):
     if math.isinf(m.tolerance):
-        return "inf"
+        return "inf (not gated)"
     worse = {"higher": "drop", "lower": "rise", "either": "either way"}[m.better]
     return f"{number(m.tolerance)} ({worse})"
 
