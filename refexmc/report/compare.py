@@ -8,15 +8,18 @@ significant (two-sided, 5 %) **and** worse than the baseline by more than its to
 numerical noise (another numba or numpy version, a reordered sum) never fails CI while a real
 degradation does. Errored runs are excluded from every statistic except ``error_rate``, and counted.
 
-Metrics (``METRICS``; current minus baseline):
+Metrics (current minus baseline): the success and error rates, then the mission's own metrics
+(``mission_metrics``): the runs columns its requirements judge, then its other outputs
+(``outputs.plan``), each worse in the direction of its tail in ``report/tails.py``:
 
-- ``success_rate`` (of the ok runs) and ``error_rate`` (of all runs): difference of the two rates
-  with the Newcombe hybrid score interval (Newcombe 1998, method 10: Wilson intervals of each rate
-  combined; good coverage down to a few runs and at rates of 0 or 1, where the Wald interval
-  degenerates). Significant when the 95 % interval excludes 0. The p column shows Fisher's exact
-  test for reference. Tolerance 0: any significant drop of the success rate (or rise of the error
-  rate) is a regression.
-- Run-table columns (``fuel_remaining``, ``theta_t_handover_deg``, ``pulses_total``, ``t_end_s``):
+- ``success_rate`` (over all runs, an errored run unsuccessful, as the report counts it) and
+  ``error_rate`` (of all runs): difference of the two rates with the Newcombe hybrid score
+  interval (Newcombe 1998, method 10: Wilson intervals of each rate combined; good coverage down
+  to a few runs and at rates of 0 or 1, where the Wald interval degenerates). Significant when the
+  95 % interval excludes 0. The p column shows Fisher's exact test for reference. Tolerance 0: any
+  significant drop of the success rate (or rise of the error rate) is a regression.
+- Run-table columns (``fuel_remaining``, ``theta_t_handover_deg``, ``pulses_total``, ``t_end_s``,
+  and every other metric of the mission):
   - **paired**, when both campaigns flew the same dispersed inputs (``pairing``: same run ids,
     seeds, failed thrusters and values of every dispersed parameter both have): the median of the
     per-run differences with its distribution-free 95 % interval (sign-test order statistics,
@@ -43,9 +46,11 @@ gating), chosen against the smoke campaign, which uses 40-50 % of its propellant
   (smoke: 229 s, 0.7 s across the dispersions); a shift either way is a change that phase's
   analysis has not seen, so both directions count as a regression.
 
-A ``--tolerance`` for another numeric column of the runs table (``fuel_used_kg``, ``t_sam_s``,
-``pulses_3``, ...) adds that column to the comparison (``COLUMN_BETTER`` says which direction is
-worse; ``either`` for columns without one).
+A requirement column without a default tolerance regresses when it loses more than
+``REQUIREMENT_MARGIN_SHARE`` (10 %) of the baseline's margin, median to the nearest bound; any other
+output is shown with tolerance inf (never a regression) unless ``--tolerance`` names it. A
+``--tolerance`` for another numeric column of the runs table (``pulses_3``, ...) adds that column
+to the comparison (its tail says which direction is worse; ``either`` for columns without one).
 """
 
 import difflib
