@@ -180,7 +180,7 @@ def test_failure_header_matches_the_runs_table(mission):
     if name == "irassi-fine-pointing.yaml":
         assert expected.get("wheel", 0) > 0, "the test campaign must fail some wheels"
         assert f"wheels random, undetected ({expected['wheel']} of {len(runs)} runs with a failed wheel)" == header
-        assert f"failures: {header}" in page
+        assert f"failures: {header}" in page and f"failures: {header}" in report["text"]
     elif not expected:
         assert header == "none"
 

@@ -171,6 +171,8 @@ def format_summary(summary, report_dir=None):
         f"{counts['failure_count']} failed, {counts['error_count']} errored"
         + (f" -> {report_dir}" if report_dir else "")
     )
+    if summary["campaign"].get("failures", "none") != "none":
+        lines.append(f"failures: {summary['campaign']['failures']}")
     lines += [f"note: {note}" for note in summary["notes"]]
     low, high = success["ci95"]
     lines.append(
