@@ -11,7 +11,7 @@ body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1300px
 h1 { margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #ccc; margin-top: 1.6em; }
 table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; max-width: 100%; }
 th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; overflow-wrap: anywhere; }
-th { font-weight: 600; }
+th { font-weight: 600; overflow-wrap: normal; }
 .wide { max-width: 100%; overflow-x: auto; }
 td.fail, span.fail { background: #f6d0d0; }
 th:first-child, td:first-child { text-align: left; }
