@@ -31,10 +31,15 @@ def e(value):
     return html.escape(str(value), quote=True)
 
 
+def breakable(text):
+    """Escaped text that may wrap after ``_`` and ``.`` (long column names in table headers)."""
+    return e(text).replace("_", "_<wbr>").replace(".", ".<wbr>")
+
+
 def table(headers, rows, classes=None, cell_classes=None):
     """An HTML table in a box that scrolls sideways rather than widen the page; ``rows`` of
     already-escaped cell strings; ``classes`` per row, ``cell_classes`` per cell (or None)."""
-    out = ['<div class="wide"><table><tr>' + "".join(f"<th>{e(h)}</th>" for h in headers) + "</tr>"]
+    out = ['<div class="wide"><table><tr>' + "".join(f"<th>{breakable(h)}</th>" for h in headers) + "</tr>"]
     for k, row in enumerate(rows):
         cls = f' class="{classes[k]}"' if classes and classes[k] else ""
         cells = []
