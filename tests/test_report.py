@@ -685,3 +685,16 @@ def test_docs_list_every_tail_rule():
         "lower",
         None,
     ]
+
+
+def test_rows_get_the_digits_that_show_their_spread():
+    """SPORE's entry flight-path angle varies by 1e-6 deg about -5: 4 digits would print every statistic as -5."""
+    from refexmc.report.text import number, row_digits
+
+    narrow = {"std": 1.42e-6, "median": -5.0000026}
+    digits = row_digits(narrow)
+    assert number(-5.0000043, 4) == number(-4.9999975, 4) == "-5"
+    assert number(-5.0000043, digits) != number(-4.9999975, digits)
+    assert row_digits({"std": 0.1, "median": 0.5}) == 4  # a spread the 4 digits show already
+    assert row_digits({"std": 0.0, "median": 3.0}) == 4 and row_digits({"std": None, "median": 1.0}) == 4
+    assert row_digits({"std": 1e-300, "median": 1e10}) == 10  # capped

@@ -4,7 +4,7 @@ import base64
 import html
 
 from refexmc.report.requirements import requirement_label, split_metric
-from refexmc.report.text import TABLE_STATS, TAIL_TITLES, constant_line, number, percent, pulse_table
+from refexmc.report.text import TABLE_STATS, TAIL_TITLES, constant_line, number, percent, pulse_table, row_digits
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; }
@@ -109,7 +109,7 @@ def _statistics_tables(summary, columns, verdicts=None):
             row = [
                 f"<code>{e(column)}</code>{e(unit)}<br><small>{e(labels.get(column, ''))}</small>",
                 str(values["n"]),
-                *(number(values[key]) for key, _ in entries),
+                *(number(values[key], row_digits(values)) for key, _ in entries),
             ]
             if len(covers) > 1:
                 row.insert(1, e(values["covers"]))

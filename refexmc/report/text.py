@@ -57,6 +57,18 @@ def wheel_failure_lines(wheel_sets):
     return lines
 
 
+MAX_DIGITS = 10
+
+
+def row_digits(values, digits=4):
+    """Significant digits that show a row's spread: 4, or 3 digits of the standard deviation when the
+    values are large against it (SPORE's entry flight-path angle: -5.0000043 with sd 1.4e-6)."""
+    sd, centre = values.get("std"), values.get("median")
+    if sd is None or centre is None or not (math.isfinite(sd) and math.isfinite(centre)) or sd <= 0:
+        return digits
+    return int(min(MAX_DIGITS, max(digits, math.ceil(math.log10(max(abs(centre), sd) / sd)) + 3)))
+
+
 def number(value, digits=4):
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
@@ -97,10 +109,12 @@ def statistics_lines(summary, columns=None):
         if not rows:
             continue
         lines.append(f"{TAIL_TITLES[tail]}:")
-        lines.append("".ljust(width) + "n".rjust(6) + "".join(h.rjust(10) for _, h in entries))
+        cell = max(10, *(row_digits(summary["columns"][c]) + 7 for c in rows))
+        lines.append("".ljust(width) + "n".rjust(6) + "".join(h.rjust(cell) for _, h in entries))
         for column in rows:
             values = summary["columns"][column]
-            cells = "".join(number(values[key]).rjust(10) for key, _ in entries)
+            digits = row_digits(values)
+            cells = "".join(number(values[key], digits).rjust(cell) for key, _ in entries)
             lines.append(column.ljust(width) + str(values["n"]).rjust(6) + cells)
     covers = {summary["columns"][c]["covers"] for c in columns if c in summary["columns"]}
     for text in sorted(covers):
