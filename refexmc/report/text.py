@@ -66,7 +66,10 @@ def row_digits(values, digits=4):
     sd, centre = values.get("std"), values.get("median")
     if sd is None or centre is None or not (math.isfinite(sd) and math.isfinite(centre)) or sd <= 0:
         return digits
-    return int(min(MAX_DIGITS, max(digits, math.ceil(math.log10(max(abs(centre), sd) / sd)) + 3)))
+    ratio = max(abs(centre), sd) / sd
+    if not math.isfinite(ratio):
+        return MAX_DIGITS
+    return int(min(MAX_DIGITS, max(digits, math.ceil(math.log10(ratio)) + 3)))
 
 
 def number(value, digits=4):
