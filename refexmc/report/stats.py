@@ -317,6 +317,28 @@ def spearman(x, y):
     return rho, float(2.0 * sps.t.sf(abs(t), n - 2))
 
 
+def spearman_columns(inputs, output):
+    """``spearman`` of each column of ``inputs`` [n, k] with ``output``: (rho, p) arrays. The inputs
+    are ranked once for all columns when every value is finite (the usual case), else column by column."""
+    inputs = np.asarray(inputs, dtype=float)
+    output = np.asarray(output, dtype=float)
+    k = inputs.shape[1]
+    n = len(output)
+    if not (np.isfinite(inputs).all() and np.isfinite(output).all()) or n < 3 or np.ptp(output) == 0:
+        pairs = [spearman(inputs[:, j], output) for j in range(k)]
+        return np.array([r for r, _ in pairs], dtype=float), np.array([q for _, q in pairs], dtype=float)
+    ranks = sps.rankdata(inputs, axis=0) - (n + 1) / 2.0
+    ry = sps.rankdata(output) - (n + 1) / 2.0
+    sum_squares = np.einsum("ij,ij->j", ranks, ranks)
+    varying = np.ptp(inputs, axis=0) > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.clip((ranks.T @ ry) / np.sqrt(sum_squares * np.dot(ry, ry)), -1.0, 1.0)
+        t = rho * np.sqrt((n - 2) / ((1.0 - rho) * (1.0 + rho)))
+        p = np.where(np.abs(rho) == 1.0, 0.0, 2.0 * sps.t.sf(np.abs(t), n - 2))
+    rho[~varying], p[~varying] = np.nan, np.nan
+    return rho, p
+
+
 def partial_rank_correlation(inputs, output):
     """Partial rank correlation (PRCC) of each input column with the output, and its p-value.
 

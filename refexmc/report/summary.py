@@ -329,9 +329,10 @@ def sensitivity(campaign, plan=None, verdicts=()):
     for output in targets:
         y = ok[output].to_numpy(dtype=float)
         prcc, prcc_p = stats.partial_rank_correlation(matrix, y)
+        rhos, ps = stats.spearman_columns(matrix, y)
         rows = []
         for j, column in enumerate(parameters):
-            rho, p = stats.spearman(matrix[:, j], y)
+            rho, p = float(rhos[j]), float(ps[j])
             if math.isfinite(rho):
                 rows.append(
                     {
