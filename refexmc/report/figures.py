@@ -25,6 +25,7 @@ BAND_COLORS = ("#d9d9d9", "#a6a6a6")  # min-max, 1-99 %
 MEDIAN_COLOR = "#595959"
 NOMINAL_COLOR = "black"
 TORNADO_BARS = 12
+RELATIVE_SPREAD_FOR_REFERENCE = 1e3  # |value| / spread above which a histogram is drawn about a reference
 MAX_FAILURE_SETS = 60
 
 
@@ -150,6 +151,12 @@ def metric_distributions_figure(panels):
     for ax, panel in zip(axes, panels, strict=False):
         values = np.asarray(panel["values"], dtype=float)
         low, high = _data_limits(values)
+        # values far from 0 against their spread (an entry angle of -5.0000026 +- 1e-6 deg) are drawn
+        # as the difference to a round reference, which the axis label names
+        reference = 0.0
+        if high > low and abs(high) / (high - low) > RELATIVE_SPREAD_FOR_REFERENCE:
+            reference = float(f"{np.median(values):.{int(math.ceil(math.log10(abs(high) / (high - low))))}g}")
+        values, low, high = values - reference, low - reference, high - reference
         ax.hist(
             values,
             bins=min(60, max(8, int(math.sqrt(len(values))))),
@@ -160,10 +167,12 @@ def metric_distributions_figure(panels):
             label=f"{len(values)} successful flights",
         )
         if panel.get("nominal") is not None and math.isfinite(panel["nominal"]):
-            ax.axvline(panel["nominal"], color=NOMINAL_COLOR, lw=1.2, label="nominal (run 0)")
-        _bounds_on_axis(ax, low, high, panel["bounds"])
+            ax.axvline(panel["nominal"] - reference, color=NOMINAL_COLOR, lw=1.2, label="nominal (run 0)")
+        _bounds_on_axis(ax, low, high, [(value - reference, text) for value, text in panel["bounds"]])
         unit = f" [{panel['unit']}]" if panel["unit"] else ""
-        ax.set_xlabel(f"{panel['column']}{unit}", fontsize=8)
+        name = panel["column"] if reference == 0.0 else f"{panel['column']} − ({reference:g})"
+        ax.ticklabel_format(axis="x", useOffset=False)
+        ax.set_xlabel(f"{name}{unit}", fontsize=8)
         ax.set_ylabel("runs", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(True, lw=0.3)
