@@ -317,6 +317,73 @@ def spearman(x, y):
     return rho, float(2.0 * sps.t.sf(abs(t), n - 2))
 
 
+GRAM_CHUNK_ROWS = 16384  # rows per block of the rank products: small float64 blocks, exact integer sums
+
+
+def doubled_centred_ranks(values):
+    """2 rank - (n + 1) of each value (average ranks of ties): integers (so int32 storage is exact and
+    half the memory of float64) whose mean is 0; correlations of them are those of the ranks."""
+    values = np.asarray(values, dtype=float)
+    return np.rint(2.0 * sps.rankdata(values) - (len(values) + 1)).astype(np.int32)
+
+
+def rank_gram(ranks, output_ranks):
+    """Gram matrix [k + 1, k + 1] of the columns of ``ranks`` [n, k] and ``output_ranks`` (doubled
+    centred ranks), summed in float64 blocks of ``GRAM_CHUNK_ROWS`` rows (exact: integer products,
+    sums below 2^53 up to 10^5 runs). einsum, not BLAS: OpenBLAS's first call starts a thread
+    pool, seconds on a busy machine."""
+    n, k = ranks.shape
+    gram = np.zeros((k + 1, k + 1))
+    block = np.empty((min(n, GRAM_CHUNK_ROWS), k + 1))
+    for start in range(0, n, GRAM_CHUNK_ROWS):
+        rows = min(GRAM_CHUNK_ROWS, n - start)
+        block[:rows, :k] = ranks[start : start + rows]
+        block[:rows, k] = output_ranks[start : start + rows]
+        gram += np.einsum("ij,ik->jk", block[:rows], block[:rows])
+    return gram
+
+
+def _rank_correlation_p(rho, dof):
+    """Two-sided p-value of rank correlations ``rho`` with ``dof`` degrees of freedom (t approximation)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = rho * np.sqrt(dof / ((1.0 - rho) * (1.0 + rho)))
+        return np.where(np.abs(rho) == 1.0, 0.0, 2.0 * sps.t.sf(np.abs(t), dof))
+
+
+def spearman_from_gram(gram, n):
+    """Spearman rho and p (as ``spearman``) of each input with the output from ``rank_gram``; NaN for
+    a constant input."""
+    k = gram.shape[0] - 1
+    squares = np.diag(gram)[:k]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.clip(gram[:k, k] / np.sqrt(squares * gram[k, k]), -1.0, 1.0)
+    rho[squares == 0] = np.nan
+    return rho, _rank_correlation_p(rho, n - 2)
+
+
+def prcc_from_gram(gram, n):
+    """Partial rank correlation (``partial_rank_correlation``) of each input from ``rank_gram``: NaN
+    when n < k + 3, an input is constant or the inputs are linearly dependent."""
+    k = gram.shape[0] - 1
+    rho, p = np.full(k, np.nan), np.full(k, np.nan)
+    scale = np.sqrt(np.diag(gram))
+    if k == 0 or n < k + 3 or not (scale > 0).all():
+        return rho, p
+    correlation = gram / np.outer(scale, scale)
+    if not np.isfinite(correlation).all() or np.linalg.cond(correlation) > 1e12:
+        return rho, p
+    precision = np.linalg.inv(correlation)
+    rho = np.clip(-precision[:k, k] / np.sqrt(np.diag(precision)[:k] * precision[k, k]), -1.0, 1.0)
+    return rho, _rank_correlation_p(rho, n - 2 - (k - 1))
+
+
+def _ranked_inputs(inputs):
+    ranks = np.empty(inputs.shape, dtype=np.int32)
+    for j in range(inputs.shape[1]):
+        ranks[:, j] = doubled_centred_ranks(inputs[:, j])
+    return ranks
+
+
 def spearman_columns(inputs, output):
     """``spearman`` of each column of ``inputs`` [n, k] with ``output``: (rho, p) arrays. The inputs
     are ranked once for all columns when every value is finite (the usual case), else column by column."""
@@ -327,16 +394,7 @@ def spearman_columns(inputs, output):
     if not (np.isfinite(inputs).all() and np.isfinite(output).all()) or n < 3 or np.ptp(output) == 0:
         pairs = [spearman(inputs[:, j], output) for j in range(k)]
         return np.array([r for r, _ in pairs], dtype=float), np.array([q for _, q in pairs], dtype=float)
-    ranks = sps.rankdata(inputs, axis=0) - (n + 1) / 2.0
-    ry = sps.rankdata(output) - (n + 1) / 2.0
-    sum_squares = np.einsum("ij,ij->j", ranks, ranks)
-    varying = np.ptp(inputs, axis=0) > 0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.clip((ranks.T @ ry) / np.sqrt(sum_squares * np.dot(ry, ry)), -1.0, 1.0)
-        t = rho * np.sqrt((n - 2) / ((1.0 - rho) * (1.0 + rho)))
-        p = np.where(np.abs(rho) == 1.0, 0.0, 2.0 * sps.t.sf(np.abs(t), n - 2))
-    rho[~varying], p[~varying] = np.nan, np.nan
-    return rho, p
+    return spearman_from_gram(rank_gram(_ranked_inputs(inputs), doubled_centred_ranks(output)), n)
 
 
 def partial_rank_correlation(inputs, output):
@@ -351,25 +409,12 @@ def partial_rank_correlation(inputs, output):
     """
     inputs = np.asarray(inputs, dtype=float)
     output = np.asarray(output, dtype=float)
-    k = inputs.shape[1]
     keep = np.isfinite(inputs).all(axis=1) & np.isfinite(output)
     inputs, output = inputs[keep], output[keep]
-    n = len(output)
-    rho, p = np.full(k, np.nan), np.full(k, np.nan)
+    n, k = inputs.shape
     if k == 0 or n < k + 3 or np.ptp(output) == 0:
-        return rho, p
-    ranks = np.column_stack([sps.rankdata(inputs, axis=0), sps.rankdata(output)])
-    correlation = np.corrcoef(ranks, rowvar=False)
-    if not np.isfinite(correlation).all() or np.linalg.cond(correlation) > 1e12:
-        return rho, p
-    precision = np.linalg.inv(correlation)
-    rho = -precision[:k, k] / np.sqrt(np.diag(precision)[:k] * precision[k, k])
-    rho = np.clip(rho, -1.0, 1.0)
-    dof = n - 2 - (k - 1)
-    with np.errstate(divide="ignore"):
-        t = rho * np.sqrt(dof / np.maximum(1.0 - rho * rho, 1e-300))
-    p = 2.0 * sps.t.sf(np.abs(t), dof)
-    return rho, p
+        return np.full(k, np.nan), np.full(k, np.nan)
+    return prcc_from_gram(rank_gram(_ranked_inputs(inputs), doubled_centred_ranks(output)), n)
 
 
 def spearman_critical(n, confidence=CONFIDENCE):
