@@ -698,3 +698,17 @@ def test_rows_get_the_digits_that_show_their_spread():
     assert row_digits({"std": 0.1, "median": 0.5}) == 4  # a spread the 4 digits show already
     assert row_digits({"std": 0.0, "median": 3.0}) == 4 and row_digits({"std": None, "median": 1.0}) == 4
     assert row_digits({"std": 1e-300, "median": 1e10}) == 10  # capped
+
+
+def test_scatter_draws_every_run_or_a_spread_and_the_worst():
+    from refexmc.report import scatter_runs
+
+    values = np.arange(20_000, dtype=float)[::-1].copy()  # run 0 has the largest value
+    values[7] = np.nan
+    assert (scatter_runs(values[:300], "upper") == np.arange(300)).all()
+    shown = scatter_runs(values, "upper", limit=1000, worst=10)
+    assert {0, 1, 2, 3, 4, 5, 6, 8, 9, 10} <= set(shown.tolist())  # the 10 largest (run 7 has no value)
+    assert 7 not in shown
+    assert 1000 <= len(shown) <= 1010 and (np.diff(shown) > 0).all()
+    lower = scatter_runs(values, "lower", limit=1000, worst=10)
+    assert set(range(19_990, 20_000)) <= set(lower.tolist())

@@ -102,6 +102,24 @@ def bounds_of(column, summary, scale=1.0):
 
 ARCSEC_PER_DEG = 3600.0
 SCATTER_INPUTS = 3
+MAX_SCATTER_POINTS = 5000  # more points only blacken the panel and cost memory at 100,000 runs
+SCATTER_WORST = 50
+
+
+def scatter_runs(values, tail, limit=MAX_SCATTER_POINTS, worst=SCATTER_WORST):
+    """Indices of the runs a scatter panel draws: all of them up to ``limit``; beyond, ``limit``
+    evenly spaced ones and the ``worst`` at the metric's bad end(s) (``tail``), in run order."""
+    n = len(values)
+    if n <= limit:
+        return np.arange(n)
+    picked = [np.linspace(0, n - 1, limit).round().astype(np.int64)]
+    order = np.argsort(np.where(np.isfinite(values), values, np.nan), kind="stable")
+    finite = order[np.isfinite(values[order])]
+    if tail in ("upper", "both"):
+        picked.append(finite[-worst:])
+    if tail in ("lower", "both"):
+        picked.append(finite[:worst])
+    return np.unique(np.concatenate(picked))
 
 
 def _modes_caption(campaign, summary, histories, left_out, unit):
@@ -239,12 +257,14 @@ def render_figures(campaign, summary):
         ok = campaign.ok
         scatter = []
         for row, target in enumerate(targets):
+            y = ok[target].to_numpy(dtype=float)
+            shown = scatter_runs(y, plan["tails"].get(target, "upper"))
             for entry in section[target][:SCATTER_INPUTS]:
                 scatter.append(
                     {
                         "row": row,
-                        "x": ok[entry["parameter"]].to_numpy(dtype=float),
-                        "y": ok[target].to_numpy(dtype=float),
+                        "x": ok[entry["parameter"]].to_numpy(dtype=float)[shown],
+                        "y": y[shown],
                         "x_label": entry["parameter"],
                         "y_label": target + (f" [{plan['units'][target]}]" if plan["units"].get(target) else ""),
                         "bounds": bounds_of(target, summary),
@@ -255,7 +275,13 @@ def render_figures(campaign, summary):
             (
                 "Top inputs against the requirement metrics",
                 f"Each flown run's value of the {SCATTER_INPUTS} inputs with the largest |Spearman ρ| against the "
-                "metric; dashed red: the requirement's bound.",
+                "metric (ρ over every flown run); dashed red: the requirement's bound."
+                + (
+                    f" Of the {len(ok)} flown runs, {MAX_SCATTER_POINTS} evenly spaced in run-id order and the "
+                    f"{SCATTER_WORST} worst of each metric are drawn."
+                    if len(ok) > MAX_SCATTER_POINTS
+                    else ""
+                ),
                 figures.scatter_figure(scatter),
                 "scatter",
             )
