@@ -500,7 +500,8 @@ def against_nominal(campaign, nominal_row, column="fuel_used_kg"):
     """How many flown dispersed runs used more propellant than the nominal run (000 sec. 6.2: "most")."""
     if nominal_row is None or column not in campaign.ok:
         return None
-    dispersed = campaign.ok[campaign.ok["run_id"] != nominal_row["run_id"]][column].dropna()
+    ok = campaign.ok
+    dispersed = ok[column][(ok["run_id"] != nominal_row["run_id"]).to_numpy()].dropna()  # the column, not a table copy
     if dispersed.empty or not (dispersed > 0.0).any() and nominal_row[column] == 0.0:  # no propellant used
         return None
     more = int((dispersed > nominal_row[column]).sum())
