@@ -186,10 +186,9 @@ def test_failure_header_matches_the_runs_table(mission):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("mission", ["irassi-fine-pointing.yaml"], indirect=True)
 def test_irassi_in_arcsec_with_sensitivity_and_wheel_sets_judged(mission):
     name, out, report, recorded, page = mission
-    if name != "irassi-fine-pointing.yaml":
-        pytest.skip("IRASSI only")
     summary = report["summary"]
     modes = recorded[summary["figures"].index("Angle and rate errors per mode")]
     assert "total angle error θ_t [arcsec]" in modes["ylabels"]
