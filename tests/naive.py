@@ -537,3 +537,43 @@ def burn_direction(law, r_gps, v_gps, r_nom, v_nom, a_nom, position_gain, veloci
     else:
         raise ValueError(law)
     return a / np.linalg.norm(a)
+
+
+# --------------------------------------------------------------------------------------------
+# Entry flight over a rotating spherical Earth, 003 eq. 3 (longitude/latitude rates and the
+# centripetal sign in gamma-dot as in Vinh's eq. 2.18: core.entry's docstring)
+# --------------------------------------------------------------------------------------------
+
+
+def entry_derivative(state, radius, mu, omega, air, forces, mass, bank):
+    """d/dt [h, lon, lat, V, gamma, chi]; ``air(h) -> (rho, sound)``, ``forces(rho, V, sound) ->
+    (L, D, Y)`` in N."""
+    h, _lon, lat, v, gamma, chi = state
+    r = radius + h
+    g = mu / r**2
+    rho, sound = air(h)
+    lift, drag, side = forces(rho, v, sound)
+    w = omega
+    return [
+        v * math.sin(gamma),
+        v * math.cos(gamma) * math.sin(chi) / (r * math.cos(lat)),
+        v * math.cos(gamma) * math.cos(chi) / r,
+        -drag / mass
+        - g * math.sin(gamma)
+        + w**2
+        * r
+        * math.cos(lat)
+        * (math.sin(gamma) * math.cos(lat) - math.cos(gamma) * math.sin(lat) * math.cos(chi)),
+        (lift * math.cos(bank) - side * math.sin(bank)) / (mass * v)
+        + math.cos(gamma) * (v / r - g / v)
+        + 2 * w * math.cos(lat) * math.sin(chi)
+        + w**2
+        * r
+        / v
+        * math.cos(lat)
+        * (math.cos(gamma) * math.cos(lat) + math.sin(gamma) * math.sin(lat) * math.cos(chi)),
+        (lift * math.sin(bank) + side * math.cos(bank)) / (mass * v * math.cos(gamma))
+        + v * math.cos(gamma) * math.sin(chi) * math.tan(lat) / r
+        - 2 * w * (math.tan(gamma) * math.cos(lat) * math.cos(chi) - math.sin(lat))
+        + w**2 * r / (v * math.cos(gamma)) * math.sin(lat) * math.cos(lat) * math.sin(chi),
+    ]
