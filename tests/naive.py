@@ -577,3 +577,48 @@ def entry_derivative(state, radius, mu, omega, air, forces, mass, bank):
         - 2 * w * (math.tan(gamma) * math.cos(lat) * math.cos(chi) - math.sin(lat))
         + w**2 * r / (v * math.cos(gamma)) * math.sin(lat) * math.cos(lat) * math.sin(chi),
     ]
+
+
+# --------------------------------------------------------------------------------------------
+# Blending thrusters with surfaces, 003 eq. 5-10: vertex enumeration, no LP solver
+# --------------------------------------------------------------------------------------------
+
+
+def blend_rate(effectiveness, offset, torque, weights, d):
+    """003 eq. 8: sum_i w_i |tau_i - (B d + offset)_i|."""
+    t = np.asarray(torque) - np.asarray(effectiveness) @ np.asarray(d) - np.asarray(offset)
+    return float(np.sum(np.asarray(weights) * np.abs(t)))
+
+
+def blend_candidates(effectiveness, offset, torque, lower, upper):
+    """Every point where the minimum of eq. 8 over the box can lie: the zero-thruster-moment lines
+    (eq. 9a-c, 10a-c) and the box edges, intersected pairwise, kept if inside the box. With the
+    rudder fixed (lower = upper) the problem is one-dimensional: eq. 9's roots and the bounds."""
+    b = np.asarray(effectiveness, dtype=float)
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float)
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    if hi[1] <= lo[1]:
+        points = [lo[0], hi[0]] + [c[i] / b[i, 0] for i in range(3) if b[i, 0] != 0.0]
+        return [(p, lo[1]) for p in points if lo[0] <= p <= hi[0]]
+    lines = [(b[i], c[i]) for i in range(3)]  # n . d = c
+    lines += [(np.array([1.0, 0.0]), lo[0]), (np.array([1.0, 0.0]), hi[0])]
+    lines += [(np.array([0.0, 1.0]), lo[1]), (np.array([0.0, 1.0]), hi[1])]
+    points = []
+    for i in range(len(lines)):
+        for j in range(i + 1, len(lines)):
+            m = np.array([lines[i][0], lines[j][0]])
+            if abs(np.linalg.det(m)) < 1e-300:
+                continue
+            p = np.linalg.solve(m, [lines[i][1], lines[j][1]])
+            slack = 1e-12 * (1.0 + np.abs(p))
+            if np.all(p >= lo - slack) and np.all(p <= hi + slack):
+                points.append((float(np.clip(p[0], lo[0], hi[0])), float(np.clip(p[1], lo[1], hi[1]))))
+    return points
+
+
+def triangle_vertices(effectiveness, offset, torque):
+    """The three vertices of the triangle of eq. 10a-c (pairwise intersections of the lines where
+    one thruster moment is zero), in (delta_e, delta_r)."""
+    b = np.asarray(effectiveness, dtype=float)
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float)
+    return [tuple(np.linalg.solve(b[[i, j]], c[[i, j]])) for i, j in ((0, 1), (1, 2), (0, 2))]
