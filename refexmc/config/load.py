@@ -10,7 +10,7 @@ import jsonschema
 import numpy as np
 import yaml
 
-from refexmc.config import published, requirements, schema
+from refexmc.config import entry, published, requirements, schema
 from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
 from refexmc.config.errors import ConfigError
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
@@ -251,6 +251,7 @@ def check_vehicle(vehicle, file, lines, prefix=()):
     message = inertia_problem(vehicle["inertia_kg_m2"])
     if message:
         fail(message, "inertia_kg_m2")
+    entry.check(vehicle, fail)  # issue 24: entry aerodynamics and surfaces
 
 
 def _check_numbering(units, what, path, fail):

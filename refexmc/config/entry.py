@@ -1,0 +1,150 @@
+"""The entry flight's aerodynamics and surfaces from the vehicle file (issue 24, 003).
+
+:func:`check` holds what the schema cannot express (called by ``load.check_vehicle``): sorted
+axes, tables of the axes' shape, the control derivatives of exactly the surfaces the vehicle has,
+surfaces only with an atmosphere and tables, a blocked flap within its limits.
+:func:`model` packs the arrays ``core.entry.EntryModel`` flies.
+"""
+
+import math
+
+import numpy as np
+
+from refexmc.config import schema
+
+# The core (numba) is imported only where arrays are packed: validating a file stays numba-free.
+
+
+def coefficient_slots():
+    """Vehicle-file key -> core.aerodynamics slot."""
+    from refexmc.core import aerodynamics as aero
+
+    return {
+        "lift": aero.AC_LIFT,
+        "drag": aero.AC_DRAG,
+        "side_force_per_beta_rad": aero.AC_SIDE_BETA,
+        "roll_per_beta_rad": aero.AC_ROLL_BETA,
+        "pitch": aero.AC_PITCH,
+        "yaw_per_beta_rad": aero.AC_YAW_BETA,
+        "roll_per_aileron_rad": aero.AC_ROLL_AILERON,
+        "pitch_per_elevon_rad": aero.AC_PITCH_ELEVON,
+        "yaw_per_aileron_rad": aero.AC_YAW_AILERON,
+        "roll_per_rudder_rad": aero.AC_ROLL_RUDDER,
+        "yaw_per_rudder_rad": aero.AC_YAW_RUDDER,
+    }
+
+
+def _strictly_increasing(values):
+    return all(b > a for a, b in zip(values, values[1:], strict=False))
+
+
+def check(vehicle, fail):
+    """ConfigError (through ``fail(message, *path)``) for an entry description the flight cannot use."""
+    tables = vehicle.get("entry_aerodynamics")
+    surfaces = vehicle.get("surfaces")
+    if tables is not None:
+        for axis in ("alpha_deg", "mach"):
+            values = tables[axis]
+            if not _strictly_increasing(values):
+                k = next(i for i in range(1, len(values)) if values[i] <= values[i - 1])
+                fail(
+                    f"expected a strictly increasing axis, got {values[k - 1]!r} then {values[k]!r}",
+                    "entry_aerodynamics",
+                    axis,
+                    k,
+                )
+        rows, columns = len(tables["alpha_deg"]), len(tables["mach"])
+        for key, table in tables["coefficients"].items():
+            if len(table) != rows:
+                fail(
+                    f"expected {rows} rows (one per alpha_deg), got {len(table)}",
+                    "entry_aerodynamics",
+                    "coefficients",
+                    key,
+                )
+            for i, row in enumerate(table):
+                if len(row) != columns:
+                    fail(
+                        f"expected {columns} values (one per mach), got {len(row)}",
+                        "entry_aerodynamics",
+                        "coefficients",
+                        key,
+                        i,
+                    )
+    if surfaces is None:
+        if tables is not None:
+            for key in (*schema.ENTRY_FLAP_DERIVATIVES, *schema.ENTRY_RUDDER_DERIVATIVES):
+                if key in tables["coefficients"]:
+                    fail(
+                        f"'{key}' is a control derivative; the vehicle has no surfaces",
+                        "entry_aerodynamics",
+                        "coefficients",
+                        key,
+                    )
+        return
+    if "atmosphere" not in vehicle:
+        fail("aerodynamic surfaces need an atmosphere (the vehicle's 'atmosphere')", "surfaces")
+    if tables is None:
+        fail("aerodynamic surfaces need the vehicle's 'entry_aerodynamics' tables", "surfaces")
+    coefficients = tables["coefficients"]
+    for key in schema.ENTRY_FLAP_DERIVATIVES:
+        if key not in coefficients:
+            fail(f"'{key}' is required: the body flaps' control derivative", "entry_aerodynamics", "coefficients")
+    for key in schema.ENTRY_RUDDER_DERIVATIVES:
+        if "rudders" in surfaces and key not in coefficients:
+            fail(f"'{key}' is required: the rudders' control derivative", "entry_aerodynamics", "coefficients")
+        if "rudders" not in surfaces and key in coefficients:
+            fail(
+                f"'{key}' is a rudder derivative; the vehicle has no rudders (surfaces.rudders)",
+                "entry_aerodynamics",
+                "coefficients",
+                key,
+            )
+    for name in ("body_flaps", "rudders"):
+        limits = surfaces.get(name)
+        if limits is not None and limits["min_deg"] >= limits["max_deg"]:
+            fail(
+                f"expected min_deg < max_deg, got {limits['min_deg']} and {limits['max_deg']}",
+                "surfaces",
+                name,
+                "max_deg",
+            )
+    flaps = surfaces["body_flaps"]
+    if "blocked" in flaps:
+        deflection = flaps["blocked"]["deflection_deg"]
+        if not flaps["min_deg"] <= deflection <= flaps["max_deg"]:
+            fail(
+                f"expected a blocked deflection within the flap limits [{flaps['min_deg']}, "
+                f"{flaps['max_deg']}] deg, got {deflection}",
+                "surfaces",
+                "body_flaps",
+                "blocked",
+                "deflection_deg",
+            )
+
+
+def coefficient_array(tables):
+    """``(AERO_COEFFICIENTS, n_alpha, n_mach)`` float64; slots the file leaves out are zero."""
+    slots = coefficient_slots()
+    out = np.zeros((len(slots), len(tables["alpha_deg"]), len(tables["mach"])))
+    for key, table in tables["coefficients"].items():
+        out[slots[key]] = np.asarray(table, dtype=float)
+    return out
+
+
+def model(vehicle, radius_m, mu_m3_s2, rotation_rad_s):
+    """The ``core.entry.EntryModel`` of ``vehicle`` over a sphere of ``radius_m`` turning at
+    ``rotation_rad_s`` with gravitational parameter ``mu_m3_s2``."""
+    from refexmc.config.atmosphere import standard_table
+    from refexmc.core.entry import EntryModel
+
+    atmospheres = {"ussa1976": standard_table}
+    tables = vehicle["entry_aerodynamics"]
+    return EntryModel(
+        np.array([radius_m, mu_m3_s2, rotation_rad_s], dtype=float),
+        atmospheres[vehicle["atmosphere"]](),
+        np.array([math.radians(a) for a in tables["alpha_deg"]]),
+        np.array(tables["mach"], dtype=float),
+        coefficient_array(tables),
+        np.array([tables["reference_area_m2"], tables["reference_length_m"]], dtype=float),
+    )
