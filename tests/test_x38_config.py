@@ -159,3 +159,21 @@ def test_a_vehicle_without_rudders_and_their_derivatives_is_valid(tmp_path):
     vehicle = load_vehicle(path)
     packed = entry.coefficient_array(vehicle["entry_aerodynamics"])
     assert np.all(packed[aerodynamics.AC_YAW_RUDDER] == 0.0)
+
+
+def test_propellant_weights_are_the_least_thrust_per_moment_over_isp_g0():
+    """003 eq. 5's b_th K_i: HiGHS's least total thrust for a unit moment about each axis, over
+    Isp g0 (both solve the same LP: 1e-9 relative)."""
+    from scipy.optimize import linprog
+
+    from refexmc.config.derived import torque_arms
+
+    vehicle = load_vehicle(X38)
+    arms = torque_arms(vehicle).T
+    weights = entry.propellant_weights(vehicle)
+    for axis in range(3):
+        unit = np.eye(3)[axis]
+        least = linprog(np.ones(arms.shape[1]), A_eq=arms, b_eq=unit, bounds=[(0.0, None)] * arms.shape[1]).fun
+        assert weights[axis] == pytest.approx(least / (220.0 * 9.80665), rel=1e-9)
+    # pitch: a down-firing pair 4 m aft gives 8 N m for 2 N, rolls cancelling: 1/4 N per N m
+    assert weights[1] * 220.0 * 9.80665 == pytest.approx(0.25, rel=1e-12)

@@ -148,3 +148,31 @@ def model(vehicle, radius_m, mu_m3_s2, rotation_rad_s):
         coefficient_array(tables),
         np.array([tables["reference_area_m2"], tables["reference_length_m"]], dtype=float),
     )
+
+
+STANDARD_GRAVITY = 9.80665  # m/s^2, for the specific impulse
+
+
+def propellant_weights(vehicle):
+    """w_i = b_th K_i of 003 eq. 5 (kg/s per N m about body axis i): b_th = 1 / (Isp g0) and K_i
+    the least total thrust per N m of moment about axis i that the vehicle's thrusters can give
+    (the LP allocation of core.lp_allocation, thrust unbounded), so that the blended allocation
+    weighs each axis by what the thrusters really spend on it."""
+    from refexmc.config.derived import torque_arms
+    from refexmc.core import lp_allocation
+
+    arms = np.ascontiguousarray(torque_arms(vehicle).T)
+    n = arms.shape[1]
+    u_max = np.full(n, 1e12)
+    work = np.zeros(lp_allocation.scratch_shape(n))
+    basis = np.zeros(3, dtype=np.int64)
+    in_basis = np.zeros(lp_allocation.work_columns(n), dtype=np.bool_)
+    u = np.zeros(n)
+    weights = np.zeros(3)
+    for axis in range(3):
+        unit = np.zeros(3)
+        unit[axis] = 1.0
+        if lp_allocation.allocate(arms, u_max, unit, u, work, basis, in_basis) < 1.0:
+            raise ValueError(f"the thrusters cannot give a moment about body axis {'xyz'[axis]}")
+        weights[axis] = u.sum() / (vehicle["rcs"]["isp_s"] * STANDARD_GRAVITY)
+    return weights
