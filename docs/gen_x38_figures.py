@@ -47,24 +47,22 @@ def blend_problem(vehicle, alpha_deg, mach, qbar_pa, rudders):
 
     trim = -c(aero.AC_PITCH) / c(aero.AC_PITCH_ELEVON)  # 003 eq. 6: delta_trim
     qsl = qbar_pa * model.reference[0] * model.reference[1]
-    b, offset = np.zeros((3, 2)), np.zeros(3)
-    block = math.radians(BLOCK_DEG)
+    b, offset = np.zeros((3, 3)), np.zeros(3)
     blending.surface_moments(
         qsl, c(aero.AC_ROLL_AILERON), c(aero.AC_PITCH_ELEVON), c(aero.AC_YAW_AILERON),
-        c(aero.AC_ROLL_RUDDER), c(aero.AC_YAW_RUDDER), 1.0, block, trim, b, offset,
+        c(aero.AC_ROLL_RUDDER), c(aero.AC_YAW_RUDDER), trim, b, offset,
     )  # fmt: skip
     flaps, rudder = vehicle["surfaces"]["body_flaps"], vehicle["surfaces"]["rudders"]
-    lower = np.array(
-        [0.5 * (math.radians(flaps["min_deg"]) + block), math.radians(rudder["min_deg"]) if rudders else 0.0]
-    )
-    upper = np.array(
-        [0.5 * (math.radians(flaps["max_deg"]) + block), math.radians(rudder["max_deg"]) if rudders else 0.0]
-    )
+    block = math.radians(BLOCK_DEG)  # the right flap
+    rudder_low = math.radians(rudder["min_deg"]) if rudders else 0.0
+    rudder_high = math.radians(rudder["max_deg"]) if rudders else 0.0
+    lower = np.array([math.radians(flaps["min_deg"]), block, rudder_low])
+    upper = np.array([math.radians(flaps["max_deg"]), block, rudder_high])
     return b, offset, lower, upper, entry.propellant_weights(vehicle)
 
 
 def optimum(b, offset, lower, upper, weights):
-    deflection, thrusters = np.zeros(2), np.zeros(3)
+    deflection, thrusters = np.zeros(3), np.zeros(3)
     work, basis = np.zeros(blending.scratch_shape()), np.zeros(3, dtype=np.int64)
     in_basis = np.zeros(blending.BLEND_COLUMNS, dtype=np.bool_)
     rate = blending.blend(b, offset, TORQUE_N_M, lower, upper, weights, deflection, thrusters, work, basis, in_basis)
@@ -75,18 +73,25 @@ def rate_at(b, offset, weights, d):
     return float(weights @ np.abs(TORQUE_N_M - b @ d - offset))
 
 
+def elevon(left, block):
+    """003 eq. 7: delta_e = (left + right) / 2 with the right flap blocked."""
+    return 0.5 * (left + block)
+
+
 def fig2(vehicle, path):
     b, offset, lower, upper, weights = blend_problem(vehicle, **CONDITIONS["fig2"])
-    delta_e = np.linspace(lower[0], upper[0], 400)
-    rates = [rate_at(b, offset, weights, (d, 0.0)) * 1e3 for d in delta_e]
+    block = lower[1]
+    left = np.linspace(lower[0], upper[0], 400)
+    rates = [rate_at(b, offset, weights, (x, block, 0.0)) * 1e3 for x in left]
     best, d = optimum(b, offset, lower, upper, weights)
     fig, ax = plt.subplots(figsize=(6, 3.6))
-    ax.plot(np.degrees(delta_e), rates, color="k")
+    ax.plot(np.degrees(elevon(left, block)), rates, color="k")
+    c = TORQUE_N_M - offset - b[:, 1] * block
     for i, label in enumerate(("9a: l = 0", "9b: m = 0", "9c: n = 0")):
-        root = (TORQUE_N_M[i] - offset[i]) / b[i, 0]
+        root = c[i] / b[i, 0]
         if lower[0] <= root <= upper[0]:
-            ax.axvline(math.degrees(root), ls="--", lw=0.8, color=f"C{i}", label=f"eq. {label}")
-    ax.plot(math.degrees(d[0]), best * 1e3, "ro", label="LP optimum")
+            ax.axvline(math.degrees(elevon(root, block)), ls="--", lw=0.8, color=f"C{i}", label=f"eq. {label}")
+    ax.plot(math.degrees(elevon(d[0], block)), best * 1e3, "ro", label="LP optimum")
     ax.set_xlabel("elevon deflection delta_e [deg]")
     ax.set_ylabel("RCS propellant rate [g/s]")
     ax.set_title(f"Flap blocked at {BLOCK_DEG:.0f} deg, Mach 20 (cf. 003 Fig. 2)")
@@ -98,21 +103,22 @@ def fig2(vehicle, path):
 
 def fig3(vehicle, path):
     b, offset, lower, upper, weights = blend_problem(vehicle, **CONDITIONS["fig3"])
-    de, dr = np.meshgrid(np.linspace(lower[0], upper[0], 200), np.linspace(lower[1], upper[1], 200))
-    rates = np.vectorize(lambda x, y: rate_at(b, offset, weights, (x, y)))(de, dr) * 1e3
+    block = lower[1]
+    left, dr = np.meshgrid(np.linspace(lower[0], upper[0], 200), np.linspace(lower[2], upper[2], 200))
+    rates = np.vectorize(lambda x, y: rate_at(b, offset, weights, (x, block, y)))(left, dr) * 1e3
     best, d = optimum(b, offset, lower, upper, weights)
     fig, ax = plt.subplots(figsize=(6, 4.4))
-    contour = ax.contourf(np.degrees(de), np.degrees(dr), rates, levels=20, cmap="viridis")
+    contour = ax.contourf(np.degrees(elevon(left, block)), np.degrees(dr), rates, levels=20, cmap="viridis")
     fig.colorbar(contour, label="RCS propellant rate [g/s]")
-    c = TORQUE_N_M - offset
-    e_line = np.linspace(lower[0], upper[0], 2)
+    c = TORQUE_N_M - offset - b[:, 1] * block
+    line = np.linspace(lower[0], upper[0], 2)
     for i, label, style in ((0, "10a: l = 0", "--"), (2, "10c: n = 0", "-.")):
-        rudder = (c[i] - b[i, 0] * e_line) / b[i, 1]
-        ax.plot(np.degrees(e_line), np.degrees(rudder), color="w", lw=0.9, ls=style, label=f"eq. {label}")
-    ax.axvline(math.degrees(c[1] / b[1, 0]), color="w", lw=0.8, ls=":", label="eq. 10b: m = 0")
-    ax.plot(math.degrees(d[0]), math.degrees(d[1]), "ro", label="LP optimum (lowest vertex)")
-    ax.set_xlim(np.degrees(lower[0]), np.degrees(upper[0]))
-    ax.set_ylim(np.degrees(lower[1]), np.degrees(upper[1]))
+        rudder = (c[i] - b[i, 0] * line) / b[i, 2]
+        ax.plot(np.degrees(elevon(line, block)), np.degrees(rudder), color="w", lw=0.9, ls=style, label=f"eq. {label}")
+    ax.axvline(math.degrees(elevon(c[1] / b[1, 0], block)), color="w", lw=0.8, ls=":", label="eq. 10b: m = 0")
+    ax.plot(math.degrees(elevon(d[0], block)), math.degrees(d[2]), "ro", label="LP optimum (lowest vertex)")
+    ax.set_xlim(np.degrees(elevon(lower[0], block)), np.degrees(elevon(upper[0], block)))
+    ax.set_ylim(np.degrees(lower[2]), np.degrees(upper[2]))
     ax.set_xlabel("elevon deflection delta_e [deg]")
     ax.set_ylabel("rudder deflection delta_r [deg]")
     ax.set_title(f"Flap blocked at {BLOCK_DEG:.0f} deg, Mach 5 (cf. 003 Fig. 3)")
@@ -129,8 +135,8 @@ def main():
     for name, condition in CONDITIONS.items():
         problem = blend_problem(vehicle, **condition)
         rate, d = optimum(*problem)
-        print(f"{name}: optimum delta_e {math.degrees(d[0]):.2f} deg, delta_r {math.degrees(d[1]):.2f} deg, "
-              f"{rate * 1e3:.2f} g/s")  # fmt: skip
+        delta_e, delta_r = math.degrees(elevon(d[0], d[1])), math.degrees(d[2])
+        print(f"{name}: optimum delta_e {delta_e:.2f} deg, delta_r {delta_r:.2f} deg, {rate * 1e3:.2f} g/s")
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ Each function here is plain Python, readable next to the equation it cites, and 
 with ``refexmc.core``. The unit tests compare the kernels with them.
 """
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -591,34 +592,44 @@ def blend_rate(effectiveness, offset, torque, weights, d):
 
 
 def blend_candidates(effectiveness, offset, torque, lower, upper):
-    """Every point where the minimum of eq. 8 over the box can lie: the zero-thruster-moment lines
-    (eq. 9a-c, 10a-c) and the box edges, intersected pairwise, kept if inside the box. With the
-    rudder fixed (lower = upper) the problem is one-dimensional: eq. 9's roots and the bounds."""
+    """Every point where the minimum of eq. 8 over the box can lie: the vertices of the
+    arrangement of the zero-thruster-moment planes (eq. 9a-c, 10a-c) and the box faces, in the
+    free surfaces (lower < upper; the fixed ones, such as a blocked flap, stay at their bound)."""
     b = np.asarray(effectiveness, dtype=float)
-    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float)
     lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    if hi[1] <= lo[1]:
-        points = [lo[0], hi[0]] + [c[i] / b[i, 0] for i in range(3) if b[i, 0] != 0.0]
-        return [(p, lo[1]) for p in points if lo[0] <= p <= hi[0]]
-    lines = [(b[i], c[i]) for i in range(3)]  # n . d = c
-    lines += [(np.array([1.0, 0.0]), lo[0]), (np.array([1.0, 0.0]), hi[0])]
-    lines += [(np.array([0.0, 1.0]), lo[1]), (np.array([0.0, 1.0]), hi[1])]
+    free = [j for j in range(len(lo)) if hi[j] > lo[j]]
+    fixed = [j for j in range(len(lo)) if hi[j] <= lo[j]]
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float) - b[:, fixed] @ lo[fixed]
+    n = len(free)
+    planes = [(b[i, free], c[i]) for i in range(3)]
+    for k in range(n):
+        unit = np.eye(n)[k]
+        planes += [(unit, lo[free[k]]), (unit, hi[free[k]])]
     points = []
-    for i in range(len(lines)):
-        for j in range(i + 1, len(lines)):
-            m = np.array([lines[i][0], lines[j][0]])
-            if abs(np.linalg.det(m)) < 1e-300:
-                continue
-            p = np.linalg.solve(m, [lines[i][1], lines[j][1]])
-            slack = 1e-12 * (1.0 + np.abs(p))
-            if np.all(p >= lo - slack) and np.all(p <= hi + slack):
-                points.append((float(np.clip(p[0], lo[0], hi[0])), float(np.clip(p[1], lo[1], hi[1]))))
+    for combination in itertools.combinations(planes, n):
+        m = np.array([normal for normal, _ in combination])
+        if n and abs(np.linalg.det(m)) < 1e-300:
+            continue
+        x = np.linalg.solve(m, [value for _, value in combination]) if n else np.zeros(0)
+        slack = 1e-12 * (1.0 + np.abs(x))
+        if np.all(x >= lo[free] - slack) and np.all(x <= hi[free] + slack):
+            point = lo.copy()
+            point[free] = np.clip(x, lo[free], hi[free])
+            points.append(point)
     return points
 
 
-def triangle_vertices(effectiveness, offset, torque):
-    """The three vertices of the triangle of eq. 10a-c (pairwise intersections of the lines where
-    one thruster moment is zero), in (delta_e, delta_r)."""
+def triangle_vertices(effectiveness, offset, torque, lower, upper):
+    """The three vertices of the triangle of eq. 10a-c in the two free surfaces (the free flap and
+    the rudder): pairwise intersections of the lines where one thruster moment is zero."""
     b = np.asarray(effectiveness, dtype=float)
-    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float)
-    return [tuple(np.linalg.solve(b[[i, j]], c[[i, j]])) for i, j in ((0, 1), (1, 2), (0, 2))]
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    free = [j for j in range(len(lo)) if hi[j] > lo[j]]
+    fixed = [j for j in range(len(lo)) if hi[j] <= lo[j]]
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float) - b[:, fixed] @ lo[fixed]
+    vertices = []
+    for i, j in ((0, 1), (1, 2), (0, 2)):
+        point = lo.copy()
+        point[free] = np.linalg.solve(b[[i, j]][:, free], c[[i, j]])
+        vertices.append(point)
+    return vertices
