@@ -176,3 +176,89 @@ def propellant_weights(vehicle):
             raise ValueError(f"the thrusters cannot give a moment about body axis {'xyz'[axis]}")
         weights[axis] = u.sum() / (vehicle["rcs"]["isp_s"] * STANDARD_GRAVITY)
     return weights
+
+
+def entry_vehicle(
+    vehicle,
+    alpha_schedule,
+    bank_schedule,
+    *,
+    blocked=None,
+    planet=(6_371_000.0, 3.986004418e14, 7.2921159e-5),
+    control_rate_hz=None,
+    flap_rate_deg_s=20.0,
+    rudder_rate_deg_s=20.0,
+    surface_time_constant_s=0.1,
+    angle_gain=(1.0, 1.0, 1.0),
+    rate_gain=4.0,
+    rcs_only_above_m=90_000.0,
+    terminal_mach=2.0,
+    floor_altitude_m=15_000.0,
+    max_time_s=3_000.0,
+    transient_s=30.0,
+):
+    """``core.entry_flight.EntryVehicle`` for ``vehicle`` (validated) flying the schedules
+    ``alpha_schedule`` [(Mach, alpha deg), ...] and ``bank_schedule`` [(speed m/s, bank deg), ...].
+
+    ``blocked``: None or (flap 'left'|'right', deflection deg); default the vehicle file's
+    ``surfaces.body_flaps.blocked``. The keyword values are the entry flight's parameters until
+    its mission and campaign keys exist (issue 24; docs/x38.md): surface rates and lag ESTIMATES,
+    003's mode program (RCS alone above 90 km), a terminal Mach of 2.
+    """
+    from refexmc.core import entry_flight as ef
+
+    surfaces = vehicle["surfaces"]
+    flaps = surfaces["body_flaps"]
+    if blocked is None and "blocked" in flaps:
+        blocked = (flaps["blocked"]["flap"], flaps["blocked"]["deflection_deg"])
+    sf = np.zeros(ef.SURFACE_PARAMETERS)
+    sf[ef.SF_FLAP_MIN], sf[ef.SF_FLAP_MAX] = math.radians(flaps["min_deg"]), math.radians(flaps["max_deg"])
+    rudders = surfaces.get("rudders")
+    if rudders is not None:
+        sf[ef.SF_RUDDER_MIN], sf[ef.SF_RUDDER_MAX] = math.radians(rudders["min_deg"]), math.radians(rudders["max_deg"])
+        sf[ef.SF_RUDDER_MACH] = rudders["usable_below_mach"]
+        sf[ef.SF_HAS_RUDDERS] = 1.0
+    sf[ef.SF_FLAP_RATE] = math.radians(flap_rate_deg_s)
+    sf[ef.SF_RUDDER_RATE] = math.radians(rudder_rate_deg_s)
+    sf[ef.SF_TIME_CONSTANT] = surface_time_constant_s
+    sf[ef.SF_BLOCKED_FLAP] = -1.0 if blocked is None else {"left": 0.0, "right": 1.0}[blocked[0]]
+    sf[ef.SF_BLOCKED_DEFLECTION] = 0.0 if blocked is None else math.radians(blocked[1])
+    ct = np.zeros(ef.CONTROL_PARAMETERS)
+    rate_hz = control_rate_hz or vehicle["flight_software"]["control_rate_hz"]
+    ct[ef.CT_PERIOD] = 1.0 / rate_hz
+    ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = angle_gain
+    ct[ef.CT_RATE_GAIN] = rate_gain
+    ct[ef.CT_RCS_ONLY_ABOVE_M] = rcs_only_above_m
+    ct[ef.CT_TERMINAL_MACH] = terminal_mach
+    ct[ef.CT_FLOOR_ALTITUDE_M] = floor_altitude_m
+    ct[ef.CT_MAX_TIME_S] = max_time_s
+    ct[ef.CT_RCS_CAPACITY : ef.CT_RCS_CAPACITY + 3] = rcs_capacity(vehicle)
+    ct[ef.CT_WEIGHTS : ef.CT_WEIGHTS + 3] = propellant_weights(vehicle)
+    ct[ef.CT_TRANSIENT_S] = transient_s
+    ct[ef.CT_MASS] = vehicle["mass_kg"]
+    inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    alpha = np.array([[m for m, _ in alpha_schedule], [math.radians(a) for _, a in alpha_schedule]])
+    bank = np.array([[v for v, _ in bank_schedule], [math.radians(b) for _, b in bank_schedule]])
+    return ef.EntryVehicle(model(vehicle, *planet), inertia, np.linalg.inv(inertia), sf, ct, alpha, bank)
+
+
+def rcs_capacity(vehicle):
+    """Largest pure moment about each body axis the thrusters give at their highest level (N m):
+    the LP allocation's scale s* for a very large moment (core.lp_allocation)."""
+    from refexmc.config.derived import torque_arms
+    from refexmc.core import lp_allocation
+
+    arms = np.ascontiguousarray(torque_arms(vehicle).T)
+    n = arms.shape[1]
+    u_max = np.full(n, max(vehicle["rcs"]["thrust_n"].values()))
+    work = np.zeros(lp_allocation.scratch_shape(n))
+    basis = np.zeros(3, dtype=np.int64)
+    in_basis = np.zeros(lp_allocation.work_columns(n), dtype=np.bool_)
+    u = np.zeros(n)
+    big = 1e9
+    capacity = np.zeros(3)
+    for axis in range(3):
+        unit = np.zeros(3)
+        unit[axis] = big
+        capacity[axis] = lp_allocation.allocate(arms, u_max, unit, u, work, basis, in_basis) * big
+    return capacity

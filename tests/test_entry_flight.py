@@ -1,0 +1,114 @@
+"""The closed-loop X-38 entry (core.entry_flight, issue 24): a nominal entry and one with a flap
+blocked at 14 deg (003), flown from the 121.9 km entry interface to Mach 2.
+
+Bounds (issue 24): after the transients (the first 30 s and 30 s after each mode change: RCS
+alone, flaps, rudders) alpha within 1 deg and bank within 5 deg of their commands; the dynamic
+inversion's bandwidth (1/s on the angles, 4/s on the rates) leaves errors of the command rates
+over the gains, ~0.1 deg here, so 1 deg and 5 deg hold with margin. Sideslip within 1 deg.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from refexmc.config import entry as config_entry
+from refexmc.config.load import load_vehicle
+from refexmc.core import entry_attitude
+from refexmc.core import entry_flight as ef
+
+ROOT = Path(__file__).resolve().parents[1]
+ALPHA_SCHEDULE = [(2.0, 20.0), (5.0, 30.0), (10.0, 40.0), (30.0, 40.0)]  # (Mach, deg)
+BANK_SCHEDULE = [(1000.0, 30.0), (3000.0, 45.0), (7000.0, 60.0)]  # (speed m/s, deg)
+ENTRY = [121_900.0, math.radians(60.0), math.radians(-25.0), 7_400.0, math.radians(-1.3), math.radians(50.0)]
+ALPHA_BOUND_DEG = 1.0
+BANK_BOUND_DEG = 5.0
+BETA_BOUND_DEG = 1.0
+
+
+def fly(blocked=None):
+    vehicle = load_vehicle(ROOT / "configs/vehicles/x38.yaml")
+    flown = config_entry.entry_vehicle(vehicle, ALPHA_SCHEDULE, BANK_SCHEDULE, blocked=blocked)
+    initial = np.zeros(ef.FLIGHT_STATE_SIZE)
+    initial[:6] = ENTRY
+    scratch = np.zeros(entry_attitude.AXES_SCRATCH)
+    alpha0 = math.radians(40.0)
+    entry_attitude.attitude_from_angles(
+        initial[:6], 0.0, flown.model.planet[2], alpha0, 0.0, math.radians(60.0), scratch, initial[6:10]
+    )
+    history = np.zeros((3000, ef.HISTORY_COLUMNS))
+    summary = np.zeros(ef.SUMMARY_SIZE)
+    rows = ef.fly(flown, ef.work(), initial, history, summary)
+    return summary, history[:rows]
+
+
+@pytest.fixture(scope="module")
+def nominal():
+    return fly()
+
+
+@pytest.fixture(scope="module")
+def blocked_14():
+    return fly(blocked=("right", 14.0))
+
+
+def test_a_nominal_entry_reaches_mach_2_tracking_alpha_and_bank(nominal):
+    summary, history = nominal
+    assert summary[ef.SU_STATUS] == ef.STATUS_TERMINAL_MACH
+    assert math.degrees(summary[ef.SU_ALPHA_ERROR]) <= ALPHA_BOUND_DEG
+    assert math.degrees(summary[ef.SU_BANK_ERROR]) <= BANK_BOUND_DEG
+    assert math.degrees(summary[ef.SU_BETA_ERROR]) <= BETA_BOUND_DEG
+    # the errors were measured: the flight went through the aerodynamic phase to low Mach
+    assert history[-1, ef.HI_MACH] < 3.0 and history[:, ef.HI_QBAR].max() > 5_000.0
+
+
+def test_above_90_km_the_rcs_flies_alone_and_the_surfaces_hold(nominal):
+    _, history = nominal
+    high = history[:, ef.HI_ALTITUDE] > 90_000.0
+    assert high.any()
+    assert np.all(history[high, ef.HI_LEFT] == 0.0) and np.all(history[high, ef.HI_RUDDER] == 0.0)
+
+
+def test_rudders_move_only_below_mach_6(nominal):
+    _, history = nominal
+    fast = history[:, ef.HI_MACH] > 6.5  # the lag lets a deflection decay just after the switch
+    assert np.all(history[fast, ef.HI_RUDDER] == 0.0)
+
+
+def test_with_a_flap_blocked_at_14_deg_the_entry_completes_and_the_free_flap_aligns(blocked_14, nominal):
+    """003: "aligning the remaining body flap with the blocked one and using the thrusters for
+    generating control moments in yaw and roll"; alpha is raised to where 14 deg trims."""
+    summary, history = blocked_14
+    assert summary[ef.SU_STATUS] == ef.STATUS_TERMINAL_MACH
+    assert math.degrees(summary[ef.SU_ALPHA_ERROR]) <= ALPHA_BOUND_DEG
+    assert math.degrees(summary[ef.SU_BANK_ERROR]) <= BANK_BOUND_DEG
+    assert np.all(history[:, ef.HI_RIGHT] == pytest.approx(math.radians(14.0), abs=1e-15))
+    aero = (history[:, ef.HI_ALTITUDE] < 85_000.0) & (history[:, ef.HI_MACH] > 6.5)
+    assert np.abs(np.degrees(history[aero, ef.HI_LEFT]) - 14.0).max() < 1.0
+    # the RCS now gives roll and yaw: more propellant than the nominal entry
+    assert summary[ef.SU_PROPELLANT] > 2.0 * nominal[0][ef.SU_PROPELLANT]
+    assert np.all(np.diff(history[:, ef.HI_PROPELLANT]) >= 0.0)
+
+
+def test_the_trim_alpha_trims_the_flaps_at_the_blocked_deflection():
+    from scipy.optimize import brentq
+
+    from refexmc.core import aerodynamics as aero
+
+    vehicle = load_vehicle(ROOT / "configs/vehicles/x38.yaml")
+    model = config_entry.model(vehicle, 6_371_000.0, 3.986e14, 7.29e-5)
+
+    def trim_deg(alpha, mach):
+        c_m = aero.coefficient(model.alpha_axis, model.mach_axis, model.coefficients, aero.AC_PITCH, alpha, mach)
+        c_de = aero.coefficient(
+            model.alpha_axis, model.mach_axis, model.coefficients, aero.AC_PITCH_ELEVON, alpha, mach
+        )
+        return math.degrees(-c_m / c_de)
+
+    for mach in (3.0, 8.0, 20.0):
+        for block in (10.0, 14.0, 20.0):
+            got = ef.trim_alpha(model, mach, math.radians(block), -1.0)
+            expected = brentq(lambda a, m=mach, b=block: trim_deg(a, m) - b, 0.0, math.radians(50.0), xtol=1e-14)
+            assert got == pytest.approx(expected, abs=1e-12)
+    assert ef.trim_alpha(model, 20.0, math.radians(60.0), -1.0) == -1.0  # no alpha trims at 60 deg
