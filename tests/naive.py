@@ -633,3 +633,20 @@ def triangle_vertices(effectiveness, offset, torque, lower, upper):
         point[free] = np.linalg.solve(b[[i, j]][:, free], c[[i, j]])
         vertices.append(point)
     return vertices
+
+
+def entry_aero_moment(coefficients, qsl, beta, deflection):
+    """Body moments of the entry flight (core.entry_flight): ``coefficients`` a dict of the
+    vehicle-file names at the flight condition; deflection (left, right, rudder) in rad."""
+    elevon = (deflection[0] + deflection[1]) / 2
+    aileron = (deflection[0] - deflection[1]) / 2
+    c = coefficients
+    return qsl * np.array(
+        [
+            c["roll_per_beta_rad"] * beta
+            + c["roll_per_aileron_rad"] * aileron
+            + c["roll_per_rudder_rad"] * deflection[2],
+            c["pitch"] + c["pitch_per_elevon_rad"] * elevon,
+            c["yaw_per_beta_rad"] * beta + c["yaw_per_aileron_rad"] * aileron + c["yaw_per_rudder_rad"] * deflection[2],
+        ]
+    )
