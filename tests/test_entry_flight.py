@@ -27,7 +27,8 @@ BANK_BOUND_DEG = 5.0
 BETA_BOUND_DEG = 1.0
 
 
-def fly(blocked=None):
+def prepare(blocked=None):
+    """(flown vehicle arrays, initial flight state) of the test entry."""
     vehicle = load_vehicle(ROOT / "configs/vehicles/x38.yaml")
     flown = config_entry.entry_vehicle(vehicle, ALPHA_SCHEDULE, BANK_SCHEDULE, blocked=blocked)
     initial = np.zeros(ef.FLIGHT_STATE_SIZE)
@@ -37,6 +38,11 @@ def fly(blocked=None):
     entry_attitude.attitude_from_angles(
         initial[:6], 0.0, flown.model.planet[2], alpha0, 0.0, math.radians(60.0), scratch, initial[6:10]
     )
+    return flown, initial
+
+
+def fly(blocked=None):
+    flown, initial = prepare(blocked)
     history = np.zeros((3000, ef.HISTORY_COLUMNS))
     summary = np.zeros(ef.SUMMARY_SIZE)
     rows = ef.fly(flown, ef.work(), initial, history, summary)
