@@ -29,3 +29,15 @@ def test_a_single_mach_column_is_a_function_of_alpha_only():
     for mach in (0.5, 7.0, 40.0):
         got = aerodynamics.coefficient(alpha_axis, np.array([10.0]), table, aerodynamics.AC_DRAG, 0.75, mach)
         assert got == pytest.approx(0.7, rel=1e-15)
+
+
+def test_all_coefficients_at_once_equal_each_one_alone():
+    rng = np.random.default_rng(4)
+    alpha_axis = np.sort(rng.uniform(-0.2, 0.9, 7))
+    mach_axis = np.sort(rng.uniform(1.0, 30.0, 5))
+    table = rng.normal(size=(aerodynamics.AERO_COEFFICIENTS, 7, 5))
+    out = np.zeros(aerodynamics.AERO_COEFFICIENTS)
+    for alpha, mach in zip(rng.uniform(-0.5, 1.2, 200), rng.uniform(0.0, 35.0, 200), strict=True):
+        aerodynamics.coefficients_at(alpha_axis, mach_axis, table, alpha, mach, out)
+        for slot in range(aerodynamics.AERO_COEFFICIENTS):
+            assert out[slot] == aerodynamics.coefficient(alpha_axis, mach_axis, table, slot, alpha, mach)

@@ -118,3 +118,32 @@ def test_the_trim_alpha_trims_the_flaps_at_the_blocked_deflection():
             expected = brentq(lambda a, m=mach, b=block: trim_deg(a, m) - b, 0.0, math.radians(50.0), xtol=1e-14)
             assert got == pytest.approx(expected, abs=1e-12)
     assert ef.trim_alpha(model, 20.0, math.radians(60.0), -1.0) == -1.0  # no alpha trims at 60 deg
+
+
+def test_the_aerodynamic_moment_equals_its_twin():
+    import naive
+
+    from refexmc.config.entry import coefficient_slots
+
+    rng = np.random.default_rng(6)
+    slots = coefficient_slots()
+    out = np.zeros(3)
+    for _ in range(100):
+        c = rng.normal(size=len(slots))
+        named = {key: c[slot] for key, slot in slots.items()}
+        qsl, beta, deflection = rng.uniform(0.0, 1e6), rng.uniform(-0.1, 0.1), rng.uniform(-0.3, 0.6, 3)
+        ef.aerodynamic_moment(c, beta, qsl, deflection, out)
+        assert out == pytest.approx(naive.entry_aero_moment(named, qsl, beta, deflection), rel=1e-13, abs=1e-9)
+
+
+def test_surfaces_lag_and_rate_limit_and_a_blocked_flap_stays():
+    flown, _ = prepare(blocked=("left", 12.0))
+    wk = ef.work()
+    wk.deflection[:] = [math.radians(12.0), 0.0, 0.0]
+    wk.command[:] = [0.5, 0.5, math.radians(0.1)]
+    dt = 0.1
+    ef.actuate(flown, wk, dt)
+    tau, rate = flown.surfaces[ef.SF_TIME_CONSTANT], flown.surfaces[ef.SF_FLAP_RATE]
+    assert wk.deflection[0] == math.radians(12.0)  # blocked
+    assert wk.deflection[1] == pytest.approx(min(0.5 * (1 - math.exp(-dt / tau)), rate * dt), rel=1e-15)
+    assert wk.deflection[2] == pytest.approx(math.radians(0.1) * (1 - math.exp(-dt / tau)), rel=1e-15)

@@ -58,3 +58,17 @@ def coefficient(alpha_axis, mach_axis, table, slot, alpha, mach):
     low = table[slot, i, j] + fm * (table[slot, i, j1] - table[slot, i, j])
     high = table[slot, i1, j] + fm * (table[slot, i1, j1] - table[slot, i1, j])
     return low + fa * (high - low)
+
+
+@jit_noalloc
+def coefficients_at(alpha_axis, mach_axis, table, alpha, mach, out):
+    """Every slot of ``table`` at (alpha rad, mach) into ``out`` (AERO_COEFFICIENTS): what
+    :func:`coefficient` gives slot by slot, with one search of each axis."""
+    i, fa = axis_cell(alpha_axis, alpha)
+    j, fm = axis_cell(mach_axis, mach)
+    i1 = i if alpha_axis.shape[0] == 1 else i + 1
+    j1 = j if mach_axis.shape[0] == 1 else j + 1
+    for slot in range(table.shape[0]):
+        low = table[slot, i, j] + fm * (table[slot, i, j1] - table[slot, i, j])
+        high = table[slot, i1, j] + fm * (table[slot, i1, j1] - table[slot, i1, j])
+        out[slot] = low + fa * (high - low)

@@ -67,6 +67,13 @@ def aerodynamic_forces(model, state, alpha, beta):
 @jit_noalloc
 def derivative(model, state, mass, alpha, beta, bank, out):
     """d/dt of the entry state, 003 eq. 3 (corrected as in the module docstring)."""
+    lift, drag, side = aerodynamic_forces(model, state, alpha, beta)
+    equations_of_motion(model, state, mass, bank, lift, drag, side, out)
+
+
+@jit_noalloc
+def equations_of_motion(model, state, mass, bank, lift, drag, side, out):
+    """003 eq. 3 for given lift, drag and side force (N) and bank (rad)."""
     h, delta, v, gamma, chi = (
         state[EN_ALTITUDE],
         state[EN_LATITUDE],
@@ -77,7 +84,6 @@ def derivative(model, state, mass, alpha, beta, bank, out):
     r = model.planet[PLANET_RADIUS] + h
     omega = model.planet[PLANET_ROTATION]
     g = model.planet[PLANET_MU] / (r * r)
-    lift, drag, side = aerodynamic_forces(model, state, alpha, beta)
     sin_g, cos_g = math.sin(gamma), math.cos(gamma)
     sin_c, cos_c = math.sin(chi), math.cos(chi)
     sin_d, cos_d = math.sin(delta), math.cos(delta)

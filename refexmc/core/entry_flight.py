@@ -31,11 +31,14 @@ import numpy as np
 from refexmc._jit import jit, jit_noalloc
 from refexmc.core import aerodynamics, blending, dynamics, entry, entry_attitude, quaternion
 from refexmc.core.aerodynamics import (
+    AC_DRAG,
+    AC_LIFT,
     AC_PITCH,
     AC_PITCH_ELEVON,
     AC_ROLL_AILERON,
     AC_ROLL_BETA,
     AC_ROLL_RUDDER,
+    AC_SIDE_BETA,
     AC_YAW_AILERON,
     AC_YAW_BETA,
     AC_YAW_RUDDER,
@@ -106,6 +109,7 @@ class Work(NamedTuple):
     blend_work: np.ndarray  # blending.scratch_shape()
     basis: np.ndarray  # (3,) int64
     in_basis: np.ndarray  # (BLEND_COLUMNS,) bool
+    coefficients: np.ndarray  # (AERO_COEFFICIENTS,) at the current stage
 
 
 @jit
@@ -126,6 +130,7 @@ def work():
         np.zeros((11, blending.BLEND_COLUMNS)),
         np.zeros(3, dtype=np.int64),
         np.zeros(blending.BLEND_COLUMNS, dtype=np.bool_),
+        np.zeros(aerodynamics.AERO_COEFFICIENTS),
     )
 
 
@@ -144,25 +149,25 @@ def _coefficient(model, slot, alpha, mach):
 
 
 @jit_noalloc
-def aerodynamic_moment(model, alpha, beta, mach, qsl, deflection, out):
-    """Body moments (N m): static sideslip terms, C_m at zero deflection and the surfaces at
-    ``deflection`` (left, right, rudder): elevon (l + r) / 2, aileron (l - r) / 2."""
+def aerodynamic_moment(c, beta, qsl, deflection, out):
+    """Body moments (N m) for the coefficients ``c`` (AERO_COEFFICIENTS, at the flight
+    condition): static sideslip terms, C_m at zero deflection and the surfaces at ``deflection``
+    (left, right, rudder): elevon (l + r) / 2, aileron (l - r) / 2."""
     elevon = 0.5 * (deflection[0] + deflection[1])
     aileron = 0.5 * (deflection[0] - deflection[1])
     rudder = deflection[2]
-    out[0] = qsl * (
-        _coefficient(model, AC_ROLL_BETA, alpha, mach) * beta
-        + _coefficient(model, AC_ROLL_AILERON, alpha, mach) * aileron
-        + _coefficient(model, AC_ROLL_RUDDER, alpha, mach) * rudder
-    )
-    out[1] = qsl * (
-        _coefficient(model, AC_PITCH, alpha, mach) + _coefficient(model, AC_PITCH_ELEVON, alpha, mach) * elevon
-    )
-    out[2] = qsl * (
-        _coefficient(model, AC_YAW_BETA, alpha, mach) * beta
-        + _coefficient(model, AC_YAW_AILERON, alpha, mach) * aileron
-        + _coefficient(model, AC_YAW_RUDDER, alpha, mach) * rudder
-    )
+    out[0] = qsl * (c[AC_ROLL_BETA] * beta + c[AC_ROLL_AILERON] * aileron + c[AC_ROLL_RUDDER] * rudder)
+    out[1] = qsl * (c[AC_PITCH] + c[AC_PITCH_ELEVON] * elevon)
+    out[2] = qsl * (c[AC_YAW_BETA] * beta + c[AC_YAW_AILERON] * aileron + c[AC_YAW_RUDDER] * rudder)
+
+
+@jit_noalloc
+def _air_and_coefficients(model, wk, translation, alpha):
+    """(qbar, mach, q S L) at ``translation``; every coefficient at (alpha, mach) into
+    ``wk.coefficients``."""
+    _, qbar, mach = entry.air_data(model, translation)
+    aerodynamics.coefficients_at(model.alpha_axis, model.mach_axis, model.coefficients, alpha, mach, wk.coefficients)
+    return qbar, mach, qbar * model.reference[REF_AREA] * model.reference[REF_LENGTH]
 
 
 @jit_noalloc
@@ -174,10 +179,14 @@ def derivative(vehicle, wk, x, t, out):
     translation = x[0:ENTRY_STATE_SIZE]
     rotational = x[ENTRY_STATE_SIZE:FLIGHT_STATE_SIZE]
     alpha, beta, bank = entry_attitude.aerodynamic_angles(translation, t, rotation, rotational[0:4], wk.axes)
-    entry.derivative(model, translation, vehicle.control[CT_MASS], alpha, beta, bank, out[0:ENTRY_STATE_SIZE])
-    _, qbar, mach = entry.air_data(model, translation)
-    qsl = qbar * model.reference[REF_AREA] * model.reference[REF_LENGTH]
-    aerodynamic_moment(model, alpha, beta, mach, qsl, wk.deflection, wk.torque)
+    qbar, mach, qsl = _air_and_coefficients(model, wk, translation, alpha)
+    c = wk.coefficients
+    qs = qbar * model.reference[REF_AREA]
+    lift, drag, side = qs * c[AC_LIFT], qs * c[AC_DRAG], qs * c[AC_SIDE_BETA] * beta
+    entry.equations_of_motion(
+        model, translation, vehicle.control[CT_MASS], bank, lift, drag, side, out[0:ENTRY_STATE_SIZE]
+    )
+    aerodynamic_moment(c, beta, qsl, wk.deflection, wk.torque)
     for i in range(3):
         wk.torque[i] += wk.thruster[i]
     dynamics.derivative(
@@ -208,29 +217,24 @@ def rk4_step(vehicle, wk, t, dt):
 
 @jit_noalloc
 def trim_alpha(model, mach, deflection, fallback):
-    """The angle of attack at which the flaps trim at ``deflection`` (003: with a flap blocked,
-    "the commanded angle of attack has to be increased" so that the free flap aligns with the
-    blocked one): delta_trim(alpha) = -C_m / C_m_delta_e = deflection, by bisection over the
-    table's alpha axis; ``fallback`` where the table has no such alpha."""
+    """The lowest angle of attack at which the flaps trim at ``deflection`` (003: with a flap
+    blocked, "the commanded angle of attack has to be increased" so that the free flap aligns
+    with the blocked one): delta_trim(alpha) = -C_m / C_m_delta_e = deflection; ``fallback`` where
+    the table has no such alpha. At a fixed Mach both coefficients are linear in alpha on each
+    cell of the alpha axis, so on a cell C_m + deflection C_m_delta_e = 0 is solved exactly."""
     axis = model.alpha_axis
-    low, high = axis[0], axis[axis.shape[0] - 1]
-
-    def miss(alpha):
-        return (
-            -_coefficient(model, AC_PITCH, alpha, mach) / _coefficient(model, AC_PITCH_ELEVON, alpha, mach) - deflection
+    previous = 0.0
+    for k in range(axis.shape[0]):
+        value = _coefficient(model, AC_PITCH, axis[k], mach) + deflection * _coefficient(
+            model, AC_PITCH_ELEVON, axis[k], mach
         )
-
-    f_low, f_high = miss(low), miss(high)
-    if f_low * f_high > 0.0:
-        return fallback
-    for _ in range(50):
-        middle = 0.5 * (low + high)
-        f_middle = miss(middle)
-        if f_middle * f_low > 0.0:
-            low, f_low = middle, f_middle
-        else:
-            high = middle
-    return 0.5 * (low + high)
+        if value == 0.0:
+            return axis[k]
+        if k > 0 and previous * value < 0.0:
+            share = previous / (previous - value)
+            return axis[k - 1] + share * (axis[k] - axis[k - 1])
+        previous = value
+    return fallback
 
 
 @jit_noalloc
@@ -249,8 +253,8 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     alpha, beta, bank = entry_attitude.aerodynamic_angles(
         translation, t, rotation, x[ENTRY_STATE_SIZE : ENTRY_STATE_SIZE + 4], wk.axes
     )
-    _, qbar, mach = entry.air_data(model, translation)
-    qsl = qbar * model.reference[REF_AREA] * model.reference[REF_LENGTH]
+    qbar, mach, qsl = _air_and_coefficients(model, wk, translation, alpha)
+    c = wk.coefficients
     p, q, r = x[ENTRY_STATE_SIZE + 4], x[ENTRY_STATE_SIZE + 5], x[ENTRY_STATE_SIZE + 6]
     # outer loop: angle errors -> rates of alpha, beta, bank -> body rates (kinematics of the
     # aerodynamic angles, flight-path terms neglected: bank_dot = p_s / cos b, alpha_dot = q -
@@ -275,8 +279,8 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     tau[0] = j[0, 0] * wdx + j[0, 1] * wdy + j[0, 2] * wdz + (q * hz - r * hy)
     tau[1] = j[1, 0] * wdx + j[1, 1] * wdy + j[1, 2] * wdz + (r * hx - p * hz)
     tau[2] = j[2, 0] * wdx + j[2, 1] * wdy + j[2, 2] * wdz + (p * hy - q * hx)
-    tau[0] -= qsl * _coefficient(model, AC_ROLL_BETA, alpha, mach) * beta
-    tau[2] -= qsl * _coefficient(model, AC_YAW_BETA, alpha, mach) * beta
+    tau[0] -= qsl * c[AC_ROLL_BETA] * beta
+    tau[2] -= qsl * c[AC_YAW_BETA] * beta
     # mode program (003) and the surfaces' bounds for the blend
     aero_mode = translation[entry.EN_ALTITUDE] < ct[CT_RCS_ONLY_ABOVE_M]
     rudders_usable = sf[SF_HAS_RUDDERS] > 0.0 and mach < sf[SF_RUDDER_MACH]
@@ -292,19 +296,12 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
         wk.lower[2], wk.upper[2] = sf[SF_RUDDER_MIN], sf[SF_RUDDER_MAX]
     else:
         wk.lower[2] = wk.upper[2] = 0.0
-    c_m_de = _coefficient(model, AC_PITCH_ELEVON, alpha, mach)
-    trim = -_coefficient(model, AC_PITCH, alpha, mach) / c_m_de if c_m_de != 0.0 else 0.0
+    c_m_de = c[AC_PITCH_ELEVON]
+    trim = -c[AC_PITCH] / c_m_de if c_m_de != 0.0 else 0.0
     blending.surface_moments(
-        qsl,
-        _coefficient(model, AC_ROLL_AILERON, alpha, mach),
-        c_m_de,
-        _coefficient(model, AC_YAW_AILERON, alpha, mach),
-        _coefficient(model, AC_ROLL_RUDDER, alpha, mach),
-        _coefficient(model, AC_YAW_RUDDER, alpha, mach),
-        trim,
-        wk.effectiveness,
-        wk.offset,
-    )
+        qsl, c[AC_ROLL_AILERON], c_m_de, c[AC_YAW_AILERON], c[AC_ROLL_RUDDER], c[AC_YAW_RUDDER], trim,
+        wk.effectiveness, wk.offset,
+    )  # fmt: skip
     weights = ct[CT_WEIGHTS : CT_WEIGHTS + 3]
     blending.blend(
         wk.effectiveness,
@@ -402,7 +399,9 @@ def fly(vehicle, wk, initial, history, summary):
             h[HI_PROPELLANT], h[HI_QBAR] = propellant, qbar
             rows += 1
             next_row += 1.0
-        lift, drag, side = entry.aerodynamic_forces(vehicle.model, wk.state[0:ENTRY_STATE_SIZE], alpha, beta)
+        c = wk.coefficients  # at the control period's condition
+        force = qbar * vehicle.model.reference[REF_AREA]
+        lift, drag, side = force * c[AC_LIFT], force * c[AC_DRAG], force * c[AC_SIDE_BETA] * beta
         load = math.sqrt(lift * lift + drag * drag + side * side) / (ct[CT_MASS] * 9.80665)
         summary[SU_PEAK_LOAD] = max(summary[SU_PEAK_LOAD], load)
         actuate(vehicle, wk, dt)
