@@ -147,3 +147,15 @@ def test_surfaces_lag_and_rate_limit_and_a_blocked_flap_stays():
     assert wk.deflection[0] == math.radians(12.0)  # blocked
     assert wk.deflection[1] == pytest.approx(min(0.5 * (1 - math.exp(-dt / tau)), rate * dt), rel=1e-15)
     assert wk.deflection[2] == pytest.approx(math.radians(0.1) * (1 - math.exp(-dt / tau)), rel=1e-15)
+
+
+def test_the_hinge_moment_limit_bounds_the_flap_where_the_moment_reaches_003s_maximum():
+    """At the limit, 2 q S_f c sin^2(alpha + delta) equals the hinge moment limit (003 Table 1:
+    25881 N m); below the q where even 90 deg of flow incidence is within it, no limit."""
+    hinge, area_arm = 25_881.0, 0.44
+    for qbar in (30_000.0, 50_000.0, 100_000.0):
+        for alpha in (0.3, 0.6):
+            delta = ef.hinge_limit(qbar, alpha, hinge, area_arm)
+            assert 2.0 * qbar * area_arm * math.sin(alpha + delta) ** 2 == pytest.approx(hinge, rel=1e-12)
+    assert ef.hinge_limit(10_000.0, 0.6, hinge, area_arm) == pytest.approx(0.5 * math.pi - 0.6, rel=1e-15)
+    assert ef.hinge_limit(1e6, 0.6, 0.0, area_arm) == pytest.approx(0.5 * math.pi - 0.6, rel=1e-15)  # no limit given

@@ -112,10 +112,7 @@ def _cases():
     )
     yield (
         "blocked-outside-limits",
-        TEXT.replace(
-            "body_flaps: {min_deg: -10.0, max_deg: 40.0}",
-            "body_flaps: {min_deg: -10.0, max_deg: 40.0, blocked: {flap: left, deflection_deg: 45.0}}",
-        ),
+        TEXT.replace("    max_deg: 40.0 ", "    blocked: {flap: left, deflection_deg: 45.0}\n    max_deg: 40.0 "),
         ["surfaces.body_flaps.blocked.deflection_deg", "within the flap limits [-10.0, 40.0] deg, got 45.0"],
     )
     yield (
@@ -127,6 +124,11 @@ def _cases():
         "surfaces-without-atmosphere",
         TEXT.replace("atmosphere: ussa1976 ", "# no atmosphere "),
         ["surfaces", "need an atmosphere", f":{_line_of(TEXT, 'surfaces:')}:"],
+    )
+    yield (
+        "hinge-half-given",
+        re.sub(r"\n    hinge_area_arm_m3: .*", "", TEXT),
+        ["surfaces.body_flaps", "both hinge_moment_max_n_m and hinge_area_arm_m3, or neither"],
     )
     yield (
         "unknown-atmosphere",

@@ -110,6 +110,8 @@ def check(vehicle, fail):
                 "max_deg",
             )
     flaps = surfaces["body_flaps"]
+    if ("hinge_moment_max_n_m" in flaps) != ("hinge_area_arm_m3" in flaps):
+        fail("expected both hinge_moment_max_n_m and hinge_area_arm_m3, or neither", "surfaces", "body_flaps")
     if "blocked" in flaps:
         deflection = flaps["blocked"]["deflection_deg"]
         if not flaps["min_deg"] <= deflection <= flaps["max_deg"]:
@@ -223,6 +225,8 @@ def entry_vehicle(
     sf[ef.SF_TIME_CONSTANT] = surface_time_constant_s
     sf[ef.SF_BLOCKED_FLAP] = -1.0 if blocked is None else {"left": 0.0, "right": 1.0}[blocked[0]]
     sf[ef.SF_BLOCKED_DEFLECTION] = 0.0 if blocked is None else math.radians(blocked[1])
+    sf[ef.SF_HINGE_MOMENT_MAX] = flaps.get("hinge_moment_max_n_m", 0.0)
+    sf[ef.SF_HINGE_AREA_ARM] = flaps.get("hinge_area_arm_m3", 0.0)
     ct = np.zeros(ef.CONTROL_PARAMETERS)
     rate_hz = control_rate_hz or vehicle["flight_software"]["control_rate_hz"]
     ct[ef.CT_PERIOD] = 1.0 / rate_hz

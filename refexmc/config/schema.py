@@ -263,6 +263,14 @@ SURFACES = obj(
             {
                 "min_deg": number("lowest deflection of each flap [deg]", minimum=-90.0, maximum=90.0),
                 "max_deg": number("highest deflection of each flap [deg]", minimum=-90.0, maximum=90.0),
+                "hinge_moment_max_n_m": number(
+                    "largest hinge moment a flap actuator holds (003 Table 1: 25881) [N m]", exclusive_minimum=0.0
+                ),
+                "hinge_area_arm_m3": number(
+                    "flap area times its centre of pressure's distance behind the hinge: the hinge moment is "
+                    "2 q S_f c sin^2(alpha + delta) (Newtonian), which bounds the deflection [m^3]",
+                    exclusive_minimum=0.0,
+                ),
                 "blocked": obj(
                     "a flap blocked at a deflection (003 Hazard scenario): the other flap alone moves",
                     {
@@ -273,7 +281,7 @@ SURFACES = obj(
                     },
                 ),
             },
-            optional=("blocked",),
+            optional=("blocked", "hinge_moment_max_n_m", "hinge_area_arm_m3"),
         ),
         "rudders": obj(
             "the two fin-tip rudders, deflected together for yaw (003: usable below Mach 6, neutral above)",

@@ -15,11 +15,12 @@ flaps, rudders and RCS blended for least propellant.
 - Mode program (003): RCS alone above ``CT_RCS_ONLY_ABOVE_M`` (surfaces held where they are),
   flaps and RCS below, rudders below ``SF_RUDDER_MACH``; a blocked flap stays at its deflection and
   the flight software knows it.
-- Surfaces: first-order lag with a rate limit, within their deflection limits.
+- Surfaces: first-order lag with a rate limit, within their deflection limits; the flaps also
+  within the hinge-moment limit (003 Table 1) as a deflection limit that falls with q.
 - Guidance: alpha(Mach) and bank(speed) schedules, beta = 0; with a flap blocked, the angle of
   attack at which the flaps trim at the blocked deflection (003: alpha "has to be increased").
 
-Not modelled yet: the hinge-moment limit, navigation errors, RCS valve dynamics (the thrusters give
+Not modelled yet: navigation errors, RCS valve dynamics (the thrusters give
 their moment exactly), heat flux. Units SI, angles rad.
 """
 
@@ -54,7 +55,9 @@ SF_FLAP_RATE, SF_RUDDER_RATE, SF_TIME_CONSTANT = 5, 6, 7
 SF_BLOCKED_FLAP = 8  # -1 none, 0 left, 1 right
 SF_BLOCKED_DEFLECTION = 9
 SF_HAS_RUDDERS = 10
-SURFACE_PARAMETERS = 11
+SF_HINGE_MOMENT_MAX = 11  # N m; 0: no hinge-moment limit
+SF_HINGE_AREA_ARM = 12  # S_f c, m^3
+SURFACE_PARAMETERS = 13
 
 # control and run: period, gains, mode switch, terminal conditions, RCS capacity and weights
 CT_PERIOD = 0
@@ -238,6 +241,19 @@ def trim_alpha(model, mach, deflection, fallback):
 
 
 @jit_noalloc
+def hinge_limit(qbar, alpha, hinge_moment_max, area_arm):
+    """Largest flap deflection (rad) whose hinge moment 2 q S_f c sin^2(alpha + delta) (Newtonian
+    pressure on the flap) stays within ``hinge_moment_max`` (003 Table 1); pi/2 - alpha where any
+    deflection does."""
+    if hinge_moment_max <= 0.0 or qbar <= 0.0:
+        return 0.5 * math.pi - alpha
+    ratio = hinge_moment_max / (2.0 * qbar * area_arm)
+    if ratio >= 1.0:
+        return 0.5 * math.pi - alpha
+    return math.asin(math.sqrt(ratio)) - alpha
+
+
+@jit_noalloc
 def _wrap(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -284,9 +300,10 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     # mode program (003) and the surfaces' bounds for the blend
     aero_mode = translation[entry.EN_ALTITUDE] < ct[CT_RCS_ONLY_ABOVE_M]
     rudders_usable = sf[SF_HAS_RUDDERS] > 0.0 and mach < sf[SF_RUDDER_MACH]
+    flap_top = min(sf[SF_FLAP_MAX], hinge_limit(qbar, alpha, sf[SF_HINGE_MOMENT_MAX], sf[SF_HINGE_AREA_ARM]))
     for i in range(2):
         if aero_mode:
-            wk.lower[i], wk.upper[i] = sf[SF_FLAP_MIN], sf[SF_FLAP_MAX]
+            wk.lower[i], wk.upper[i] = sf[SF_FLAP_MIN], max(flap_top, sf[SF_FLAP_MIN])
         else:
             wk.lower[i] = wk.upper[i] = wk.deflection[i]
     blocked = int(sf[SF_BLOCKED_FLAP])
