@@ -33,10 +33,10 @@ BLOCKS_DEG = (None, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0)
 
 def main():
     print(
-        "| flap | RCS propellant [kg] | flight time [s] | peak q [kPa] | peak load [g] "
-        "| max alpha error [deg] | max bank error [deg] |"
+        "| flap | RCS propellant [kg] | flight time [s] | peak q [kPa] | peak load [g] | peak heat flux [kW/m²] "
+        "| down-range [km] | cross-range [km] | max alpha error [deg] | max bank error [deg] |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     histories = {}
     for block in BLOCKS_DEG:
         summary, history = flight.fly(None if block is None else ("right", block))
@@ -45,6 +45,8 @@ def main():
         print(
             f"| {label} | {summary[ef.SU_PROPELLANT]:.1f} | {summary[ef.SU_TIME]:.0f} | "
             f"{summary[ef.SU_PEAK_QBAR] / 1e3:.1f} | {summary[ef.SU_PEAK_LOAD]:.2f} | "
+            f"{summary[ef.SU_PEAK_HEAT_FLUX] / 1e3:.0f} | {summary[ef.SU_DOWN_RANGE] / 1e3:.0f} | "
+            f"{summary[ef.SU_CROSS_RANGE] / 1e3:.0f} | "
             f"{math.degrees(summary[ef.SU_ALPHA_ERROR]):.2f} | {math.degrees(summary[ef.SU_BANK_ERROR]):.2f} |"
         )
     history = histories[14.0]

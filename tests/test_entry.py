@@ -207,3 +207,30 @@ def test_equals_an_independent_cartesian_propagation():
         )
         assert position_error <= POSITION_M, f"t = {t} s: position off by {position_error} m"
         assert velocity_error <= VELOCITY_M_S, f"t = {t} s: velocity off by {velocity_error} m/s"
+
+
+def test_down_and_cross_range_equal_the_spherical_formulary():
+    """Along- and cross-track distances from the great-circle formulas (haversine distance and
+    initial bearing to the end point; cross-track asin(sin d13 sin(b13 - b12)), along-track
+    acos(cos d13 / cos dxt)): another derivation than the kernel's vectors; rounding only."""
+    rng = np.random.default_rng(12)
+    for _ in range(300):
+        lat0, lon0, chi = rng.uniform(-1.2, 1.2), rng.uniform(-3.0, 3.0), rng.uniform(-3.1, 3.1)
+        lat1, lon1 = lat0 + rng.uniform(-0.3, 0.3), lon0 + rng.uniform(-0.3, 0.3)
+        if abs(lat1) > 1.45:
+            continue
+        start = np.array([0.0, lon0, lat0, 0.0, 0.0, chi])
+        end = np.array([0.0, lon1, lat1, 0.0, 0.0, 0.0])
+        down, cross = entry.ranges(start, end, RADIUS_M)
+        dlat, dlon = lat1 - lat0, lon1 - lon0
+        hav = math.sin(dlat / 2) ** 2 + math.cos(lat0) * math.cos(lat1) * math.sin(dlon / 2) ** 2
+        d13 = 2 * math.asin(math.sqrt(hav))
+        bearing = math.atan2(
+            math.sin(dlon) * math.cos(lat1),
+            math.cos(lat0) * math.sin(lat1) - math.sin(lat0) * math.cos(lat1) * math.cos(dlon),
+        )
+        dxt = math.asin(math.sin(d13) * math.sin(bearing - chi))
+        dat = math.acos(min(1.0, math.cos(d13) / math.cos(dxt)))
+        along_sign = 1.0 if math.cos(bearing - chi) >= 0.0 else -1.0
+        assert cross == pytest.approx(RADIUS_M * dxt, abs=1e-6)
+        assert down == pytest.approx(along_sign * RADIUS_M * dat, abs=1e-3)  # acos near 1 loses digits

@@ -159,3 +159,18 @@ def test_the_hinge_moment_limit_bounds_the_flap_where_the_moment_reaches_003s_ma
             assert 2.0 * qbar * area_arm * math.sin(alpha + delta) ** 2 == pytest.approx(hinge, rel=1e-12)
     assert ef.hinge_limit(10_000.0, 0.6, hinge, area_arm) == pytest.approx(0.5 * math.pi - 0.6, rel=1e-15)
     assert ef.hinge_limit(1e6, 0.6, 0.0, area_arm) == pytest.approx(0.5 * math.pi - 0.6, rel=1e-15)  # no limit given
+
+
+def test_heat_flux_and_ranges_are_reported(nominal):
+    """Peak heat flux: Sutton-Graves k sqrt(rho / R_n) V^3 (k = 1.7415e-4) at the control rate,
+    at least what the 1 Hz history shows and within 2 % of it; the ranges: a positive bank turns
+    right, so the cross-range is to the right (positive) and the down-range the flown distance
+    less the turn."""
+    summary, history = nominal
+    speed = history[:, ef.HI_SPEED]
+    rho = 2.0 * history[:, ef.HI_QBAR] / speed**2
+    sampled = (1.7415e-4 * np.sqrt(rho / 0.8) * speed**3).max()
+    assert sampled <= summary[ef.SU_PEAK_HEAT_FLUX] <= 1.02 * sampled
+    flown_m = np.trapezoid(speed, history[:, ef.HI_TIME])
+    assert 0.8 * flown_m < summary[ef.SU_DOWN_RANGE] < flown_m
+    assert 0.0 < summary[ef.SU_CROSS_RANGE] < 0.5 * summary[ef.SU_DOWN_RANGE]

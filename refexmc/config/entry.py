@@ -240,6 +240,7 @@ def entry_vehicle(
     ct[ef.CT_WEIGHTS : ef.CT_WEIGHTS + 3] = propellant_weights(vehicle)
     ct[ef.CT_TRANSIENT_S] = transient_s
     ct[ef.CT_MASS] = vehicle["mass_kg"]
+    ct[ef.CT_NOSE_RADIUS_M] = vehicle["entry_aerodynamics"].get("nose_radius_m", 0.0)
     inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
     alpha = np.array([[m for m, _ in alpha_schedule], [math.radians(a) for _, a in alpha_schedule]])
     bank = np.array([[v for v, _ in bank_schedule], [math.radians(b) for _, b in bank_schedule]])

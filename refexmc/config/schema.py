@@ -232,6 +232,7 @@ ENTRY_AERODYNAMICS = obj(
     {
         "reference_area_m2": number("reference area S [m^2]", **POSITIVE),
         "reference_length_m": number("reference length L of all three moments (003 eq. 6) [m]", **POSITIVE),
+        "nose_radius_m": number("nose radius for the stagnation-point heat flux (Sutton-Graves) [m]", **POSITIVE),
         "alpha_deg": {
             "type": "array",
             "description": "angle-of-attack axis, strictly increasing [deg]",
@@ -253,6 +254,7 @@ ENTRY_AERODYNAMICS = obj(
             optional=(*ENTRY_FLAP_DERIVATIVES, *ENTRY_RUDDER_DERIVATIVES),
         ),
     },
+    optional=("nose_radius_m",),
 )
 SURFACES = obj(
     "aerodynamic control surfaces (003): two body flaps, elevon = symmetric, aileron = differential "

@@ -125,3 +125,26 @@ def rk4_step(model, state, dt, mass, alpha, beta, bank, stage):
     derivative(model, tmp, mass, alpha, beta, bank, k4)
     for i in range(n):
         state[i] += dt / 6.0 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+
+
+@jit_noalloc
+def ranges(start, end, radius):
+    """Down-range and cross-range (m) of ``end`` from ``start`` (entry states) over a sphere of
+    ``radius``: along and off the great circle leaving ``start`` at its heading, as arcs; the
+    cross-range is positive to the right of that great circle. Earth-fixed longitudes."""
+    lat0, lon0, chi0 = start[EN_LATITUDE], start[EN_LONGITUDE], start[EN_HEADING]
+    lat1, lon1 = end[EN_LATITUDE], end[EN_LONGITUDE]
+    # unit vectors: the start point p, its heading direction e, the end point x
+    px, py, pz = math.cos(lat0) * math.cos(lon0), math.cos(lat0) * math.sin(lon0), math.sin(lat0)
+    north_x, north_y, north_z = -math.sin(lat0) * math.cos(lon0), -math.sin(lat0) * math.sin(lon0), math.cos(lat0)
+    east_x, east_y, east_z = -math.sin(lon0), math.cos(lon0), 0.0
+    ex = math.cos(chi0) * north_x + math.sin(chi0) * east_x
+    ey = math.cos(chi0) * north_y + math.sin(chi0) * east_y
+    ez = math.cos(chi0) * north_z + math.sin(chi0) * east_z
+    xx, xy, xz = math.cos(lat1) * math.cos(lon1), math.cos(lat1) * math.sin(lon1), math.sin(lat1)
+    # the great circle's pole n = p x e; the right-hand side of the track is -n
+    nx, ny, nz = py * ez - pz * ey, pz * ex - px * ez, px * ey - py * ex
+    off = -(nx * xx + ny * xy + nz * xz)
+    cross = radius * math.asin(min(max(off, -1.0), 1.0))
+    down = radius * math.atan2(ex * xx + ey * xy + ez * xz, px * xx + py * xy + pz * xz)
+    return down, cross

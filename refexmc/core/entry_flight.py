@@ -20,8 +20,9 @@ flaps, rudders and RCS blended for least propellant.
 - Guidance: alpha(Mach) and bank(speed) schedules, beta = 0; with a flap blocked, the angle of
   attack at which the flaps trim at the blocked deflection (003: alpha "has to be increased").
 
-Not modelled yet: navigation errors, RCS valve dynamics (the thrusters give
-their moment exactly), heat flux. Units SI, angles rad.
+Metrics: RCS propellant, tracking errors, peak q, load factor and stagnation-point heat flux
+(Sutton-Graves), down- and cross-range at the end. Not modelled yet: navigation errors, RCS
+valve dynamics (the thrusters give their moment exactly). Units SI, angles rad.
 """
 
 import math
@@ -71,12 +72,15 @@ CT_RCS_CAPACITY = 9  # largest thruster moment per body axis (N m), three slots
 CT_WEIGHTS = 12  # b_th K_i, kg/s per N m, three slots
 CT_TRANSIENT_S = 15  # tracking errors count after this time and this long after a mode change
 CT_MASS = 16
-CONTROL_PARAMETERS = 17
+CT_NOSE_RADIUS_M = 17  # for the stagnation-point heat flux; 0: not computed
+CONTROL_PARAMETERS = 18
+SUTTON_GRAVES_EARTH = 1.7415e-4  # kg^0.5 / m: q_dot = k sqrt(rho / R_n) V^3 (W/m^2), Earth air
 
 # summary
 SU_TIME, SU_PROPELLANT, SU_ALPHA_ERROR, SU_BETA_ERROR, SU_BANK_ERROR = 0, 1, 2, 3, 4
 SU_PEAK_QBAR, SU_PEAK_LOAD, SU_STATUS, SU_STEPS = 5, 6, 7, 8
-SUMMARY_SIZE = 9
+SU_PEAK_HEAT_FLUX, SU_DOWN_RANGE, SU_CROSS_RANGE = 9, 10, 11  # W/m^2, m, m (at the end)
+SUMMARY_SIZE = 12
 STATUS_TERMINAL_MACH, STATUS_FLOOR, STATUS_TIME_LIMIT = 1, 2, 3
 
 # history columns, one row per second
@@ -421,6 +425,10 @@ def fly(vehicle, wk, initial, history, summary):
         lift, drag, side = force * c[AC_LIFT], force * c[AC_DRAG], force * c[AC_SIDE_BETA] * beta
         load = math.sqrt(lift * lift + drag * drag + side * side) / (ct[CT_MASS] * 9.80665)
         summary[SU_PEAK_LOAD] = max(summary[SU_PEAK_LOAD], load)
+        if ct[CT_NOSE_RADIUS_M] > 0.0:
+            rho = 2.0 * qbar / (speed * speed)
+            heat = SUTTON_GRAVES_EARTH * math.sqrt(rho / ct[CT_NOSE_RADIUS_M]) * speed * speed * speed
+            summary[SU_PEAK_HEAT_FLUX] = max(summary[SU_PEAK_HEAT_FLUX], heat)
         actuate(vehicle, wk, dt)
         rk4_step(vehicle, wk, t, dt)
         propellant += rate * dt  # 003 eq. 5 over the period
@@ -433,4 +441,7 @@ def fly(vehicle, wk, initial, history, summary):
     summary[SU_PROPELLANT] = propellant
     summary[SU_STATUS] = status
     summary[SU_STEPS] = steps
+    down, cross = entry.ranges(initial[0:ENTRY_STATE_SIZE], wk.state[0:ENTRY_STATE_SIZE], vehicle.model.planet[0])
+    summary[SU_DOWN_RANGE] = down
+    summary[SU_CROSS_RANGE] = cross
     return rows
