@@ -29,6 +29,20 @@ import test_entry_flight as flight  # noqa: E402
 from refexmc.core import entry_flight as ef  # noqa: E402
 
 BLOCKS_DEG = (None, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0)
+# the truth apart from the flight software's model (config.entry.entry_vehicle keywords)
+TRUTH_CASES = (
+    ("density +20 %", None, {"density_factor": 1.2}),
+    ("density -20 %", None, {"density_factor": 0.8}),
+    (
+        "C_L -10 %, C_m +10 %, C_m_delta_e and C_l_delta_a -20 %",
+        None,
+        {"coefficient_factors": {"lift": 0.9, "pitch": 1.1, "pitch_per_elevon_rad": 0.8, "roll_per_aileron_rad": 0.8}},
+    ),
+    ("right flap blocked at 14°, C_m +10 %, C_m_delta_e -20 %", ("right", 14.0),
+     {"coefficient_factors": {"pitch": 1.1, "pitch_per_elevon_rad": 0.8}}),
+    ("right flap blocked at 14°, unknown to the flight software", ("right", 14.0), {"blocked_known": False}),
+    ("left flap blocked at 14°, unknown to the flight software", ("left", 14.0), {"blocked_known": False}),
+)  # fmt: skip
 
 
 def main():
@@ -48,6 +62,16 @@ def main():
             f"{summary[ef.SU_PEAK_HEAT_FLUX] / 1e3:.0f} | {summary[ef.SU_DOWN_RANGE] / 1e3:.0f} | "
             f"{summary[ef.SU_CROSS_RANGE] / 1e3:.0f} | "
             f"{math.degrees(summary[ef.SU_ALPHA_ERROR]):.2f} | {math.degrees(summary[ef.SU_BANK_ERROR]):.2f} |"
+        )
+    print()
+    print("| truth against the flight software's model | RCS propellant [kg] | max alpha error [deg] "
+          "| max bank error [deg] | max sideslip [deg] |")  # fmt: skip
+    print("|---|---|---|---|---|")
+    for label, blocked, truth in TRUTH_CASES:
+        summary, _ = flight.fly(blocked, **truth)
+        print(
+            f"| {label} | {summary[ef.SU_PROPELLANT]:.1f} | {math.degrees(summary[ef.SU_ALPHA_ERROR]):.2f} | "
+            f"{math.degrees(summary[ef.SU_BANK_ERROR]):.2f} | {math.degrees(summary[ef.SU_BETA_ERROR]):.2f} |"
         )
     history = histories[14.0]
     t = history[:, ef.HI_TIME]

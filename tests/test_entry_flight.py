@@ -27,10 +27,11 @@ BANK_BOUND_DEG = 5.0
 BETA_BOUND_DEG = 1.0
 
 
-def prepare(blocked=None):
-    """(flown vehicle arrays, initial flight state) of the test entry."""
+def prepare(blocked=None, **truth):
+    """(flown vehicle arrays, initial flight state) of the test entry; ``truth``: keywords of
+    config.entry.entry_vehicle that set the truth apart from the flight software's model."""
     vehicle = load_vehicle(ROOT / "configs/vehicles/x38.yaml")
-    flown = config_entry.entry_vehicle(vehicle, ALPHA_SCHEDULE, BANK_SCHEDULE, blocked=blocked)
+    flown = config_entry.entry_vehicle(vehicle, ALPHA_SCHEDULE, BANK_SCHEDULE, blocked=blocked, **truth)
     initial = np.zeros(ef.FLIGHT_STATE_SIZE)
     initial[:6] = ENTRY
     scratch = np.zeros(entry_attitude.AXES_SCRATCH)
@@ -41,8 +42,8 @@ def prepare(blocked=None):
     return flown, initial
 
 
-def fly(blocked=None):
-    flown, initial = prepare(blocked)
+def fly(blocked=None, **truth):
+    flown, initial = prepare(blocked, **truth)
     history = np.zeros((3000, ef.HISTORY_COLUMNS))
     summary = np.zeros(ef.SUMMARY_SIZE)
     rows = ef.fly(flown, ef.work(), initial, history, summary)
@@ -92,8 +93,8 @@ def test_with_a_flap_blocked_at_14_deg_the_entry_completes_and_the_free_flap_ali
     assert np.all(history[:, ef.HI_RIGHT] == pytest.approx(math.radians(14.0), abs=1e-15))
     aero = (history[:, ef.HI_ALTITUDE] < 85_000.0) & (history[:, ef.HI_MACH] > 6.5)
     assert np.abs(np.degrees(history[aero, ef.HI_LEFT]) - 14.0).max() < 1.0
-    # the RCS now gives roll and yaw: more propellant than the nominal entry
-    assert summary[ef.SU_PROPELLANT] > 2.0 * nominal[0][ef.SU_PROPELLANT]
+    # the RCS now gives the roll and yaw the ailerons gave: more propellant than the nominal entry
+    assert summary[ef.SU_PROPELLANT] > 1.2 * nominal[0][ef.SU_PROPELLANT]
     assert np.all(np.diff(history[:, ef.HI_PROPELLANT]) >= 0.0)
 
 
@@ -174,3 +175,25 @@ def test_heat_flux_and_ranges_are_reported(nominal):
     flown_m = np.trapezoid(speed, history[:, ef.HI_TIME])
     assert 0.8 * flown_m < summary[ef.SU_DOWN_RANGE] < flown_m
     assert 0.0 < summary[ef.SU_CROSS_RANGE] < 0.5 * summary[ef.SU_DOWN_RANGE]
+
+
+@pytest.mark.parametrize("factor", [0.8, 1.2])
+def test_a_dispersed_density_the_flight_software_does_not_know_is_still_tracked(factor):
+    """The truth's density 20 % off the flight software's USSA 1976: the integral action of the
+    outer loop takes up the moment errors; the same bounds hold."""
+    summary, _ = fly(density_factor=factor)
+    assert summary[ef.SU_STATUS] == ef.STATUS_TERMINAL_MACH
+    assert math.degrees(summary[ef.SU_ALPHA_ERROR]) <= ALPHA_BOUND_DEG
+    assert math.degrees(summary[ef.SU_BANK_ERROR]) <= BANK_BOUND_DEG
+
+
+def test_an_unknown_blocked_flap_never_moves_and_the_entry_still_ends(nominal):
+    """A flap blocked at 14 deg that the flight software commands as free (issue 24: "known to
+    the flight software or not"): it stays at 14 deg; the entry reaches Mach 2 with larger
+    tracking errors and more propellant than when it is known (003 does not cover this case)."""
+    summary, history = fly(blocked=("right", 14.0), blocked_known=False)
+    known, _ = fly(blocked=("right", 14.0))
+    assert summary[ef.SU_STATUS] == ef.STATUS_TERMINAL_MACH
+    assert np.all(history[:, ef.HI_RIGHT] == math.radians(14.0))
+    assert summary[ef.SU_ALPHA_ERROR] > known[ef.SU_ALPHA_ERROR]
+    assert summary[ef.SU_PROPELLANT] > known[ef.SU_PROPELLANT]

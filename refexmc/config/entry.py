@@ -193,11 +193,16 @@ def entry_vehicle(
     surface_time_constant_s=0.1,
     angle_gain=(1.0, 1.0, 1.0),
     rate_gain=4.0,
+    integral_gain=0.2,
+    integral_limit_rad_s=0.5,
     rcs_only_above_m=90_000.0,
     terminal_mach=2.0,
     floor_altitude_m=15_000.0,
     max_time_s=3_000.0,
     transient_s=30.0,
+    blocked_known=True,
+    density_factor=1.0,
+    coefficient_factors=None,
 ):
     """``core.entry_flight.EntryVehicle`` for ``vehicle`` (validated) flying the schedules
     ``alpha_schedule`` [(Mach, alpha deg), ...] and ``bank_schedule`` [(speed m/s, bank deg), ...].
@@ -206,6 +211,11 @@ def entry_vehicle(
     ``surfaces.body_flaps.blocked``. The keyword values are the entry flight's parameters until
     its mission and campaign keys exist (issue 24; docs/x38.md): surface rates and lag ESTIMATES,
     003's mode program (RCS alone above 90 km), a terminal Mach of 2.
+
+    Truth against the flight software: ``blocked_known`` False commands the blocked flap as if
+    free (it does not move); ``density_factor`` scales the true density and ``coefficient_factors``
+    ({vehicle-file coefficient name: factor}) the true coefficients, while the flight software
+    keeps the vehicle file's.
     """
     from refexmc.core import entry_flight as ef
 
@@ -227,11 +237,14 @@ def entry_vehicle(
     sf[ef.SF_BLOCKED_DEFLECTION] = 0.0 if blocked is None else math.radians(blocked[1])
     sf[ef.SF_HINGE_MOMENT_MAX] = flaps.get("hinge_moment_max_n_m", 0.0)
     sf[ef.SF_HINGE_AREA_ARM] = flaps.get("hinge_area_arm_m3", 0.0)
+    sf[ef.SF_BLOCKED_KNOWN] = 1.0 if blocked_known else 0.0
     ct = np.zeros(ef.CONTROL_PARAMETERS)
     rate_hz = control_rate_hz or vehicle["flight_software"]["control_rate_hz"]
     ct[ef.CT_PERIOD] = 1.0 / rate_hz
     ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = angle_gain
     ct[ef.CT_RATE_GAIN] = rate_gain
+    ct[ef.CT_INTEGRAL_GAIN] = integral_gain
+    ct[ef.CT_INTEGRAL_LIMIT] = integral_limit_rad_s
     ct[ef.CT_RCS_ONLY_ABOVE_M] = rcs_only_above_m
     ct[ef.CT_TERMINAL_MACH] = terminal_mach
     ct[ef.CT_FLOOR_ALTITUDE_M] = floor_altitude_m
@@ -244,7 +257,17 @@ def entry_vehicle(
     inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
     alpha = np.array([[m for m, _ in alpha_schedule], [math.radians(a) for _, a in alpha_schedule]])
     bank = np.array([[v for v, _ in bank_schedule], [math.radians(b) for _, b in bank_schedule]])
-    return ef.EntryVehicle(model(vehicle, *planet), inertia, np.linalg.inv(inertia), sf, ct, alpha, bank)
+    nominal = model(vehicle, *planet)
+    truth = nominal
+    if density_factor != 1.0 or coefficient_factors:
+        atmosphere = nominal.atmosphere.copy()
+        atmosphere[:, 1] += math.log(density_factor)
+        coefficients = nominal.coefficients.copy()
+        slots = coefficient_slots()
+        for key, factor in (coefficient_factors or {}).items():
+            coefficients[slots[key]] *= factor
+        truth = nominal._replace(atmosphere=atmosphere, coefficients=coefficients)
+    return ef.EntryVehicle(truth, inertia, np.linalg.inv(inertia), sf, ct, alpha, bank, nominal)
 
 
 def rcs_capacity(vehicle):

@@ -6,9 +6,10 @@ flaps, rudders and RCS blended for least propellant.
 - Rotation: 003 eq. 4, Euler's equation with the full inertia (I_xz), core.dynamics, under the
   aerodynamic moments (static sideslip terms, C_m at zero deflection, the surfaces' moments at
   their actual deflections) and the thruster moments held over the control period.
-- Control, every period: outer loop on the aerodynamic angles (angle errors times a gain give the
-  rates of alpha, beta and bank, turned into body rates by the kinematics of the aerodynamic
-  angles with the flight-path terms neglected); inner loop by dynamic inversion of eq. 4
+- Control, every period: outer loop on the aerodynamic angles (the angle errors and, below the
+  RCS-only altitude, their clamped integrals, times a gain give the rates of alpha, beta and
+  bank, turned into body rates by the kinematics of the aerodynamic angles with the flight-path
+  terms neglected); inner loop by dynamic inversion of eq. 4
   (M = J omega_dot_d + omega x J omega less the static aerodynamic moment); the moment is blended
   by core.blending (003 eq. 5-10) and the thrusters' share saturated at their per-axis capacity.
   Propellant: 003 eq. 5 with the vehicle's weights (config.entry.propellant_weights).
@@ -58,7 +59,8 @@ SF_BLOCKED_DEFLECTION = 9
 SF_HAS_RUDDERS = 10
 SF_HINGE_MOMENT_MAX = 11  # N m; 0: no hinge-moment limit
 SF_HINGE_AREA_ARM = 12  # S_f c, m^3
-SURFACE_PARAMETERS = 13
+SF_BLOCKED_KNOWN = 13  # 1: the flight software knows the blocked flap; 0: it commands it as free
+SURFACE_PARAMETERS = 14
 
 # control and run: period, gains, mode switch, terminal conditions, RCS capacity and weights
 CT_PERIOD = 0
@@ -73,7 +75,9 @@ CT_WEIGHTS = 12  # b_th K_i, kg/s per N m, three slots
 CT_TRANSIENT_S = 15  # tracking errors count after this time and this long after a mode change
 CT_MASS = 16
 CT_NOSE_RADIUS_M = 17  # for the stagnation-point heat flux; 0: not computed
-CONTROL_PARAMETERS = 18
+CT_INTEGRAL_GAIN = 18  # integral of the angle errors in the outer loop (1/s); 0: none
+CT_INTEGRAL_LIMIT = 19  # anti-windup: |integral of an angle error| at most this (rad s)
+CONTROL_PARAMETERS = 20
 SUTTON_GRAVES_EARTH = 1.7415e-4  # kg^0.5 / m: q_dot = k sqrt(rho / R_n) V^3 (W/m^2), Earth air
 
 # summary
@@ -90,15 +94,17 @@ HISTORY_COLUMNS = 14
 
 
 class EntryVehicle(NamedTuple):
-    """What an entry flight flies: the aerodynamic model, mass properties and the parameters."""
+    """What an entry flight flies: the true aerodynamic model (dispersed air and coefficients),
+    the flight software's (nominal) one, mass properties and the parameters."""
 
-    model: entry.EntryModel
+    model: entry.EntryModel  # the truth the dynamics fly
     inertia: np.ndarray  # (3, 3) kg m^2, with I_xz (003 eq. 4)
     inertia_inv: np.ndarray
     surfaces: np.ndarray  # SF_*
     control: np.ndarray  # CT_*
     alpha_schedule: np.ndarray  # (2, n): Mach (increasing), alpha (rad)
     bank_schedule: np.ndarray  # (2, n): speed m/s (increasing), bank (rad)
+    fsw_model: entry.EntryModel  # what the flight software's control, blending and guidance use
 
 
 class Work(NamedTuple):
@@ -117,6 +123,7 @@ class Work(NamedTuple):
     basis: np.ndarray  # (3,) int64
     in_basis: np.ndarray  # (BLEND_COLUMNS,) bool
     coefficients: np.ndarray  # (AERO_COEFFICIENTS,) at the current stage
+    integral: np.ndarray  # (3,) integrals of the alpha, beta, bank errors (rad s)
 
 
 @jit
@@ -138,6 +145,7 @@ def work():
         np.zeros(3, dtype=np.int64),
         np.zeros(blending.BLEND_COLUMNS, dtype=np.bool_),
         np.zeros(aerodynamics.AERO_COEFFICIENTS),
+        np.zeros(3),
     )
 
 
@@ -266,7 +274,7 @@ def _wrap(angle):
 def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     """One control period's commands: surfaces to ``wk.command``, thruster moment to
     ``wk.thruster``; returns (propellant rate kg/s, alpha, beta, bank, mach, qbar, mode)."""
-    model, ct, sf = vehicle.model, vehicle.control, vehicle.surfaces
+    model, ct, sf = vehicle.fsw_model, vehicle.control, vehicle.surfaces
     x = wk.state
     translation = x[0:ENTRY_STATE_SIZE]
     rotation = model.planet[PLANET_ROTATION]
@@ -279,9 +287,19 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     # outer loop: angle errors -> rates of alpha, beta, bank -> body rates (kinematics of the
     # aerodynamic angles, flight-path terms neglected: bank_dot = p_s / cos b, alpha_dot = q -
     # tan b p_s, beta_dot = -r_s with stability-axis rates p_s = p cos a + r sin a, r_s = r cos a - p sin a)
-    alpha_dot = ct[CT_ANGLE_GAIN] * (alpha_cmd - alpha)
-    beta_dot = ct[CT_ANGLE_GAIN + 1] * (0.0 - beta)
-    bank_dot = ct[CT_ANGLE_GAIN + 2] * _wrap(bank_cmd - bank)
+    # with integral action on the angle errors below the RCS-only altitude (the flight software's
+    # model is not the truth: 003's "dynamic inversion plus feedback"), clamped against wind-up
+    errors_alpha, errors_beta, errors_bank = alpha_cmd - alpha, 0.0 - beta, _wrap(bank_cmd - bank)
+    if translation[entry.EN_ALTITUDE] < ct[CT_RCS_ONLY_ABOVE_M] and ct[CT_INTEGRAL_GAIN] > 0.0:
+        limit = ct[CT_INTEGRAL_LIMIT]
+        dt = ct[CT_PERIOD]
+        wk.integral[0] = min(max(wk.integral[0] + errors_alpha * dt, -limit), limit)
+        wk.integral[1] = min(max(wk.integral[1] + errors_beta * dt, -limit), limit)
+        wk.integral[2] = min(max(wk.integral[2] + errors_bank * dt, -limit), limit)
+    ki = ct[CT_INTEGRAL_GAIN]
+    alpha_dot = ct[CT_ANGLE_GAIN] * (errors_alpha + ki * wk.integral[0])
+    beta_dot = ct[CT_ANGLE_GAIN + 1] * (errors_beta + ki * wk.integral[1])
+    bank_dot = ct[CT_ANGLE_GAIN + 2] * (errors_bank + ki * wk.integral[2])
     ca, sa = math.cos(alpha), math.sin(alpha)
     p_s = bank_dot * math.cos(beta)
     r_s = -beta_dot
@@ -311,7 +329,7 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
         else:
             wk.lower[i] = wk.upper[i] = wk.deflection[i]
     blocked = int(sf[SF_BLOCKED_FLAP])
-    if blocked >= 0:
+    if blocked >= 0 and sf[SF_BLOCKED_KNOWN] > 0.0:
         wk.lower[blocked] = wk.upper[blocked] = sf[SF_BLOCKED_DEFLECTION]
     if rudders_usable and aero_mode:
         wk.lower[2], wk.upper[2] = sf[SF_RUDDER_MIN], sf[SF_RUDDER_MAX]
@@ -377,6 +395,7 @@ def fly(vehicle, wk, initial, history, summary):
         wk.deflection[i] = 0.0
         wk.command[i] = 0.0
         wk.thruster[i] = 0.0
+        wk.integral[i] = 0.0
     if blocked >= 0:
         wk.deflection[blocked] = vehicle.surfaces[SF_BLOCKED_DEFLECTION]
     for i in range(SUMMARY_SIZE):
@@ -391,12 +410,13 @@ def fly(vehicle, wk, initial, history, summary):
     status = STATUS_TIME_LIMIT
     while t < ct[CT_MAX_TIME_S]:
         speed = wk.state[entry.EN_SPEED]
-        _, _, mach_now = entry.air_data(vehicle.model, wk.state[0:ENTRY_STATE_SIZE])
+        _, _, mach_now = entry.air_data(vehicle.fsw_model, wk.state[0:ENTRY_STATE_SIZE])
         alpha_cmd = schedule(vehicle.alpha_schedule, mach_now)
-        if blocked >= 0:  # the flight software knows the blocked flap: fly where it trims
-            alpha_cmd = trim_alpha(vehicle.model, mach_now, vehicle.surfaces[SF_BLOCKED_DEFLECTION], alpha_cmd)
+        if blocked >= 0 and vehicle.surfaces[SF_BLOCKED_KNOWN] > 0.0:  # fly where the flaps trim at it
+            alpha_cmd = trim_alpha(vehicle.fsw_model, mach_now, vehicle.surfaces[SF_BLOCKED_DEFLECTION], alpha_cmd)
         bank_cmd = schedule(vehicle.bank_schedule, speed)
-        rate, alpha, beta, bank, mach, qbar, mode = control(vehicle, wk, t, alpha_cmd, bank_cmd)
+        rate, alpha, beta, bank, _, _, mode = control(vehicle, wk, t, alpha_cmd, bank_cmd)
+        qbar, mach, _ = _air_and_coefficients(vehicle.model, wk, wk.state[0:ENTRY_STATE_SIZE], alpha)  # the truth
         if mach < ct[CT_TERMINAL_MACH]:
             status = STATUS_TERMINAL_MACH
             break
@@ -420,7 +440,7 @@ def fly(vehicle, wk, initial, history, summary):
             h[HI_PROPELLANT], h[HI_QBAR] = propellant, qbar
             rows += 1
             next_row += 1.0
-        c = wk.coefficients  # at the control period's condition
+        c = wk.coefficients  # true, at the control period's condition
         force = qbar * vehicle.model.reference[REF_AREA]
         lift, drag, side = force * c[AC_LIFT], force * c[AC_DRAG], force * c[AC_SIDE_BETA] * beta
         load = math.sqrt(lift * lift + drag * drag + side * side) / (ct[CT_MASS] * 9.80665)
