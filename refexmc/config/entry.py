@@ -195,6 +195,8 @@ def entry_vehicle(
     rate_gain=4.0,
     integral_gain=0.2,
     integral_limit_rad_s=0.5,
+    align_gain=0.05,
+    align_limit_deg=10.0,
     rcs_only_above_m=90_000.0,
     terminal_mach=2.0,
     floor_altitude_m=15_000.0,
@@ -245,6 +247,8 @@ def entry_vehicle(
     ct[ef.CT_RATE_GAIN] = rate_gain
     ct[ef.CT_INTEGRAL_GAIN] = integral_gain
     ct[ef.CT_INTEGRAL_LIMIT] = integral_limit_rad_s
+    ct[ef.CT_ALIGN_GAIN] = align_gain
+    ct[ef.CT_ALIGN_LIMIT] = math.radians(align_limit_deg)
     ct[ef.CT_RCS_ONLY_ABOVE_M] = rcs_only_above_m
     ct[ef.CT_TERMINAL_MACH] = terminal_mach
     ct[ef.CT_FLOOR_ALTITUDE_M] = floor_altitude_m

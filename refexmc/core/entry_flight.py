@@ -19,7 +19,8 @@ flaps, rudders and RCS blended for least propellant.
 - Surfaces: first-order lag with a rate limit, within their deflection limits; the flaps also
   within the hinge-moment limit (003 Table 1) as a deflection limit that falls with q.
 - Guidance: alpha(Mach) and bank(speed) schedules, beta = 0; with a flap blocked, the angle of
-  attack at which the flaps trim at the blocked deflection (003: alpha "has to be increased").
+  attack at which the flaps trim at the blocked deflection (003: alpha "has to be increased"),
+  corrected by feedback on the free flap's misalignment (:func:`align`).
 
 Metrics: RCS propellant, tracking errors, peak q, load factor and stagnation-point heat flux
 (Sutton-Graves), down- and cross-range at the end. Not modelled yet: navigation errors, RCS
@@ -77,7 +78,9 @@ CT_MASS = 16
 CT_NOSE_RADIUS_M = 17  # for the stagnation-point heat flux; 0: not computed
 CT_INTEGRAL_GAIN = 18  # integral of the angle errors in the outer loop (1/s); 0: none
 CT_INTEGRAL_LIMIT = 19  # anti-windup: |integral of an angle error| at most this (rad s)
-CONTROL_PARAMETERS = 20
+CT_ALIGN_GAIN = 20  # blocked flap known: alpha bias rate per rad of free-flap misalignment (1/s)
+CT_ALIGN_LIMIT = 21  # |alpha bias| at most this (rad)
+CONTROL_PARAMETERS = 22
 SUTTON_GRAVES_EARTH = 1.7415e-4  # kg^0.5 / m: q_dot = k sqrt(rho / R_n) V^3 (W/m^2), Earth air
 
 # summary
@@ -124,6 +127,7 @@ class Work(NamedTuple):
     in_basis: np.ndarray  # (BLEND_COLUMNS,) bool
     coefficients: np.ndarray  # (AERO_COEFFICIENTS,) at the current stage
     integral: np.ndarray  # (3,) integrals of the alpha, beta, bank errors (rad s)
+    alpha_bias: np.ndarray  # (1,) the alignment guidance's correction to the trim alpha (rad)
 
 
 @jit
@@ -146,6 +150,7 @@ def work():
         np.zeros(blending.BLEND_COLUMNS, dtype=np.bool_),
         np.zeros(aerodynamics.AERO_COEFFICIENTS),
         np.zeros(3),
+        np.zeros(1),
     )
 
 
@@ -263,6 +268,36 @@ def hinge_limit(qbar, alpha, hinge_moment_max, area_arm):
     if ratio >= 1.0:
         return 0.5 * math.pi - alpha
     return math.asin(math.sqrt(ratio)) - alpha
+
+
+@jit_noalloc
+def align(vehicle, wk, mach, blocked, fallback):
+    """Angle-of-attack command with a flap blocked and known (003: "aligning the remaining body
+    flap with the blocked one"): the model's trim alpha for the blocked deflection
+    (:func:`trim_alpha`) plus a bias that feedback on the free flap's misalignment builds below
+    the RCS-only altitude, so that model errors do not leave the free flap trimming against the
+    blocked one. The bias moves alpha by the model's d(delta_trim)/d(alpha) towards alignment at
+    ``CT_ALIGN_GAIN`` per second, within +-``CT_ALIGN_LIMIT``."""
+    ct, sf, model = vehicle.control, vehicle.surfaces, vehicle.fsw_model
+    block = sf[SF_BLOCKED_DEFLECTION]
+    base = trim_alpha(model, mach, block, fallback)
+    if wk.state[entry.EN_ALTITUDE] < ct[CT_RCS_ONLY_ABOVE_M] and ct[CT_ALIGN_GAIN] > 0.0:
+        alpha = base + wk.alpha_bias[0]
+        step = 0.01
+        slope = (_trim_deflection(model, alpha + step, mach) - _trim_deflection(model, alpha - step, mach)) / (
+            2.0 * step
+        )
+        if slope != 0.0:
+            misalignment = wk.deflection[1 - blocked] - block
+            bias = wk.alpha_bias[0] - ct[CT_ALIGN_GAIN] * ct[CT_PERIOD] * misalignment / slope
+            wk.alpha_bias[0] = min(max(bias, -ct[CT_ALIGN_LIMIT]), ct[CT_ALIGN_LIMIT])
+    return base + wk.alpha_bias[0]
+
+
+@jit_noalloc
+def _trim_deflection(model, alpha, mach):
+    """delta_trim = -C_m / C_m_delta_e of the model (003 eq. 6)."""
+    return -_coefficient(model, AC_PITCH, alpha, mach) / _coefficient(model, AC_PITCH_ELEVON, alpha, mach)
 
 
 @jit_noalloc
@@ -396,6 +431,7 @@ def fly(vehicle, wk, initial, history, summary):
         wk.command[i] = 0.0
         wk.thruster[i] = 0.0
         wk.integral[i] = 0.0
+    wk.alpha_bias[0] = 0.0
     if blocked >= 0:
         wk.deflection[blocked] = vehicle.surfaces[SF_BLOCKED_DEFLECTION]
     for i in range(SUMMARY_SIZE):
@@ -413,7 +449,7 @@ def fly(vehicle, wk, initial, history, summary):
         _, _, mach_now = entry.air_data(vehicle.fsw_model, wk.state[0:ENTRY_STATE_SIZE])
         alpha_cmd = schedule(vehicle.alpha_schedule, mach_now)
         if blocked >= 0 and vehicle.surfaces[SF_BLOCKED_KNOWN] > 0.0:  # fly where the flaps trim at it
-            alpha_cmd = trim_alpha(vehicle.fsw_model, mach_now, vehicle.surfaces[SF_BLOCKED_DEFLECTION], alpha_cmd)
+            alpha_cmd = align(vehicle, wk, mach_now, blocked, alpha_cmd)
         bank_cmd = schedule(vehicle.bank_schedule, speed)
         rate, alpha, beta, bank, _, _, mode = control(vehicle, wk, t, alpha_cmd, bank_cmd)
         qbar, mach, _ = _air_and_coefficients(vehicle.model, wk, wk.state[0:ENTRY_STATE_SIZE], alpha)  # the truth
