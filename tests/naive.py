@@ -542,7 +542,7 @@ def burn_direction(law, r_gps, v_gps, r_nom, v_nom, a_nom, position_gain, veloci
 
 # --------------------------------------------------------------------------------------------
 # Entry flight over a rotating spherical Earth, 003 eq. 3 (longitude/latitude rates and the
-# centripetal sign in gamma-dot as in Vinh's eq. 2.18: core.entry's docstring)
+# centripetal sign in gamma-dot as for a heading from north: core.entry's docstring)
 # --------------------------------------------------------------------------------------------
 
 

@@ -8,8 +8,9 @@ the bank mu are inputs; a positive bank turns the lift to the right (heading gro
 
 003 eq. 3 as printed has the longitude and latitude rates swapped (the 1/cos(delta) belongs to
 the longitude) and the sign of the centripetal term in gamma-dot reversed; this module flies the
-consistent form (e.g. Vinh, *Hypersonic and Planetary Entry Flight Mechanics*, eq. 2.18), which
-``tests/test_entry.py`` checks against an independent Cartesian Earth-centred propagation. The
+consistent form (heading from north, as in Vinh, *Hypersonic and Planetary Entry Flight
+Mechanics*, ch. 2), which ``tests/test_entry.py`` checks against an independent Cartesian
+Earth-centred propagation. The
 deorbit module's thrust (003's T_deorbit) is off: it is jettisoned before the entry interface.
 Gravity is central, g = mu / r^2.
 """
