@@ -13,6 +13,8 @@ import math
 import naive
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import linprog
 
 from refexmc.core import blending
@@ -206,3 +208,18 @@ def test_with_both_flaps_free_elevon_and_aileron_cover_pitch_and_roll():
     rate, d, t = Blender()(b, offset, np.array([500.0, -800.0, 300.0]), lower, upper, np.ones(3))
     assert abs(t[0]) < 1e-9 and abs(t[1]) < 1e-9 and t[2] == pytest.approx(300.0, rel=1e-12)
     assert rate == pytest.approx(300.0, rel=1e-12)
+
+
+@settings(deadline=None, max_examples=200)
+@given(seed=st.integers(0, 2**32 - 1), rudders=st.booleans(), blocked=st.booleans())
+def test_never_more_propellant_than_any_feasible_deflection(seed, rudders, blocked):
+    """Property: the LP's rate is at most eq. 8 at any deflection within the bounds (here: the
+    bounds' corners, their middle and random points), and its deflection lies within them."""
+    rng = np.random.default_rng(seed)
+    b, offset, torque, lower, upper, weights = random_condition(rng, rudders=rudders, blocked=blocked)
+    rate, d, _ = Blender()(b, offset, torque, lower, upper, weights)
+    assert np.all(d >= lower) and np.all(d <= upper)
+    points = [lower, upper, 0.5 * (lower + upper), *(rng.uniform(lower, upper) for _ in range(20))]
+    rounding = weights.sum() * MOMENT_N_M * max(1.0, np.abs(torque).max())
+    for point in points:
+        assert rate <= naive.blend_rate(b, offset, torque, weights, point) * (1 + 1e-12) + rounding
