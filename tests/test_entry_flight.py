@@ -215,3 +215,15 @@ def test_alignment_feedback_keeps_the_free_flap_on_the_blocked_one_despite_pitch
     assert np.abs(np.degrees(history[late, ef.HI_LEFT]) - 14.0).max() < 1.0
     assert summary[ef.SU_PROPELLANT] < 2.0 * blocked_14[0][ef.SU_PROPELLANT]
     assert open_loop[ef.SU_PROPELLANT] > 10.0 * summary[ef.SU_PROPELLANT]
+
+
+def test_coefficient_errors_the_flight_software_does_not_know_are_tracked_out():
+    """True C_L 10 % lower, C_m 10 % higher, C_m_delta_e and C_l_delta_a 20 % weaker than the
+    flight software's tables: the integral action (alpha's clamp 2 rad s, to cover a 20 % flap
+    effectiveness error at low Mach) keeps alpha within 1 deg and bank within 5 deg."""
+    summary, _ = fly(
+        coefficient_factors={"lift": 0.9, "pitch": 1.1, "pitch_per_elevon_rad": 0.8, "roll_per_aileron_rad": 0.8}
+    )
+    assert summary[ef.SU_STATUS] == ef.STATUS_TERMINAL_MACH
+    assert math.degrees(summary[ef.SU_ALPHA_ERROR]) <= ALPHA_BOUND_DEG
+    assert math.degrees(summary[ef.SU_BANK_ERROR]) <= BANK_BOUND_DEG

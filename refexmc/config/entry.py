@@ -194,7 +194,7 @@ def entry_vehicle(
     angle_gain=(1.0, 1.0, 1.0),
     rate_gain=4.0,
     integral_gain=0.2,
-    integral_limit_rad_s=0.5,
+    integral_limit_rad_s=(2.0, 0.5, 0.5),
     align_gain=0.05,
     align_limit_deg=10.0,
     rcs_only_above_m=90_000.0,
@@ -246,7 +246,7 @@ def entry_vehicle(
     ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = angle_gain
     ct[ef.CT_RATE_GAIN] = rate_gain
     ct[ef.CT_INTEGRAL_GAIN] = integral_gain
-    ct[ef.CT_INTEGRAL_LIMIT] = integral_limit_rad_s
+    ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3] = integral_limit_rad_s
     ct[ef.CT_ALIGN_GAIN] = align_gain
     ct[ef.CT_ALIGN_LIMIT] = math.radians(align_limit_deg)
     ct[ef.CT_RCS_ONLY_ABOVE_M] = rcs_only_above_m

@@ -77,10 +77,10 @@ CT_TRANSIENT_S = 15  # tracking errors count after this time and this long after
 CT_MASS = 16
 CT_NOSE_RADIUS_M = 17  # for the stagnation-point heat flux; 0: not computed
 CT_INTEGRAL_GAIN = 18  # integral of the angle errors in the outer loop (1/s); 0: none
-CT_INTEGRAL_LIMIT = 19  # anti-windup: |integral of an angle error| at most this (rad s)
-CT_ALIGN_GAIN = 20  # blocked flap known: alpha bias rate per rad of free-flap misalignment (1/s)
-CT_ALIGN_LIMIT = 21  # |alpha bias| at most this (rad)
-CONTROL_PARAMETERS = 22
+CT_INTEGRAL_LIMIT = 19  # anti-windup: |integral of the alpha, beta, bank error| at most (rad s), three slots
+CT_ALIGN_GAIN = 22  # blocked flap known: alpha bias rate per rad of free-flap misalignment (1/s)
+CT_ALIGN_LIMIT = 23  # |alpha bias| at most this (rad)
+CONTROL_PARAMETERS = 24
 SUTTON_GRAVES_EARTH = 1.7415e-4  # kg^0.5 / m: q_dot = k sqrt(rho / R_n) V^3 (W/m^2), Earth air
 
 # summary
@@ -326,10 +326,12 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     # model is not the truth: 003's "dynamic inversion plus feedback"), clamped against wind-up
     errors_alpha, errors_beta, errors_bank = alpha_cmd - alpha, 0.0 - beta, _wrap(bank_cmd - bank)
     if translation[entry.EN_ALTITUDE] < ct[CT_RCS_ONLY_ABOVE_M] and ct[CT_INTEGRAL_GAIN] > 0.0:
-        limit = ct[CT_INTEGRAL_LIMIT]
         dt = ct[CT_PERIOD]
+        limit = ct[CT_INTEGRAL_LIMIT]
         wk.integral[0] = min(max(wk.integral[0] + errors_alpha * dt, -limit), limit)
+        limit = ct[CT_INTEGRAL_LIMIT + 1]
         wk.integral[1] = min(max(wk.integral[1] + errors_beta * dt, -limit), limit)
+        limit = ct[CT_INTEGRAL_LIMIT + 2]
         wk.integral[2] = min(max(wk.integral[2] + errors_bank * dt, -limit), limit)
     ki = ct[CT_INTEGRAL_GAIN]
     alpha_dot = ct[CT_ANGLE_GAIN] * (errors_alpha + ki * wk.integral[0])
