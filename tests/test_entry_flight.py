@@ -227,3 +227,9 @@ def test_coefficient_errors_the_flight_software_does_not_know_are_tracked_out():
     assert summary[ef.SU_STATUS] == ef.STATUS_TERMINAL_MACH
     assert math.degrees(summary[ef.SU_ALPHA_ERROR]) <= ALPHA_BOUND_DEG
     assert math.degrees(summary[ef.SU_BANK_ERROR]) <= BANK_BOUND_DEG
+
+
+def test_schedule_is_numpys_interp_held_at_the_ends():
+    table = np.array([[2.0, 5.0, 10.0, 30.0], [0.35, 0.52, 0.70, 0.70]])
+    for x in np.linspace(0.0, 40.0, 81):
+        assert ef.schedule(table, x) == pytest.approx(np.interp(x, table[0], table[1]), rel=1e-15, abs=1e-15)
