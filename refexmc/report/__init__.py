@@ -22,7 +22,7 @@ import json
 from pathlib import Path
 
 from refexmc.campaign.storage import write_text_atomic
-from refexmc.report import data
+from refexmc.report import data, studies
 from refexmc.report import summary as summary_module
 from refexmc.report import text as text_module
 from refexmc.report.requirements import evaluate, overall_verdict, parse_requirement
@@ -55,6 +55,8 @@ def make_report(out, require=(), html=True):
     verdicts = [evaluate(r, campaign, summary["metrics"]) for r in requirements]
     summary["requirements"] = verdicts
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
+    if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
+        summary["until_decided"] = studies.stopping(campaign)
     report_dir = Path(out) / "report"
     report_dir.mkdir(parents=True, exist_ok=True)
     files = []
@@ -70,12 +72,13 @@ def make_report(out, require=(), html=True):
         from refexmc.report import html as html_module
 
         page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures], SENSITIVITY_LABELS)
+        page = page.replace("<h2>Requirements</h2>", studies.stopping_html(summary) + "<h2>Requirements</h2>", 1)
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)
     write_text_atomic(json.dumps(clean, indent=2, allow_nan=False) + "\n", report_dir / "summary.json")
     files.append(report_dir / "summary.json")
-    text = text_module.format_summary(summary, report_dir)
+    text = text_module.format_summary(summary, report_dir) + studies.stopping_text(summary)
     return {
         "summary": clean,
         "requirements": clean["requirements"],
