@@ -163,7 +163,8 @@ def rule_for(requirement, alpha=DEFAULT_ALPHA):
         if percent is not None and stated[bound] is not None:
             # q-th percentile >= v <=> P(value >= v) >= 1 - q/100; <= v <=> P(value <= v) >= q/100
             p0 = 1.0 - percent / 100.0 if op in (">=", ">") else percent / 100.0
-            why = f"P({column} {op} {value:g}) >= {p0:g} at alpha {stated[bound]:g}"
+            level = f"alpha {alpha:g}" if bound is None else "95 % confidence"
+            why = f"P({column} {op} {value:g}) >= {p0:g} at {level}"
             return _probability(requirement, why, p0, ">=", stated[bound], column=column, event_op=op)
     if (stat == "min" and op in (">=", ">")) or (stat == "max" and op in ("<=", "<")):
         return Rule(requirement, "final_fail", f"fails for good at the first run with {column} not {op} {value:g}")
