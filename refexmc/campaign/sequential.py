@@ -272,6 +272,10 @@ class Decision:
 def check_sequential_campaign(campaign, file=None):
     """ConfigError unless the runs of ``campaign`` are the same whatever its number of runs (so a
     campaign stopped early holds the first runs of a longer one) and it has requirements."""
+    if "sweep" in campaign:
+        raise ConfigError(
+            "--until-decided does not stop a sweep (fly its points' campaigns)", file=file, path=("sweep",)
+        )
     sampling = campaign.get("sampling", "random")
     if sampling == "lhs":
         raise ConfigError(

@@ -670,6 +670,11 @@ def load_campaign(path):
     columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     published.check_published(campaign.get("published", []), columns, path, lines)
+    if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        from refexmc.config import sweep
+
+        campaign["sweep"] = data["sweep"]
+        sweep.check_sweep(campaign, path, lines, columns)
     enumerated = enumerated_failures(campaign)
     if enumerated is not None:
         n_units = n_thrusters if enumerated is THRUSTER_FAILURES else len(wheel_units)

@@ -818,6 +818,44 @@ CAMPAIGN = obj(
                 },
             ),
         },
+        "sweep": obj(
+            "parameters varied over a grid, each point a full campaign (refexmc.config.sweep, docs/studies.md)",
+            {
+                "axes": {
+                    "type": "array",
+                    "minItems": 1,
+                    "maxItems": 2,
+                    "description": "one axis, or two for a grid",
+                    "items": obj(
+                        "one swept parameter",
+                        {
+                            "parameter": string("a scalar parameter path of docs/campaigns.md sec. 2 [its unit]"),
+                            "values": {
+                                "type": "array",
+                                "minItems": 1,
+                                "items": number("a value of the parameter [its unit]"),
+                                "description": "the values (or range)",
+                            },
+                            "range": obj(
+                                "count evenly spaced values from start to stop",
+                                {
+                                    "start": number("first value [the parameter's unit]"),
+                                    "stop": number("last value [the parameter's unit]"),
+                                    "count": integer("number of values", minimum=2, maximum=1000),
+                                },
+                            ),
+                        },
+                        optional=("values", "range"),
+                    ),
+                },
+                "metrics": {
+                    "type": "array",
+                    "items": string("a runs column"),
+                    "description": "columns whose percentiles the report draws against the swept value",
+                },
+            },
+            optional=("metrics",),
+        ),
     },
     optional=(
         "runs",
@@ -830,5 +868,6 @@ CAMPAIGN = obj(
         "output",
         "requirements",
         "published",
+        "sweep",
     ),
 )

@@ -49,6 +49,9 @@ def load_requirements(campaign, require=()):
 
 def make_report(out, require=(), html=True):
     """Build the report of campaign output ``out``; see the module docstring."""
+    sweep = studies.sweep_record(out)
+    if sweep is not None:  # a sweep: each point's report, and the curve over the points
+        return studies.sweep_report(out, sweep, make_report, require=require, html=html)
     campaign = data.load(out)
     requirements = load_requirements(campaign, require)
     summary = summary_module.build(campaign)
