@@ -232,10 +232,12 @@ def sweep_figure(summary):
             q = {k: np.array([r["metrics"][metric][k] for r in rows], dtype=float)[order] for k in SWEEP_PERCENTILES}
             (line,) = ax.plot(x, q["p50"], marker="o", label=f"{label + ': ' if label else ''}median")
             ax.fill_between(x, q["p1"], q["p99"], color=line.get_color(), alpha=0.2, lw=0)
-    axes[0].set_ylabel("P(success), 95 % Clopper-Pearson band")
+    axes[0].set_ylabel("95 % Clopper-Pearson band")
     axes[0].set_ylim(-0.02, 1.02)
+    axes[0].set_title("P(success)")
     for ax, metric in zip(axes[1:], summary["metrics"], strict=True):
-        ax.set_ylabel(f"{metric} (successful flights): median, 1-99 %")
+        ax.set_title(metric)
+        ax.set_ylabel("successful flights: median, 1-99 % band")
     for ax in axes:
         ax.set_xlabel(summary["axes"][0])
         ax.grid(alpha=0.3)
