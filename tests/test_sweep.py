@@ -88,7 +88,7 @@ def test_each_point_is_the_campaign_with_its_value_and_shares_the_draws(sweep_fi
 def test_resume_of_a_killed_sweep_flies_only_the_gaps(sweep_file, tmp_path):
     out = tmp_path / "sweep"
     whole = run_campaign(sweep_file, out, jobs=1)["runs"]
-    # what a kill leaves: point 1 with one chunk missing, and (three points) point 2 not started
+    # what a kill leaves: point 1 with one chunk missing (point 0 complete)
     shutil.rmtree(out / "report", ignore_errors=True)
     (out / "points/001/runs/part-00001.parquet").unlink()
     before = snapshot(out)

@@ -689,6 +689,10 @@ def load_campaign(path):
         campaign["runs"] = derived
     elif campaign["runs"] is None:
         raise ConfigError("'runs' is required", file=path, line=1, path=("runs",))
+    if campaign["sampling"] == "saltelli":  # the design's run count and what it cannot hold
+        from refexmc.campaign import saltelli
+
+        saltelli.check(campaign, path, lines)
     return campaign
 
 
@@ -701,6 +705,10 @@ def apply_overrides(campaign, runs=None, seed=None):
         if runs < 1:
             raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
         campaign["runs"] = runs
+        if campaign["sampling"] == "saltelli":
+            from refexmc.campaign import saltelli
+
+            saltelli.check(campaign)
     if seed is not None:
         if not 0 <= seed < 2**63:
             raise ConfigError(f"expected 0 <= seed < 2**63, got {seed}", path=("--seed",))

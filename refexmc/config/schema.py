@@ -756,7 +756,10 @@ CAMPAIGN = obj(
         ),
         "seed": integer("campaign seed", minimum=0, maximum=2**63 - 1),
         "nominal_first": {"type": "boolean", "description": "run 0 is the undispersed nominal case"},
-        "sampling": string("sampling of the dispersions", enum=["random", "lhs", "sobol"]),
+        "sampling": string(
+            "sampling of the dispersions (saltelli: SALib's design for Sobol' indices, docs/studies.md)",
+            enum=["random", "lhs", "sobol", "saltelli"],
+        ),
         "dispersions": {
             "type": "object",
             "description": "parameter path -> distribution {dist: ..., parameters}; paths and "

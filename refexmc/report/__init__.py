@@ -60,6 +60,9 @@ def make_report(out, require=(), html=True):
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
     if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
         summary["until_decided"] = studies.stopping(campaign)
+    sobol_indices = studies.sobol_section(campaign)  # sampling saltelli: Sobol' indices
+    if sobol_indices is not None:
+        summary["sobol"] = sobol_indices
     report_dir = Path(out) / "report"
     report_dir.mkdir(parents=True, exist_ok=True)
     files = []
@@ -76,12 +79,15 @@ def make_report(out, require=(), html=True):
 
         page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures], SENSITIVITY_LABELS)
         page = page.replace("<h2>Requirements</h2>", studies.stopping_html(summary) + "<h2>Requirements</h2>", 1)
+        page = page.replace("\n</body>", studies.sobol_html(summary) + "\n</body>", 1)
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)
     write_text_atomic(json.dumps(clean, indent=2, allow_nan=False) + "\n", report_dir / "summary.json")
     files.append(report_dir / "summary.json")
-    text = text_module.format_summary(summary, report_dir) + studies.stopping_text(summary)
+    text = (
+        text_module.format_summary(summary, report_dir) + studies.stopping_text(summary) + studies.sobol_text(summary)
+    )
     return {
         "summary": clean,
         "requirements": clean["requirements"],

@@ -268,3 +268,53 @@ def sweep_page(summary, png_bytes):
         "each metric's median with its 1-99 % band over the successful flights, against the swept value."
         f"</figcaption></figure>{table}</body></html>\n"
     )
+
+
+# --- Sobol' indices ------------------------------------------------------------------------------
+
+
+def sobol_section(campaign):
+    """The Sobol' indices of a ``sampling: saltelli`` campaign (refexmc.report.sobol), or None."""
+    if campaign.resolved.get("sampling") != "saltelli":
+        return None
+    from refexmc.report import sobol
+
+    return sobol.campaign_indices(campaign.resolved, campaign.runs, seed=int(campaign.resolved.get("seed", 0)) % 2**32)
+
+
+def sobol_text(summary):
+    from refexmc.report import sobol
+
+    return "\n" + sobol.text(summary["sobol"]) if summary.get("sobol") else ""
+
+
+def sobol_html(summary):
+    """An HTML section: the indices figure and, per metric, the table of first and total indices."""
+    if not summary.get("sobol"):
+        return ""
+    from refexmc.report import sobol
+
+    e = html_text.escape
+    section = summary["sobol"]
+    parts = [
+        "<section id='sobol'><h2>Sobol' indices</h2>",
+        f"<p>Saltelli design over {len(section['groups'])} dispersed parameters, {section['runs']} runs; "
+        "first-order and total indices with 95 % bootstrap intervals (SALib; docs/studies.md).</p>",
+    ]
+    png_bytes = sobol.figure(section)
+    if png_bytes:
+        encoded = base64.b64encode(png_bytes).decode("ascii")
+        parts.append(f"<figure><img alt='Sobol indices' src='data:image/png;base64,{encoded}'></figure>")
+    for metric, entry in section["metrics"].items():
+        if "skipped" in entry:
+            parts.append(f"<p>{e(metric)}: not analysed ({e(entry['skipped'])}).</p>")
+            continue
+        rows = "".join(
+            f"<tr><td>{e(name)}</td><td>{s['first']:.3f} ± {s['first_conf']:.3f}</td>"
+            f"<td>{s['total']:.3f} ± {s['total_conf']:.3f}</td></tr>"
+            for name, s in ((n, entry["indices"][n]) for n in sobol.ranking(entry))
+        )
+        parts.append(
+            f"<h3>{e(metric)}</h3><table><tr><th>parameter</th><th>first</th><th>total</th></tr>{rows}</table>"
+        )
+    return "".join(parts) + "</section>"
