@@ -85,13 +85,12 @@ def text(section, top=8):
         if "skipped" in entry:
             lines.append(f"  {metric}: not analysed ({entry['skipped']})")
             continue
-        lines.append(f"  {metric}:{'parameter':>40}  first [95 % CI]        total [95 % CI]")
+        lines.append(f"  {metric}, largest total indices:")
+        lines.append(f"    {'parameter':>42}  {'first ± 95 % CI':>15}  {'total ± 95 % CI':>15}")
         for name in ranking(entry)[:top]:
             s = entry["indices"][name]
-            lines.append(
-                f"  {'':{len(metric) + 1}}{name:>40}  {s['first']:6.3f} ± {s['first_conf']:.3f}"
-                f"        {s['total']:6.3f} ± {s['total_conf']:.3f}"
-            )
+            first, total = f"{s['first']:.3f} ± {s['first_conf']:.3f}", f"{s['total']:.3f} ± {s['total_conf']:.3f}"
+            lines.append(f"    {name:>42}  {first:>15}  {total:>15}")
     return "\n".join(lines)
 
 
