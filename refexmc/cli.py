@@ -146,7 +146,8 @@ def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, s
     input, a failure or an interrupt exits with its message and code."""
     from refexmc.campaign import storage
     from refexmc.campaign.progress import progress_mode
-    from refexmc.campaign.run import CampaignInterrupted, resume_command, run_campaign
+    from refexmc.campaign.run import CampaignInterrupted, resume_command
+    from refexmc.campaign.sweep import run_campaign_or_sweep as run_campaign
 
     if until is not None:
         from refexmc.campaign.decided import run_until_decided

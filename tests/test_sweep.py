@@ -13,6 +13,7 @@ from stored import ROOT, campaign_copy, invoke_run, read_runs, snapshot
 
 from refexmc.campaign import run as run_module
 from refexmc.campaign.run import run_campaign
+from refexmc.campaign.sweep import run_campaign_or_sweep
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_campaign
 from refexmc.report import make_report
@@ -63,7 +64,7 @@ def own_campaign(tmp_path, load):
 
 
 def test_each_point_is_the_campaign_with_its_value_and_shares_the_draws(sweep_file, tmp_path):
-    result = run_campaign(sweep_file, tmp_path / "sweep", jobs=1)
+    result = run_campaign_or_sweep(sweep_file, tmp_path / "sweep", jobs=1)
     table = result["runs"]
     assert sorted(table["point"].unique()) == [0, 1] and len(table) == 24
     points = [table[table["point"] == k].drop(columns="point").reset_index(drop=True) for k in (0, 1)]
@@ -87,7 +88,7 @@ def test_each_point_is_the_campaign_with_its_value_and_shares_the_draws(sweep_fi
 
 def test_resume_of_a_killed_sweep_flies_only_the_gaps(sweep_file, tmp_path):
     out = tmp_path / "sweep"
-    whole = run_campaign(sweep_file, out, jobs=1)["runs"]
+    whole = run_campaign_or_sweep(sweep_file, out, jobs=1)["runs"]
     # what a kill leaves: point 1 with one chunk missing (point 0 complete)
     shutil.rmtree(out / "report", ignore_errors=True)
     (out / "points/001/runs/part-00001.parquet").unlink()
@@ -104,7 +105,7 @@ def test_resume_of_a_killed_sweep_flies_only_the_gaps(sweep_file, tmp_path):
 
 def test_a_changed_sweep_is_not_resumed(sweep_file, tmp_path):
     out = tmp_path / "sweep"
-    run_campaign(sweep_file, out, jobs=1, runs=2)
+    run_campaign_or_sweep(sweep_file, out, jobs=1, runs=2)
     changed = sweep_file.read_text().replace("values: [0.42, 0.76]", "values: [0.42, 0.5]")
     sweep_file.write_text(changed)
     result = invoke_run(sweep_file, "-o", out, "--resume", "--runs", "2", "-j", "1")
@@ -113,7 +114,7 @@ def test_a_changed_sweep_is_not_resumed(sweep_file, tmp_path):
 
 def test_sweep_report_gives_each_point_and_the_curve(sweep_file, tmp_path):
     out = tmp_path / "sweep"
-    run_campaign(sweep_file, out, jobs=1)
+    run_campaign_or_sweep(sweep_file, out, jobs=1)
     result = make_report(out)
     assert result["passed"] and result["verdict"] == "COMPLETE"
     summary = json.loads((out / "report/summary.json").read_text())
@@ -158,4 +159,10 @@ def test_a_swept_path_cannot_also_be_dispersed(tmp_path):
     result = invoke_run(path, "-o", tmp_path / "out")
     assert result.exit_code == 2 and "refex-mc100.yaml:76: sweep.axes.0.parameter: " in result.output
     assert "swept and dispersed" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_run_campaign_alone_refuses_a_sweep(sweep_file, tmp_path):
+    with pytest.raises(ConfigError, match="a sweep flies with"):
+        run_campaign(sweep_file, tmp_path / "out")
     assert not (tmp_path / "out").exists()

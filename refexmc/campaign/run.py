@@ -250,22 +250,9 @@ def run_campaign(
     jobs = default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
-    if "sweep" in campaign:  # every point a campaign of its own (refexmc.campaign.sweep)
-        from refexmc.campaign.sweep import run_sweep
-
-        return run_sweep(
-            campaign_file,
-            campaign,
-            out if out is not None else default_output(campaign),
-            overwrite=overwrite,
-            resume=resume,
-            notify=notify,
-            run_point=run_campaign,
-            jobs=jobs,
-            backend=backend,
-            scheduler=scheduler,
-            progress=progress,
-            chunk_size=chunk_size,
+    if "sweep" in campaign:  # every point a campaign of its own
+        raise ConfigError(
+            "a sweep flies with refexmc.campaign.sweep.run_campaign_or_sweep (`refexmc run`)", file=campaign_file
         )
     options = check_backend(backend, scheduler=scheduler)
     out = Path(out) if out is not None else default_output(campaign)

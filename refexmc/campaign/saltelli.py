@@ -31,14 +31,12 @@ NOISE_KEYS = (
 
 def layout(campaign, specs=None):
     """[(path, uniforms per draw)] of the dispersed paths that draw (constant ones do not)."""
-    from refexmc.campaign.sampling import dims
-
     vehicle, mission = campaign["vehicle"], campaign["mission"]
     if specs is None:
         specs = dispersions.check(campaign["dispersions"], vehicle, mission, None, {})
     out = []
     for path, spec in specs.items():
-        count = dims(spec, dispersions.size(path, vehicle))
+        count = dispersions.uniforms_per_draw(spec, dispersions.size(path, vehicle))
         if count:
             out.append((path, count))
     return out

@@ -68,18 +68,7 @@ def _design(sampling, seed, name, n, dims):
     return design
 
 
-def dims(spec, n_components):
-    """Uniforms one draw of ``spec`` consumes."""
-    dist = spec["dist"]
-    if dist == "constant":
-        return 0
-    if dist == "choice":
-        return n_components if spec["per_component"] else 1
-    if dist == "uniform_so3":
-        return 3
-    if dist == "inertia":
-        return 6
-    return n_components
+dims = dispersions.uniforms_per_draw  # uniforms one draw of a spec consumes
 
 
 def so3_rotation_vector_deg(u):

@@ -12,10 +12,15 @@ the chunks a killed point lacks; ``-j`` and the Dask backend fly each point as t
 import shutil
 from pathlib import Path
 
-import pandas as pd
-
 from refexmc.campaign import lock, storage
-from refexmc.campaign.run import CampaignInterrupted, check_resumable, notify_stderr
+from refexmc.campaign.run import (
+    CampaignInterrupted,
+    check_resumable,
+    default_output,
+    notify_stderr,
+    resolve_campaign,
+    run_campaign,
+)
 from refexmc.config import sweep as sweep_config
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_campaign
@@ -47,12 +52,19 @@ def sweep_record(campaign):
     }
 
 
-def run_sweep(
-    campaign_file, campaign, out, overwrite=False, resume=False, notify=notify_stderr, run_point=None, **options
-):
+def run_campaign_or_sweep(campaign_file=None, out=None, runs=None, seed=None, **options):
+    """:func:`run_sweep` for a campaign with a ``sweep``, else :func:`refexmc.campaign.run.run_campaign`
+    (the same arguments)."""
+    resolved_file, campaign = resolve_campaign(campaign_file, runs, seed)
+    if "sweep" not in campaign:
+        return run_campaign(campaign_file, out=out, runs=runs, seed=seed, **options)
+    return run_sweep(resolved_file, campaign, out if out is not None else default_output(campaign), **options)
+
+
+def run_sweep(campaign_file, campaign, out, overwrite=False, resume=False, notify=notify_stderr, **options):
     """Fly every point of the validated sweep ``campaign`` into OUT; the combined result (runs
-    table with a ``point`` column first). ``run_point``: :func:`refexmc.campaign.run.run_campaign`
-    (passed in: that module calls this one). ConfigError on bad input, with nothing written."""
+    table with a ``point`` column first). ``options``: those of :func:`refexmc.campaign.run.run_campaign`
+    (jobs, backend, ...). ConfigError on bad input, with nothing written."""
     out = Path(out)
     record = sweep_record(campaign)
     lock.check_free(out)
@@ -88,12 +100,14 @@ def run_sweep(
         for point, file in zip(record["points"], files, strict=True):
             folder = out / point["folder"]
             try:
-                result = run_point(file, out=folder, resume=not storage.is_empty(folder), notify=notify, **options)
+                result = run_campaign(file, out=folder, resume=not storage.is_empty(folder), notify=notify, **options)
             except CampaignInterrupted as exc:
                 write_manifest("interrupted")
                 exc.out = out
                 raise
             tables.append(result["runs"].assign(point=point["point"]))
+        import pandas as pd  # as run.py: not at start-up
+
         table = pd.concat(tables, ignore_index=True)
         table = table[["point", *[c for c in table.columns if c != "point"]]]
         counts = {
