@@ -4,16 +4,24 @@ sweep resumes by flying only what is missing; `refexmc report` gives per-point s
 curve over the points."""
 
 import json
+import os
 import shutil
+import signal
+import subprocess
+import sys
+import time
 
 import pandas as pd
 import pytest
+from click.testing import CliRunner
 from scipy import stats as sps
 from stored import ROOT, campaign_copy, invoke_run, read_runs, snapshot
 
 from refexmc.campaign import run as run_module
+from refexmc.campaign import storage
 from refexmc.campaign.run import run_campaign
 from refexmc.campaign.sweep import run_campaign_or_sweep
+from refexmc.cli import main
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_campaign
 from refexmc.report import make_report
@@ -162,7 +170,58 @@ def test_a_swept_path_cannot_also_be_dispersed(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_an_unfinished_sweep_reports_incomplete_and_rerun_points_to_a_point(sweep_file, tmp_path):
+    out = tmp_path / "sweep"
+    run_campaign_or_sweep(sweep_file, out, jobs=1, runs=2)
+    shutil.rmtree(out / "points/001")  # killed before the second point started
+    result = make_report(out, html=False)
+    assert result["verdict"] == "INCOMPLETE" and not result["passed"]
+    assert result["summary"]["incomplete_points"] == [1] and len(result["summary"]["points"]) == 1
+    rerun = CliRunner().invoke(main, ["rerun", str(out), "0"])
+    assert rerun.exit_code == 2 and "OUT/points/NNN" in rerun.output
+
+
 def test_run_campaign_alone_refuses_a_sweep(sweep_file, tmp_path):
     with pytest.raises(ConfigError, match="a sweep flies with"):
         run_campaign(sweep_file, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_a_sweep_killed_mid_point_resumes_to_the_uninterrupted_tables(tmp_path):
+    """SIGKILL of `refexmc run` (CLI and workers) once the second point has a part; --resume flies
+    the rest of that point and the third, keeps what was done and gives the uninterrupted tables."""
+    path = campaign_copy(
+        "refex-mc100.yaml",
+        tmp_path,
+        "sweep.yaml",
+        [
+            ("  rcs.propellant_kg: {dist: truncnorm, sigma: 0.0253, low: 0.57, high: 0.95}\n", ""),
+            ("runs: 100", "runs: 60"),
+        ],
+    )
+    path.write_text(path.read_text() + sweep_text((0.42, 0.6, 0.76)))
+    out = tmp_path / "killed"
+    env = {**os.environ, run_module.CHUNK_SIZE_ENV: "5"}  # 12 chunks per point
+    command = [sys.executable, "-m", "refexmc.cli", "run", str(path), "-o", str(out), "-j", "2", "--no-progress"]
+    process = subprocess.Popen(command, env=env, start_new_session=True, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 180  # a cold numba cache compiles first
+    second = out / "points/001/runs"
+    while not second.is_dir() or not any(second.glob("part-*.parquet")):
+        assert process.poll() is None, process.stderr.read().decode()
+        assert time.monotonic() < deadline, "no part of the second point appeared"
+        time.sleep(0.005)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    process.stderr.close()
+    kept = {p: v for p, v in snapshot(out).items() if p.suffix == ".parquet"}
+    assert len([p for p in kept if "001/runs" in str(p)]) < 12  # the second point is not complete
+    resumed = invoke_run(path, "-o", out, "--resume", "-j", 2, "--no-progress")
+    assert resumed.exit_code == 0, resumed.output
+    after = snapshot(out)
+    assert all(after[p] == v for p, v in kept.items()), "a part flown before the kill was written again"
+    reference = tmp_path / "reference"
+    assert invoke_run(path, "-o", reference, "-j", 2, "--no-progress").exit_code == 0
+    for k in range(3):
+        pd.testing.assert_frame_equal(read_runs(out / f"points/{k:03d}"), read_runs(reference / f"points/{k:03d}"))
+    assert storage.read_manifest(out)["status"] == "complete"

@@ -101,9 +101,11 @@ def run_sweep(campaign_file, campaign, out, overwrite=False, resume=False, notif
             folder = out / point["folder"]
             try:
                 result = run_campaign(file, out=folder, resume=not storage.is_empty(folder), notify=notify, **options)
-            except CampaignInterrupted as exc:
+            except CampaignInterrupted as exc:  # the message counts the runs of every point
                 write_manifest("interrupted")
-                exc.out = out
+                earlier = sum(len(table) for table in tables)
+                exc.out, exc.done = out, earlier + exc.done
+                exc.total = campaign["runs"] * len(record["points"])
                 raise
             tables.append(result["runs"].assign(point=point["point"]))
         import pandas as pd  # as run.py: not at start-up

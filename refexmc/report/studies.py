@@ -102,8 +102,8 @@ def sweep_report(out, record, make_point_report, require=(), html=True):
     rows, incomplete, errored = [], [], []
     for point in record["points"]:
         folder = out / point["folder"]
-        if not (folder / "manifest.json").is_file():
-            incomplete.append(point["point"])
+        if not (folder / "manifest.json").is_file() or not any((folder / "runs").glob("part-*.parquet")):
+            incomplete.append(point["point"])  # killed before the point started, or before its first part
             continue
         result = make_point_report(folder, require=require, html=html)
         runs = pq.read_table(folder / "runs").to_pandas()
