@@ -83,7 +83,7 @@ def test_a_saltelli_campaign_reports_its_indices(tmp_path):
     section = result["summary"]["sobol"]
     assert section["groups"] == ["rcs.isp_s", "separation.rates_deg_s"] and section["runs"] == 16
     assert "indices" in section["metrics"]["fuel_used_kg"]
-    assert "Sobol' indices (Saltelli design, 16 runs, 2 parameters" in result["text"]
+    assert "Saltelli design over 2 parameters: N (2 + 2) = 16 runs with N = 4 base samples" in result["text"]
     assert "id='sobol'" in (out / "report/index.html").read_text()
 
 

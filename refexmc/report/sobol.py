@@ -53,7 +53,8 @@ def campaign_indices(resolved, runs, metrics=DEFAULT_METRICS, seed=0):
     offset = 1 if resolved.get("nominal_first", True) else 0
     design = runs[runs["run_id"] >= offset]
     ok = (design["status"] == "ok").to_numpy() & design["success"].fillna(False).to_numpy(dtype=bool)
-    section = {"groups": [name for name, _ in groups], "runs": int(len(design)), "metrics": {}}
+    base = len(design) // (len(groups) + 2)  # the design's N: N (G + 2) rows (refexmc.campaign.saltelli)
+    section = {"groups": [name for name, _ in groups], "runs": int(len(design)), "base_samples": base, "metrics": {}}
     for metric in metrics:
         if metric == "success":
             values = ok.astype(float)
@@ -80,7 +81,11 @@ def ranking(metric_section):
 
 def text(section, top=8):
     """Terminal lines: per metric the parameters with the largest total indices."""
-    lines = [f"Sobol' indices (Saltelli design, {section['runs']} runs, {len(section['groups'])} parameters; 95 % CI)"]
+    groups, base = len(section["groups"]), section["base_samples"]
+    lines = [
+        f"Sobol' indices (Saltelli design over {groups} parameters: N ({groups} + 2) = {section['runs']} runs "
+        f"with N = {base} base samples; 95 % bootstrap CI)"
+    ]
     for metric, entry in section["metrics"].items():
         if "skipped" in entry:
             lines.append(f"  {metric}: not analysed ({entry['skipped']})")
