@@ -22,6 +22,7 @@ from refexmc.campaign import storage
 from refexmc.campaign.run import run_campaign
 from refexmc.campaign.sweep import run_campaign_or_sweep
 from refexmc.cli import main
+from refexmc.config import sweep as sweep_config
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_campaign
 from refexmc.report import make_report
@@ -225,3 +226,35 @@ def test_a_sweep_killed_mid_point_resumes_to_the_uninterrupted_tables(tmp_path):
     for k in range(3):
         pd.testing.assert_frame_equal(read_runs(out / f"points/{k:03d}"), read_runs(reference / f"points/{k:03d}"))
     assert storage.read_manifest(out)["status"] == "complete"
+
+
+def test_a_grid_of_two_axes_flies_every_combination(tmp_path):
+    path = campaign_copy("nominal.yaml", tmp_path, replace=[("runs: 1", "runs: 2")])
+    path.write_text(
+        path.read_text() + "sweep:\n  axes:\n    - parameter: rcs.propellant_kg\n      values: [0.5, 0.76]\n"
+        "    - parameter: rcs.isp_s\n      range: {start: 60, stop: 80, count: 3}\n"
+    )
+    campaign = load_campaign(path)
+    points = sweep_config.points(campaign)
+    assert (
+        points[:4]
+        == [
+            {"rcs.propellant_kg": 0.5, "rcs.isp_s": 60.0},
+            {"rcs.propellant_kg": 0.5, "rcs.isp_s": 70.0},
+            {"rcs.propellant_kg": 0.5, "rcs.isp_s": 80.0},
+            {"rcs.propellant_kg": 0.76, "rcs.isp_s": 60.0},
+        ]
+        and len(points) == 6
+    )
+    plain = sweep_config.point_campaign(campaign, 4, points[4])
+    assert plain["vehicle"]["rcs"]["isp_s"] == 70.0 and plain["vehicle"]["rcs"]["propellant_kg"] == 0.76
+    assert plain["dispersions"]["rcs.isp_s"] == {"dist": "constant", "value": 70.0} and "sweep" not in plain
+    out = tmp_path / "grid"
+    table = run_campaign_or_sweep(path, out, jobs=1)["runs"]
+    assert len(table) == 12 and (table.groupby("point")["p.rcs.isp_s"].first() == [60, 70, 80] * 2).all()
+    # the nominal flight burns more propellant at a lower specific impulse (the same impulse)
+    nominal = table[table["run_id"] == 0].set_index("point")["fuel_used_kg"]
+    assert nominal[0] > nominal[1] > nominal[2] and nominal[3] == pytest.approx(nominal[0], rel=1e-12)
+    result = make_report(out)
+    assert result["passed"] and len(result["summary"]["points"]) == 6
+    assert (out / "report/sweep.png").is_file()

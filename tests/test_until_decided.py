@@ -49,6 +49,8 @@ def test_a_passing_campaign_stops_early_with_the_first_runs_of_the_full_one(camp
     assert report["verdict"] == "PASS"
     assert report["summary"]["until_decided"]["runs_flown"] == flown
     assert f"stopped when decided after {flown} of 100 runs" in report["text"]
+    page = make_report(tmp_path / "stopped")["files"][-2].read_text()  # index.html
+    assert page.index("Stopping when decided") < page.index("<h2>Requirements</h2>")
 
 
 def test_an_extended_campaign_flies_only_the_new_runs(campaign, tmp_path):

@@ -277,9 +277,9 @@ def check_sequential_campaign(campaign, file=None):
             "--until-decided does not stop a sweep (fly its points' campaigns)", file=file, path=("sweep",)
         )
     sampling = campaign.get("sampling", "random")
-    if sampling == "lhs":
+    if sampling in ("lhs", "saltelli"):
         raise ConfigError(
-            "--until-decided needs 'sampling: random' or 'sobol': a Latin-hypercube design depends on the "
+            f"--until-decided needs 'sampling: random' or 'sobol': a {sampling} design depends on the "
             "number of runs, so a campaign stopped early would not hold the first runs of a longer one",
             file=file,
             path=("sampling",),

@@ -78,8 +78,8 @@ def make_report(out, require=(), html=True):
         from refexmc.report import html as html_module
 
         page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures], SENSITIVITY_LABELS)
-        page = page.replace("<h2>Requirements</h2>", studies.stopping_html(summary) + "<h2>Requirements</h2>", 1)
-        page = page.replace("\n</body>", studies.sobol_html(summary) + "\n</body>", 1)
+        page = studies.insert_section(page, studies.stopping_html(summary), "<h2>Requirements</h2>")
+        page = studies.insert_section(page, studies.sobol_html(summary), "</body>")
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)

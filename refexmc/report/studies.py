@@ -25,6 +25,14 @@ def format_stopping(record):
     return format_record(record)
 
 
+def insert_section(page, section, before):
+    """``page`` with ``section`` (HTML) inserted before the first ``before``, else before ``</body>``."""
+    if not section:
+        return page
+    marker = before if before in page else "</body>"
+    return page.replace(marker, section + marker, 1)
+
+
 def sweep_record(out):
     """The manifest's ``sweep`` of a sweep's output, or None (refexmc.campaign.sweep)."""
     path = Path(out) / "manifest.json"
