@@ -258,3 +258,32 @@ def test_a_grid_of_two_axes_flies_every_combination(tmp_path):
     result = make_report(out)
     assert result["passed"] and len(result["summary"]["points"]) == 6
     assert (out / "report/sweep.png").is_file()
+
+
+def test_sweeping_a_dispersion_parameter_scales_the_same_draws(tmp_path):
+    """A sweep of a distribution's sigma: the same uniforms at every point (common random numbers),
+    so every run's deviation from the mean scales with sigma (docs/campaigns.md sec. 5)."""
+    path = campaign_copy(
+        "nominal.yaml",
+        tmp_path,
+        replace=[("runs: 1", "runs: 6"), ("dispersions: {}", "dispersions:\n  rcs.isp_s: {dist: normal, sigma: 1.0}")],
+    )
+    path.write_text(
+        path.read_text() + "sweep:\n  axes:\n    - parameter: rcs.isp_s\n      dispersion: sigma\n"
+        "      values: [0.5, 2.0]\n"
+    )
+    table = run_campaign_or_sweep(path, tmp_path / "out", jobs=1)["runs"]
+    isp = [table.loc[table["point"] == k, "p.rcs.isp_s"].to_numpy() - 70.0 for k in (0, 1)]
+    assert isp[0][0] == isp[1][0] == 0.0  # run 0: the nominal flight at every point
+    assert len(set(isp[0][1:])) == 5
+    assert isp[1][1:] == pytest.approx(4.0 * isp[0][1:], rel=1e-12)
+    manifest = storage.read_manifest(tmp_path / "out")
+    assert manifest["sweep"]["axes"] == ["rcs.isp_s:sigma"]
+    too_wide = path.read_text().replace("values: [0.5, 2.0]", "values: [0.5, 10.0]")
+    path.write_text(too_wide)
+    with pytest.raises(ConfigError, match="at sigma = 10: .*range") as error:
+        load_campaign(path)
+    assert error.value.path[:3] == ("sweep", "axes", 0)
+    path.write_text(too_wide.replace("dispersion: sigma", "dispersion: low"))
+    with pytest.raises(ConfigError, match="'normal' has no parameter 'low' to sweep; expected one of: sigma, mean"):
+        load_campaign(path)

@@ -43,7 +43,7 @@ def sweep_record(campaign):
     """The manifest's ``sweep``: axes, metrics and each point's values and folder."""
     columns = storage.output_names(campaign)["columns"]["runs"]
     return {
-        "axes": [axis["parameter"] for axis in campaign["sweep"]["axes"]],
+        "axes": [sweep_config.axis_name(axis) for axis in campaign["sweep"]["axes"]],
         "metrics": sweep_config.metrics(campaign, columns),
         "points": [
             {"point": k, "values": values, "folder": point_folder(k)}

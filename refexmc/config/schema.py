@@ -832,7 +832,24 @@ CAMPAIGN = obj(
                     "items": obj(
                         "one swept parameter",
                         {
-                            "parameter": string("a scalar parameter path of docs/campaigns.md sec. 2 [its unit]"),
+                            "parameter": string(
+                                "a scalar parameter path of docs/campaigns.md sec. 2 [its unit]; with "
+                                "'dispersion', any dispersed path"
+                            ),
+                            "dispersion": string(
+                                "sweep this parameter of the path's distribution instead of the file value "
+                                "[the parameter's unit]",
+                                enum=[
+                                    "value",
+                                    "mean",
+                                    "sigma",
+                                    "low",
+                                    "high",
+                                    "median",
+                                    "moments_sigma_fraction",
+                                    "axes_sigma_deg",
+                                ],
+                            ),
                             "values": {
                                 "type": "array",
                                 "minItems": 1,
@@ -848,7 +865,7 @@ CAMPAIGN = obj(
                                 },
                             ),
                         },
-                        optional=("values", "range"),
+                        optional=("values", "range", "dispersion"),
                     ),
                 },
                 "metrics": {

@@ -6,6 +6,9 @@ sweep:
   axes:
     - parameter: rcs.propellant_kg      # a scalar path of the dispersion table, set in the vehicle or mission
       values: [0.45, 0.5, 0.6]         # or range: {start: 0.45, stop: 0.8, count: 8}
+    - parameter: rcs.thrust_scale       # or a parameter of a path's distribution (a second axis: a grid)
+      dispersion: sigma
+      values: [0.01, 0.02, 0.04]
   metrics: [fuel_remaining]             # runs columns whose percentiles the report draws against the point
 ```
 
@@ -50,18 +53,35 @@ def axis_values(axis):
     return [float(v) for v in np.linspace(spec["start"], spec["stop"], spec["count"])]
 
 
+def axis_name(axis):
+    """``rcs.propellant_kg`` for a file value, ``rcs.isp_s:sigma`` for a dispersion's parameter."""
+    return f"{axis['parameter']}:{axis['dispersion']}" if "dispersion" in axis else axis["parameter"]
+
+
 def points(campaign):
-    """[{path: value}] of every point, the last axis varying fastest."""
+    """[{axis name: value}] of every point, the last axis varying fastest."""
     axes = campaign["sweep"]["axes"]
     grid = itertools.product(*(axis_values(axis) for axis in axes))
-    return [dict(zip((axis["parameter"] for axis in axes), values, strict=True)) for values in grid]
+    return [dict(zip((axis_name(axis) for axis in axes), values, strict=True)) for values in grid]
 
 
 def point_campaign(campaign, index, values):
-    """The plain campaign of point ``index`` (values: {path: value}); see the module docstring."""
+    """The plain campaign of point ``index`` (values: {axis name: value}); see the module docstring.
+
+    An axis on a dispersion's parameter (``dispersion: sigma``) sets that parameter, for every
+    component; an axis on a file value sets it in the vehicle or mission file and records it as a
+    ``constant`` dispersion."""
     point = copy.deepcopy({key: value for key, value in campaign.items() if key != "sweep"})
     point["name"] = f"{campaign['name']}-point-{index:03d}"
-    for path, value in values.items():
+    axes = {axis_name(axis): axis for axis in campaign["sweep"]["axes"]}
+    for name, value in values.items():
+        path = axes[name]["parameter"]
+        if "dispersion" in axes[name]:
+            point["dispersions"] = {
+                **point["dispersions"],
+                path: {**point["dispersions"][path], axes[name]["dispersion"]: value},
+            }
+            continue
         node = point[_part(path)]
         keys = path.split(".")
         for key in keys[:-1]:
@@ -69,6 +89,42 @@ def point_campaign(campaign, index, values):
         node[keys[-1]] = value
         point["dispersions"] = {**point["dispersions"], path: {"dist": "constant", "value": value}}
     return point
+
+
+SWEPT_DISTRIBUTION_PARAMETERS = (
+    "value",
+    "mean",
+    "sigma",
+    "low",
+    "high",
+    "median",
+    "moments_sigma_fraction",
+    "axes_sigma_deg",
+)
+
+
+def _check_dispersion_axis(campaign, i, axis, fail, file):
+    """A sweep of a dispersion's parameter: the path is dispersed with a distribution that has it,
+    and every point's distribution passes the dispersion checks (its support, sec. 3)."""
+    path, name = axis["parameter"], axis["dispersion"]
+    spec = campaign["dispersions"].get(path)
+    if spec is None:
+        fail(f"'{path}' is not dispersed: 'dispersion: {name}' sweeps a parameter of its distribution", "axes", i)
+    required, optional = dispersions.DISTRIBUTIONS.get(spec.get("dist"), ((), ()))
+    if name not in SWEPT_DISTRIBUTION_PARAMETERS or name not in (*required, *optional):
+        allowed = [p for p in (*required, *optional) if p in SWEPT_DISTRIBUTION_PARAMETERS]
+        fail(
+            f"'{spec.get('dist')}' has no parameter '{name}' to sweep; expected one of: {', '.join(allowed)}",
+            "axes",
+            i,
+            "dispersion",
+        )
+    for value in axis_values(axis):
+        trial = {**campaign["dispersions"], path: {**spec, name: value}}
+        try:
+            dispersions.check(trial, campaign["vehicle"], campaign["mission"], file, {})
+        except ConfigError as exc:
+            fail(f"at {name} = {value:g}: {exc.message}", "axes", i)
 
 
 def check_sweep(campaign, file=None, lines=None, columns=()):
@@ -84,6 +140,16 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
     seen = set()
     for i, axis in enumerate(sweep["axes"]):
         path = axis["parameter"]
+        if axis_name(axis) in seen:
+            fail(f"'{axis_name(axis)}' is swept twice", "axes", i, "parameter")
+        seen.add(axis_name(axis))
+        if ("values" in axis) == ("range" in axis):
+            fail("expected exactly one of 'values' and 'range'", "axes", i)
+        if "range" in axis and not all(math.isfinite(axis["range"][k]) for k in ("start", "stop")):
+            fail("expected finite start and stop", "axes", i, "range")
+        if "dispersion" in axis:
+            _check_dispersion_axis(campaign, i, axis, fail, file)
+            continue
         param = dispersions.parameter(path)
         if param is None or param.shape != "scalar":
             scalar = [p for p, q in dispersions.PARAMETERS.items() if q.shape == "scalar"]
@@ -94,13 +160,6 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
             fail(f"the {_part(path)} file has no value at '{path}' to sweep", "axes", i, "parameter")
         if path in campaign["dispersions"]:
             fail(f"'{path}' is swept and dispersed; remove it from dispersions", "axes", i, "parameter")
-        if path in seen:
-            fail(f"'{path}' is swept twice", "axes", i, "parameter")
-        seen.add(path)
-        if ("values" in axis) == ("range" in axis):
-            fail("expected exactly one of 'values' and 'range'", "axes", i)
-        if "range" in axis and not all(math.isfinite(axis["range"][k]) for k in ("start", "stop")):
-            fail("expected finite start and stop", "axes", i, "range")
         for value in axis_values(axis):
             if not dispersions.in_range(param, value):
                 key = "values" if "values" in axis else "range"
