@@ -72,7 +72,7 @@ def main():
     help="Fly in batches until every requirement is decided; the runs are the budget (docs/studies.md).",
 )
 @click.option("--batch", type=int, help="With --until-decided: runs between looks [default: budget / 10, >= 10].")
-@click.option("--alpha", type=float, default=0.05, show_default=True, help="With --until-decided: wrong-verdict rate.")
+@click.option("--alpha", type=float, help="With --until-decided: wrong-verdict rate [default: 0.05].")
 def run(
     campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until_decided, batch, alpha
 ):
@@ -105,7 +105,9 @@ def run(
         from refexmc.campaign import dask_backend
 
         dask_backend.start_local_early(dask_local)  # its start overlaps the validation as well
-    until = {"batch": batch, "alpha": alpha} if until_decided else None
+    if not until_decided and (batch is not None or alpha is not None):
+        _bad_input("--batch and --alpha go with --until-decided")
+    until = {"batch": batch, "alpha": 0.05 if alpha is None else alpha} if until_decided else None
     try:
         result = _run_campaign(
             campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until

@@ -287,3 +287,23 @@ def test_sweeping_a_dispersion_parameter_scales_the_same_draws(tmp_path):
     path.write_text(too_wide.replace("dispersion: sigma", "dispersion: low"))
     with pytest.raises(ConfigError, match="'normal' has no parameter 'low' to sweep; expected one of: sigma, mean"):
         load_campaign(path)
+
+
+def test_the_yaml_examples_of_studies_md_validate(tmp_path):
+    """Each ```yaml block of docs/studies.md, added to refex-mc100 without its propellant dispersion."""
+    import re
+
+    import yaml
+
+    text = (ROOT / "docs/studies.md").read_text()
+    blocks = [yaml.safe_load(b) for b in re.findall(r"```yaml\n(.*?)```", text, flags=re.S)]
+    assert len(blocks) >= 2
+    base = yaml.safe_load((ROOT / "campaigns/refex-mc100.yaml").read_text())
+    del base["dispersions"]["rcs.propellant_kg"]
+    for k, block in enumerate(blocks):
+        data = {**base, **block}
+        for part in ("vehicle", "mission"):
+            data[part] = str((ROOT / "campaigns" / data[part]).resolve())
+        path = tmp_path / f"example-{k}.yaml"
+        path.write_text(yaml.safe_dump(data))
+        load_campaign(path)

@@ -76,6 +76,8 @@ def test_refuses_what_it_cannot_stop(tmp_path):
     with pytest.raises(ConfigError, match="needs requirements"):
         decided.run_until_decided(bare, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+    result = invoke_run(campaign_copy("nominal.yaml", tmp_path), "-o", tmp_path / "out", "--batch", "10")
+    assert result.exit_code == 2 and "--batch and --alpha go with --until-decided" in result.output
     result = invoke_run(lhs, "-o", tmp_path / "out", "--until-decided")
     assert result.exit_code == 2 and "sampling" in result.output and "Traceback" not in result.output
     assert not Path(tmp_path / "out").exists()
