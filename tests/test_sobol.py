@@ -124,4 +124,4 @@ def test_refuses_what_the_design_cannot_support(tmp_path, replace, expected):
 def test_runs_override_is_checked_too(tmp_path):
     path = campaign_copy("nominal.yaml", tmp_path, replace=SALTELLI)
     result = invoke_run(path, "-o", tmp_path / "out", "--runs", "20")
-    assert result.exit_code == 2 and "e.g. runs: 257" in result.output
+    assert result.exit_code == 2 and "--runs: sampling saltelli" in result.output and "e.g. runs: 257" in result.output

@@ -705,10 +705,13 @@ def apply_overrides(campaign, runs=None, seed=None):
         if runs < 1:
             raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
         campaign["runs"] = runs
-        if campaign["sampling"] == "saltelli":
+        if campaign["sampling"] == "saltelli":  # the design's run count (the rest was checked at load)
             from refexmc.campaign import saltelli
 
-            saltelli.check(campaign)
+            try:
+                saltelli.check(campaign)
+            except ConfigError as exc:
+                raise ConfigError(exc.message, path=("--runs",)) from None
     if seed is not None:
         if not 0 <= seed < 2**63:
             raise ConfigError(f"expected 0 <= seed < 2**63, got {seed}", path=("--seed",))
