@@ -191,3 +191,13 @@ def test_failed_and_errored_runs_never_meet_an_event():
     table.loc[2, "status"] = "error"
     rule = sequential.rule_for(requirement("fuel_remaining.p50 >= 0.2"))
     assert sequential.meets(rule, table).tolist() == [True, False, False]
+
+
+def test_a_moment_requirement_fails_for_good_at_the_first_failed_run():
+    rules = [sequential.rule_for(requirement("fuel_remaining.mean >= 0.2"))]
+    decision = sequential.Decision(rules, sequential.look_sizes(30, 10))
+    success = np.ones(30, dtype=bool)
+    success[14] = False  # a failed flight: the report ranks it at -inf, the mean cannot recover
+    table = runs_table(success, np.full(30, 0.5))
+    assert not decision.look(0, table.iloc[:10]) and decision.states == ["open"]
+    assert decision.look(1, table.iloc[:20]) and decision.states == ["FAIL"] and decision.decided_at == [20]
