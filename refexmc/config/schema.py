@@ -880,7 +880,10 @@ CAMPAIGN = obj(
         ),
         "seed": integer("campaign seed", minimum=0, maximum=2**63 - 1),
         "nominal_first": {"type": "boolean", "description": "run 0 is the undispersed nominal case"},
-        "sampling": string("sampling of the dispersions", enum=["random", "lhs", "sobol"]),
+        "sampling": string(
+            "sampling of the dispersions (saltelli: SALib's design for Sobol' indices, docs/studies.md)",
+            enum=["random", "lhs", "sobol", "saltelli"],
+        ),
         "dispersions": {
             "type": "object",
             "description": "parameter path -> distribution {dist: ..., parameters}; paths and "
@@ -942,6 +945,61 @@ CAMPAIGN = obj(
                 },
             ),
         },
+        "sweep": obj(
+            "parameters varied over a grid, each point a full campaign (refexmc.config.sweep, docs/studies.md)",
+            {
+                "axes": {
+                    "type": "array",
+                    "minItems": 1,
+                    "maxItems": 2,
+                    "description": "one axis, or two for a grid",
+                    "items": obj(
+                        "one swept parameter",
+                        {
+                            "parameter": string(
+                                "a scalar parameter path of docs/campaigns.md sec. 2 [its unit]; with "
+                                "'dispersion', any dispersed path"
+                            ),
+                            "dispersion": string(
+                                "sweep this parameter of the path's distribution instead of the file value "
+                                "[the parameter's unit]",
+                                enum=[
+                                    "value",
+                                    "mean",
+                                    "sigma",
+                                    "low",
+                                    "high",
+                                    "median",
+                                    "moments_sigma_fraction",
+                                    "axes_sigma_deg",
+                                ],
+                            ),
+                            "values": {
+                                "type": "array",
+                                "minItems": 1,
+                                "items": number("a value of the parameter [its unit]"),
+                                "description": "the values (or range)",
+                            },
+                            "range": obj(
+                                "count evenly spaced values from start to stop",
+                                {
+                                    "start": number("first value [the parameter's unit]"),
+                                    "stop": number("last value [the parameter's unit]"),
+                                    "count": integer("number of values", minimum=2, maximum=1000),
+                                },
+                            ),
+                        },
+                        optional=("values", "range", "dispersion"),
+                    ),
+                },
+                "metrics": {
+                    "type": "array",
+                    "items": string("a runs column"),
+                    "description": "columns whose percentiles the report draws against the swept value",
+                },
+            },
+            optional=("metrics",),
+        ),
     },
     optional=(
         "runs",
@@ -954,5 +1012,6 @@ CAMPAIGN = obj(
         "output",
         "requirements",
         "published",
+        "sweep",
     ),
 )
