@@ -2,6 +2,7 @@
 
 import atexit
 import errno
+import functools
 import gc
 import json
 import math
@@ -65,7 +66,16 @@ def main():
     "or local:N to start N worker processes here (docs/cluster.md).",
 )
 @click.option("--no-progress", is_flag=True, help="No progress bar or lines on stderr.")
-def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress):
+@click.option(
+    "--until-decided",
+    is_flag=True,
+    help="Fly in batches until every requirement is decided; the runs are the budget (docs/studies.md).",
+)
+@click.option("--batch", type=int, help="With --until-decided: runs between looks [default: budget / 10, >= 10].")
+@click.option("--alpha", type=float, help="With --until-decided: wrong-verdict rate [default: 0.05].")
+def run(
+    campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until_decided, batch, alpha
+):
     """Run CAMPAIGN (default: campaigns/refex-mc100.yaml) and write OUT (default runs/<name>).
 
     Chunks of runs are flown in parallel worker processes; a run that raises, crashes its
@@ -81,6 +91,8 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
     \b
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler tcp://head:8786
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler local:4
+
+    Stopping when decided (docs/studies.md): refexmc run CAMPAIGN --runs 2000 --until-decided
     """
     if resume and overwrite:
         _bad_input("--resume and --overwrite exclude each other")
@@ -93,13 +105,22 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
         from refexmc.campaign import dask_backend
 
         dask_backend.start_local_early(dask_local)  # its start overlaps the validation as well
+    if not until_decided and (batch is not None or alpha is not None):
+        _bad_input("--batch and --alpha go with --until-decided")
+    until = {"batch": batch, "alpha": 0.05 if alpha is None else alpha} if until_decided else None
     try:
-        result = _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress)
+        result = _run_campaign(
+            campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until
+        )
     finally:
         pool.stop()  # idle now, and this process ends: its exit would wait ~0.4 s for them to leave
         if dask_local:
             dask_backend.stop_early()  # a cluster that no campaign took (bad input)
     click.echo(format_run_summary(result))
+    if until_decided:
+        from refexmc.campaign.decided import format_stopping
+
+        click.echo(format_stopping(result["until_decided"]))
     errored = result["runs"].loc[result["runs"]["status"] == "error", "run_id"].tolist()
     if errored:
         click.echo(f"runs with errors: {', '.join(map(str, errored))}", err=True)
@@ -122,12 +143,18 @@ def _local_workers(scheduler, jobs):
     return workers or jobs or pool.usable_cores()
 
 
-def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress):
-    """The result of ``run_campaign``; bad input, a failure or an interrupt exits with its message and code."""
+def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until=None):
+    """The result of ``run_campaign`` (``until``: of ``run_until_decided`` with these options); bad
+    input, a failure or an interrupt exits with its message and code."""
     from refexmc.campaign import storage
     from refexmc.campaign.progress import progress_mode
-    from refexmc.campaign.run import CampaignInterrupted, resume_command, run_campaign
+    from refexmc.campaign.run import CampaignInterrupted, resume_command
+    from refexmc.campaign.sweep import run_campaign_or_sweep as run_campaign
 
+    if until is not None:
+        from refexmc.campaign.decided import run_until_decided
+
+        run_campaign = functools.partial(run_until_decided, **until)
     try:
         return run_campaign(
             campaign,
@@ -148,6 +175,8 @@ def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, s
         _os_error(exc, "run stopped", RESUME_HINT if started else "")
     except CampaignInterrupted as exc:
         command = resume_command(campaign, out or exc.out, runs, seed, backend, scheduler)
+        if until is not None:  # the looks replay on the stored runs
+            command += " --until-decided" + "".join(f" --{k} {v}" for k, v in until.items() if v is not None)
         click.echo(
             f"{exc}: {exc.done} of {exc.total} runs done and kept in {exc.out}; finish with: {command}", err=True
         )

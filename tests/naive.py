@@ -4,6 +4,7 @@ Each function here is plain Python, readable next to the equation it cites, and 
 with ``refexmc.core``. The unit tests compare the kernels with them.
 """
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -537,3 +538,115 @@ def burn_direction(law, r_gps, v_gps, r_nom, v_nom, a_nom, position_gain, veloci
     else:
         raise ValueError(law)
     return a / np.linalg.norm(a)
+
+
+# --------------------------------------------------------------------------------------------
+# Entry flight over a rotating spherical Earth, 003 eq. 3 (longitude/latitude rates and the
+# centripetal sign in gamma-dot as for a heading from north: core.entry's docstring)
+# --------------------------------------------------------------------------------------------
+
+
+def entry_derivative(state, radius, mu, omega, air, forces, mass, bank):
+    """d/dt [h, lon, lat, V, gamma, chi]; ``air(h) -> (rho, sound)``, ``forces(rho, V, sound) ->
+    (L, D, Y)`` in N."""
+    h, _lon, lat, v, gamma, chi = state
+    r = radius + h
+    g = mu / r**2
+    rho, sound = air(h)
+    lift, drag, side = forces(rho, v, sound)
+    w = omega
+    return [
+        v * math.sin(gamma),
+        v * math.cos(gamma) * math.sin(chi) / (r * math.cos(lat)),
+        v * math.cos(gamma) * math.cos(chi) / r,
+        -drag / mass
+        - g * math.sin(gamma)
+        + w**2
+        * r
+        * math.cos(lat)
+        * (math.sin(gamma) * math.cos(lat) - math.cos(gamma) * math.sin(lat) * math.cos(chi)),
+        (lift * math.cos(bank) - side * math.sin(bank)) / (mass * v)
+        + math.cos(gamma) * (v / r - g / v)
+        + 2 * w * math.cos(lat) * math.sin(chi)
+        + w**2
+        * r
+        / v
+        * math.cos(lat)
+        * (math.cos(gamma) * math.cos(lat) + math.sin(gamma) * math.sin(lat) * math.cos(chi)),
+        (lift * math.sin(bank) + side * math.cos(bank)) / (mass * v * math.cos(gamma))
+        + v * math.cos(gamma) * math.sin(chi) * math.tan(lat) / r
+        - 2 * w * (math.tan(gamma) * math.cos(lat) * math.cos(chi) - math.sin(lat))
+        + w**2 * r / (v * math.cos(gamma)) * math.sin(lat) * math.cos(lat) * math.sin(chi),
+    ]
+
+
+# --------------------------------------------------------------------------------------------
+# Blending thrusters with surfaces, 003 eq. 5-10: vertex enumeration, no LP solver
+# --------------------------------------------------------------------------------------------
+
+
+def blend_rate(effectiveness, offset, torque, weights, d):
+    """003 eq. 8: sum_i w_i |tau_i - (B d + offset)_i|."""
+    t = np.asarray(torque) - np.asarray(effectiveness) @ np.asarray(d) - np.asarray(offset)
+    return float(np.sum(np.asarray(weights) * np.abs(t)))
+
+
+def blend_candidates(effectiveness, offset, torque, lower, upper):
+    """Every point where the minimum of eq. 8 over the box can lie: the vertices of the
+    arrangement of the zero-thruster-moment planes (eq. 9a-c, 10a-c) and the box faces, in the
+    free surfaces (lower < upper; the fixed ones, such as a blocked flap, stay at their bound)."""
+    b = np.asarray(effectiveness, dtype=float)
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    free = [j for j in range(len(lo)) if hi[j] > lo[j]]
+    fixed = [j for j in range(len(lo)) if hi[j] <= lo[j]]
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float) - b[:, fixed] @ lo[fixed]
+    n = len(free)
+    planes = [(b[i, free], c[i]) for i in range(3)]
+    for k in range(n):
+        unit = np.eye(n)[k]
+        planes += [(unit, lo[free[k]]), (unit, hi[free[k]])]
+    points = []
+    for combination in itertools.combinations(planes, n):
+        m = np.array([normal for normal, _ in combination])
+        if n and abs(np.linalg.det(m)) < 1e-300:
+            continue
+        x = np.linalg.solve(m, [value for _, value in combination]) if n else np.zeros(0)
+        slack = 1e-12 * (1.0 + np.abs(x))
+        if np.all(x >= lo[free] - slack) and np.all(x <= hi[free] + slack):
+            point = lo.copy()
+            point[free] = np.clip(x, lo[free], hi[free])
+            points.append(point)
+    return points
+
+
+def triangle_vertices(effectiveness, offset, torque, lower, upper):
+    """The three vertices of the triangle of eq. 10a-c in the two free surfaces (the free flap and
+    the rudder): pairwise intersections of the lines where one thruster moment is zero."""
+    b = np.asarray(effectiveness, dtype=float)
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    free = [j for j in range(len(lo)) if hi[j] > lo[j]]
+    fixed = [j for j in range(len(lo)) if hi[j] <= lo[j]]
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float) - b[:, fixed] @ lo[fixed]
+    vertices = []
+    for i, j in ((0, 1), (1, 2), (0, 2)):
+        point = lo.copy()
+        point[free] = np.linalg.solve(b[[i, j]][:, free], c[[i, j]])
+        vertices.append(point)
+    return vertices
+
+
+def entry_aero_moment(coefficients, qsl, beta, deflection):
+    """Body moments of the entry flight (core.entry_flight): ``coefficients`` a dict of the
+    vehicle-file names at the flight condition; deflection (left, right, rudder) in rad."""
+    elevon = (deflection[0] + deflection[1]) / 2
+    aileron = (deflection[0] - deflection[1]) / 2
+    c = coefficients
+    return qsl * np.array(
+        [
+            c["roll_per_beta_rad"] * beta
+            + c["roll_per_aileron_rad"] * aileron
+            + c["roll_per_rudder_rad"] * deflection[2],
+            c["pitch"] + c["pitch_per_elevon_rad"] * elevon,
+            c["yaw_per_beta_rad"] * beta + c["yaw_per_aileron_rad"] * aileron + c["yaw_per_rudder_rad"] * deflection[2],
+        ]
+    )

@@ -204,6 +204,20 @@ def size(path, vehicle):
     return max(1, len(components(path, vehicle)))
 
 
+def uniforms_per_draw(spec, n_components):
+    """Uniforms one draw of ``spec`` (a checked distribution) consumes (refexmc.campaign.sampling)."""
+    dist = spec["dist"]
+    if dist == "constant":
+        return 0
+    if dist == "choice":
+        return n_components if spec["per_component"] else 1
+    if dist == "uniform_so3":
+        return 3
+    if dist == "inertia":
+        return 6
+    return n_components
+
+
 def set_failed(inputs, failed, detected=False):
     """Mark thrusters ``failed`` (1-based ids) failed and every other one working. ``detected``:
     the flight software knows them (failures.detected): they are marked known, which takes them

@@ -10,7 +10,7 @@ import jsonschema
 import numpy as np
 import yaml
 
-from refexmc.config import published, requirements, schema
+from refexmc.config import entry, published, requirements, schema
 from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
 from refexmc.config.errors import ConfigError
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
@@ -251,6 +251,7 @@ def check_vehicle(vehicle, file, lines, prefix=()):
     message = inertia_problem(vehicle["inertia_kg_m2"])
     if message:
         fail(message, "inertia_kg_m2")
+    entry.check(vehicle, fail)  # issue 24: entry aerodynamics and surfaces
 
 
 def _check_numbering(units, what, path, fail):
@@ -670,6 +671,11 @@ def load_campaign(path):
     columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     published.check_published(campaign.get("published", []), columns, path, lines)
+    if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        from refexmc.config import sweep
+
+        campaign["sweep"] = data["sweep"]
+        sweep.check_sweep(campaign, path, lines, columns)
     enumerated = enumerated_failures(campaign)
     if enumerated is not None:
         n_units = n_thrusters if enumerated is THRUSTER_FAILURES else len(wheel_units)
@@ -684,6 +690,10 @@ def load_campaign(path):
         campaign["runs"] = derived
     elif campaign["runs"] is None:
         raise ConfigError("'runs' is required", file=path, line=1, path=("runs",))
+    if campaign["sampling"] == "saltelli":  # the design's run count and what it cannot hold
+        from refexmc.campaign import saltelli
+
+        saltelli.check(campaign, path, lines)
     return campaign
 
 
@@ -696,6 +706,13 @@ def apply_overrides(campaign, runs=None, seed=None):
         if runs < 1:
             raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
         campaign["runs"] = runs
+        if campaign["sampling"] == "saltelli":  # the design's run count (the rest was checked at load)
+            from refexmc.campaign import saltelli
+
+            try:
+                saltelli.check(campaign)
+            except ConfigError as exc:
+                raise ConfigError(exc.message, path=("--runs",)) from None
     if seed is not None:
         if not 0 <= seed < 2**63:
             raise ConfigError(f"expected 0 <= seed < 2**63, got {seed}", path=("--seed",))

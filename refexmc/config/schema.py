@@ -194,6 +194,111 @@ RCS_DESIGN_KEYS = ("damping_ratio", "deadband_angle_deg", "thrusters_per_axis", 
 ACTUATION_HARDWARE = {"pwpf_table": "rcs", "lp_pwm": "rcs", "wheels": "wheels"}
 WHEELS_LEVEL = "wheels"  # the one level of a vehicle that flies reaction wheels (levels table row 0)
 
+# --- issue 24: entry aerodynamics and aerodynamic surfaces (003; config.entry, core.aerodynamics) ---
+ENTRY_ATMOSPHERES = ("ussa1976",)
+
+
+def coefficient_table(doc):
+    """A coefficient over (alpha, Mach): one row per alpha_deg, one column per mach."""
+    return {
+        "type": "array",
+        "description": doc + " [-]; rows: entry_aerodynamics.alpha_deg, columns: entry_aerodynamics.mach",
+        "items": {"type": "array", "description": "one row: a value per Mach", "items": number("value"), "minItems": 1},
+        "minItems": 1,
+    }
+
+
+# YAML key -> what it is; the core slot is config.entry.COEFFICIENT_SLOTS
+ENTRY_FORCE_AND_STATIC = {
+    "lift": "C_L lift coefficient (003 eq. 3)",
+    "drag": "C_D drag coefficient (003 eq. 3)",
+    "side_force_per_beta_rad": "C_Y_beta side force per rad of sideslip",
+    "roll_per_beta_rad": "C_l_beta rolling moment per rad of sideslip",
+    "pitch": "C_m pitching moment at zero flap deflection; trims at delta_trim = -C_m / C_m_delta_e (003 eq. 6)",
+    "yaw_per_beta_rad": "C_n_beta yawing moment per rad of sideslip",
+}
+ENTRY_FLAP_DERIVATIVES = {
+    "roll_per_aileron_rad": "C_l_delta_a per rad of aileron (003 eq. 6)",
+    "pitch_per_elevon_rad": "C_m_delta_e per rad of elevon (003 eq. 6)",
+    "yaw_per_aileron_rad": "C_n_delta_a per rad of aileron (003 eq. 6)",
+}
+ENTRY_RUDDER_DERIVATIVES = {
+    "roll_per_rudder_rad": "C_l_delta_r per rad of rudder (003 eq. 10a)",
+    "yaw_per_rudder_rad": "C_n_delta_r per rad of rudder (003 eq. 10c)",
+}
+ENTRY_AERODYNAMICS = obj(
+    "aerodynamic coefficient tables of the entry flight over (alpha, Mach), bilinear, held at the edges "
+    "(003 eq. 3, 6, 10); moments about the centre of mass with reference_length_m",
+    {
+        "reference_area_m2": number("reference area S [m^2]", **POSITIVE),
+        "reference_length_m": number("reference length L of all three moments (003 eq. 6) [m]", **POSITIVE),
+        "nose_radius_m": number("nose radius for the stagnation-point heat flux (Sutton-Graves) [m]", **POSITIVE),
+        "alpha_deg": {
+            "type": "array",
+            "description": "angle-of-attack axis, strictly increasing [deg]",
+            "items": number("alpha [deg]", minimum=-90.0, maximum=90.0),
+            "minItems": 1,
+        },
+        "mach": {
+            "type": "array",
+            "description": "Mach axis, strictly increasing [-]",
+            "items": number("Mach [-]", minimum=0.0),
+            "minItems": 1,
+        },
+        "coefficients": obj(
+            "coefficient tables; the control derivatives of the vehicle's surfaces are required, others refused",
+            {
+                key: coefficient_table(doc)
+                for key, doc in {**ENTRY_FORCE_AND_STATIC, **ENTRY_FLAP_DERIVATIVES, **ENTRY_RUDDER_DERIVATIVES}.items()
+            },
+            optional=(*ENTRY_FLAP_DERIVATIVES, *ENTRY_RUDDER_DERIVATIVES),
+        ),
+    },
+    optional=("nose_radius_m",),
+)
+SURFACES = obj(
+    "aerodynamic control surfaces (003): two body flaps, elevon = symmetric, aileron = differential "
+    "(eq. 7), and optionally two rudders",
+    {
+        "body_flaps": obj(
+            "the two body flaps, each within [min_deg, max_deg] (positive: trailing edge down)",
+            {
+                "min_deg": number("lowest deflection of each flap [deg]", minimum=-90.0, maximum=90.0),
+                "max_deg": number("highest deflection of each flap [deg]", minimum=-90.0, maximum=90.0),
+                "hinge_moment_max_n_m": number(
+                    "largest hinge moment a flap actuator holds (003 Table 1: 25881) [N m]", exclusive_minimum=0.0
+                ),
+                "hinge_area_arm_m3": number(
+                    "flap area times its centre of pressure's distance behind the hinge: the hinge moment is "
+                    "2 q S_f c sin^2(alpha + delta) (Newtonian), which bounds the deflection [m^3]",
+                    exclusive_minimum=0.0,
+                ),
+                "blocked": obj(
+                    "a flap blocked at a deflection (003 Hazard scenario): the other flap alone moves",
+                    {
+                        "flap": string("which flap is blocked", enum=["left", "right"]),
+                        "deflection_deg": number(
+                            "where it is blocked, within the flap limits [deg]", minimum=-90.0, maximum=90.0
+                        ),
+                    },
+                ),
+            },
+            optional=("blocked", "hinge_moment_max_n_m", "hinge_area_arm_m3"),
+        ),
+        "rudders": obj(
+            "the two fin-tip rudders, deflected together for yaw (003: usable below Mach 6, neutral above)",
+            {
+                "min_deg": number("lowest deflection [deg]", minimum=-90.0, maximum=90.0),
+                "max_deg": number("highest deflection [deg]", minimum=-90.0, maximum=90.0),
+                "usable_below_mach": number(
+                    "Mach below which the rudders move; neutral above (003: 6) [-]", minimum=0.0
+                ),
+            },
+        ),
+    },
+    optional=("rudders",),
+)
+
 VEHICLE = obj(
     "vehicle: mass properties, actuators (rcs, wheels or both) and flight-software design",
     {
@@ -358,8 +463,27 @@ VEHICLE = obj(
             },
             optional=("gains", "allocation", "burn_guidance", "smc", "wheel_friction_compensation", *RCS_DESIGN_KEYS),
         ),
+        # issue 24 (003, X-38): the entry flight's air, aerodynamic tables and surfaces (config.entry)
+        "atmosphere": string(
+            "standard atmosphere of the entry flight: ussa1976 (U.S. Standard Atmosphere 1976, 0-150 km, "
+            "configs/atmospheres/ussa1976.csv)",
+            enum=list(ENTRY_ATMOSPHERES),
+        ),
+        "entry_aerodynamics": ENTRY_AERODYNAMICS,
+        "surfaces": SURFACES,
     },
-    optional=("trajectory", "length_m", "span_m", "aerodynamics", "main_engine", "rcs", "wheels"),
+    optional=(
+        "trajectory",
+        "length_m",
+        "span_m",
+        "aerodynamics",
+        "main_engine",
+        "rcs",
+        "wheels",
+        "atmosphere",
+        "entry_aerodynamics",
+        "surfaces",
+    ),
 )
 
 # --- the mode program (refexmc.core.modes): kinds, targets and exit predicates by name -------
@@ -756,7 +880,10 @@ CAMPAIGN = obj(
         ),
         "seed": integer("campaign seed", minimum=0, maximum=2**63 - 1),
         "nominal_first": {"type": "boolean", "description": "run 0 is the undispersed nominal case"},
-        "sampling": string("sampling of the dispersions", enum=["random", "lhs", "sobol"]),
+        "sampling": string(
+            "sampling of the dispersions (saltelli: SALib's design for Sobol' indices, docs/studies.md)",
+            enum=["random", "lhs", "sobol", "saltelli"],
+        ),
         "dispersions": {
             "type": "object",
             "description": "parameter path -> distribution {dist: ..., parameters}; paths and "
@@ -818,6 +945,61 @@ CAMPAIGN = obj(
                 },
             ),
         },
+        "sweep": obj(
+            "parameters varied over a grid, each point a full campaign (refexmc.config.sweep, docs/studies.md)",
+            {
+                "axes": {
+                    "type": "array",
+                    "minItems": 1,
+                    "maxItems": 2,
+                    "description": "one axis, or two for a grid",
+                    "items": obj(
+                        "one swept parameter",
+                        {
+                            "parameter": string(
+                                "a scalar parameter path of docs/campaigns.md sec. 2 [its unit]; with "
+                                "'dispersion', any dispersed path"
+                            ),
+                            "dispersion": string(
+                                "sweep this parameter of the path's distribution instead of the file value "
+                                "[the parameter's unit]",
+                                enum=[
+                                    "value",
+                                    "mean",
+                                    "sigma",
+                                    "low",
+                                    "high",
+                                    "median",
+                                    "moments_sigma_fraction",
+                                    "axes_sigma_deg",
+                                ],
+                            ),
+                            "values": {
+                                "type": "array",
+                                "minItems": 1,
+                                "items": number("a value of the parameter [its unit]"),
+                                "description": "the values (or range)",
+                            },
+                            "range": obj(
+                                "count evenly spaced values from start to stop",
+                                {
+                                    "start": number("first value [the parameter's unit]"),
+                                    "stop": number("last value [the parameter's unit]"),
+                                    "count": integer("number of values", minimum=2, maximum=1000),
+                                },
+                            ),
+                        },
+                        optional=("values", "range", "dispersion"),
+                    ),
+                },
+                "metrics": {
+                    "type": "array",
+                    "items": string("a runs column"),
+                    "description": "columns whose percentiles the report draws against the swept value",
+                },
+            },
+            optional=("metrics",),
+        ),
     },
     optional=(
         "runs",
@@ -830,5 +1012,6 @@ CAMPAIGN = obj(
         "output",
         "requirements",
         "published",
+        "sweep",
     ),
 )

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from refexmc.campaign.storage import write_text_atomic
-from refexmc.report import data
+from refexmc.report import data, studies
 from refexmc.report import summary as summary_module
 from refexmc.report import text as text_module
 from refexmc.report.requirements import CAMPAIGN_METRICS, evaluate, overall_verdict, parse_requirement, split_metric
@@ -46,12 +46,20 @@ def load_requirements(campaign, require=()):
 
 def make_report(out, require=(), html=True):
     """Build the report of campaign output ``out``; see the module docstring."""
+    sweep = studies.sweep_record(out)
+    if sweep is not None:  # a sweep: each point's report, and the curve over the points
+        return studies.sweep_report(out, sweep, make_report, require=require, html=html)
     campaign = data.load(out)
     requirements = load_requirements(campaign, require)
     verdicts = [evaluate(r, campaign, summary_module.campaign_metrics(campaign)) for r in requirements]
     summary = summary_module.build(campaign, verdicts)
     summary["requirements"] = verdicts
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
+    if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
+        summary["until_decided"] = studies.stopping(campaign)
+    sobol_indices = studies.sobol_section(campaign)  # sampling saltelli: Sobol' indices
+    if sobol_indices is not None:
+        summary["sobol"] = sobol_indices
     report_dir = Path(out) / "report"
     report_dir.mkdir(parents=True, exist_ok=True)
     files = []
@@ -67,12 +75,16 @@ def make_report(out, require=(), html=True):
         from refexmc.report import html as html_module
 
         page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures])
+        page = studies.insert_section(page, studies.stopping_html(summary), "<h2>Requirements</h2>")
+        page = studies.insert_section(page, studies.sobol_html(summary), "</body>")
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)
     write_text_atomic(json.dumps(clean, indent=2, allow_nan=False) + "\n", report_dir / "summary.json")
     files.append(report_dir / "summary.json")
-    text = text_module.format_summary(summary, report_dir)
+    text = (
+        text_module.format_summary(summary, report_dir) + studies.stopping_text(summary) + studies.sobol_text(summary)
+    )
     return {
         "summary": clean,
         "requirements": clean["requirements"],
