@@ -291,6 +291,48 @@ def _check_rcs(vehicle, fail):
         allocation_table(vehicle)
     except KeyError as missing:
         fail(f"expected an entry for the axis command '{missing.args[0]}'", "flight_software", "allocation")
+    _check_feed(vehicle, fail)
+
+
+def _check_feed(vehicle, fail):
+    """rcs.feed: the keys its model takes; isp_s and propellant_kg given with the constant feed
+    only (a tank's are derived from it); no tank behind thrusters a wheel vehicle never fires."""
+    rcs = vehicle["rcs"]
+    feed = rcs.get("feed", {})
+    model = feed.get("model", "constant")
+    if model == "constant":
+        for key in feed:
+            if key != "model":
+                fail(f"'{key}' is a key of a blow_down or regulated feed; the feed is constant", "rcs", "feed", key)
+        for key in ("isp_s", "propellant_kg"):
+            if key not in rcs:
+                fail(f"'{key}' is required with the constant feed (rcs.feed.model)", "rcs")
+        return
+    if vehicle["flight_software"]["actuation"] == "wheels":
+        fail("a wheel vehicle's thrusters never fire: expected no rcs.feed with actuation wheels", "rcs", "feed")
+    for key in ("isp_s", "propellant_kg"):
+        if key in rcs:
+            fail(f"'{key}' is derived from the tank with feed {model} (002 eq. 1, 15); expected none", "rcs", key)
+    for key in schema.FEED_TANK_KEYS:
+        if key not in feed:
+            fail(f"'{key}' is required with feed {model}", "rcs", "feed")
+    if model == "regulated" and "regulator_pressure_pa" not in feed:
+        fail("'regulator_pressure_pa' is required with feed regulated", "rcs", "feed")
+    if model == "blow_down" and "regulator_pressure_pa" in feed:
+        fail(
+            "'regulator_pressure_pa' is a key of feed regulated; the feed is blow_down",
+            "rcs",
+            "feed",
+            "regulator_pressure_pa",
+        )
+    if model == "regulated" and feed["regulator_pressure_pa"] >= feed["initial_pressure_pa"]:
+        fail(
+            f"expected a set pressure below the tank's initial pressure {feed['initial_pressure_pa']} Pa, "
+            f"got {feed['regulator_pressure_pa']}",
+            "rcs",
+            "feed",
+            "regulator_pressure_pa",
+        )
 
 
 def _check_wheels(vehicle, fail):

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from refexmc.config import deorbit, derived, schema
+from refexmc.config import feed as config_feed
 from refexmc.core import layout as L
 from refexmc.core import modes as core_modes
 from refexmc.core.inputs import RunInputs
@@ -120,8 +121,12 @@ def pack_vehicle(vehicle):
     _put(out, L.VEHICLE, "com_offset_m", vehicle["com_offset_m"])
     _put(out, L.VEHICLE, "mass_kg", vehicle["mass_kg"])
     _put(out, L.VEHICLE, "derating", derating)
-    _put(out, L.VEHICLE, "isp_s", rcs["isp_s"])
-    _put(out, L.VEHICLE, "propellant_kg", rcs["propellant_kg"])
+    feed = rcs.get("feed", {"model": "constant"})
+    if feed.get("model", "constant") == "constant":
+        _put(out, L.VEHICLE, "isp_s", rcs["isp_s"])
+        _put(out, L.VEHICLE, "propellant_kg", rcs["propellant_kg"])
+    else:
+        _pack_feed(out, feed)
     _put(out, L.VEHICLE, "aero_area_m2", aero["reference_area_m2"])
     _put(out, L.VEHICLE, "aero_length_m", aero["reference_length_m"])
     _put(out, L.VEHICLE, "aero_mistrim_cm", aero["mistrim_cm"])
@@ -133,6 +138,21 @@ def pack_vehicle(vehicle):
     _put(out, L.VEHICLE, "engine_direction", derived.engine_direction(engine, engine["misalignment_deg"]))
     _put(out, L.VEHICLE, "engine_position_m", engine["position_m"])
     return out
+
+
+def _pack_feed(out, feed):
+    """The tank and nozzle of a blow-down or regulated feed (core.feed); isp_s and propellant_kg
+    from them (002 eq. 1, 15)."""
+    design = config_feed.design(feed)
+    _put(out, L.VEHICLE, "isp_s", design["specific_impulse_s"])
+    _put(out, L.VEHICLE, "propellant_kg", design["gas_kg"])
+    _put(out, L.VEHICLE, "feed_model_id", config_feed.MODELS[feed["model"]])
+    for key in schema.FEED_TANK_KEYS:
+        _put(out, L.VEHICLE, "feed_" + key, feed[key])
+    _put(out, L.VEHICLE, "feed_ambient_pressure_pa", feed.get("ambient_pressure_pa", 0.0))
+    _put(out, L.VEHICLE, "feed_regulator_pressure_pa", feed.get("regulator_pressure_pa", math.inf))
+    _put(out, L.VEHICLE, "feed_thrust_coefficient", design["thrust_coefficient"])
+    _put(out, L.VEHICLE, "feed_flow_factor", design["flow_factor"])
 
 
 def pack_thrusters(vehicle, failed=(), known=()):

@@ -188,6 +188,47 @@ WHEELS = obj(
     optional=("null_space_management",),
 )
 
+FEED = obj(
+    "cold-gas feed behind the valves (002 sec. 2-3; core.feed, docs/cold-gas.md): constant (thrust_n "
+    "until propellant_kg is used, at isp_s; the default), blow_down (nozzles on an isothermal tank: thrust "
+    "and flow proportional to its pressure, 002 eq. 13-20) or regulated (constant chamber pressure while "
+    "the tank is above the set pressure, then blow-down). Not constant: isp_s and propellant_kg are "
+    "derived from the tank and nozzle, and thrust_n is what the flight software assumes",
+    {
+        "model": string("feed model (default constant)", enum=["constant", "blow_down", "regulated"]),
+        "tank_volume_m3": number("tank volume V [m^3]", **POSITIVE),
+        "gas_constant_j_kg_k": number("specific gas constant R of the gas (nitrogen 296.8) [J/(kg K)]", **POSITIVE),
+        "heat_capacity_ratio": number("gamma = c_p / c_v of the gas (nitrogen 1.4) [-]", exclusive_minimum=1.0),
+        "temperature_k": number("tank and chamber temperature T, constant (002 sec. 2.1) [K]", **POSITIVE),
+        "initial_pressure_pa": number("tank pressure at t = 0 [Pa]", **POSITIVE),
+        "throat_area_m2": number("nozzle throat area A_t of each thruster (times its thrust scale) [m^2]", **POSITIVE),
+        "expansion_ratio": number("nozzle area ratio epsilon = A_e / A_t (002 eq. 6) [-]", minimum=1.0),
+        "ambient_pressure_pa": number("ambient pressure P_a of 002 eq. 15 (default 0: vacuum) [Pa]", minimum=0.0),
+        "regulator_pressure_pa": number("regulated: the regulator's set (chamber) pressure [Pa]", **POSITIVE),
+    },
+    optional=(
+        "tank_volume_m3",
+        "gas_constant_j_kg_k",
+        "heat_capacity_ratio",
+        "temperature_k",
+        "initial_pressure_pa",
+        "throat_area_m2",
+        "expansion_ratio",
+        "ambient_pressure_pa",
+        "regulator_pressure_pa",
+    ),
+)
+# rcs.feed keys a blow-down or regulated feed needs (regulated: regulator_pressure_pa too)
+FEED_TANK_KEYS = (
+    "tank_volume_m3",
+    "gas_constant_j_kg_k",
+    "heat_capacity_ratio",
+    "temperature_k",
+    "initial_pressure_pa",
+    "throat_area_m2",
+    "expansion_ratio",
+)
+
 # flight_software keys of the thruster design: required with an rcs, refused without one
 RCS_DESIGN_KEYS = ("damping_ratio", "deadband_angle_deg", "thrusters_per_axis", "pwpf")
 # actuation -> the vehicle block it drives
@@ -268,7 +309,9 @@ VEHICLE = obj(
                     "minItems": 1,
                     "maxItems": 63,
                 },
+                "feed": FEED,
             },
+            optional=("isp_s", "propellant_kg", "feed"),
         ),
         "wheels": WHEELS,
         "flight_software": obj(

@@ -41,6 +41,19 @@ V_ENGINE_ISP = VEHICLE.add("engine_isp_s")
 V_ENGINE_PROPELLANT = VEHICLE.add("engine_propellant_kg")
 V_ENGINE_DIRECTION = VEHICLE.add("engine_direction", 3)  # true force direction, body axes (misaligned)
 V_ENGINE_POSITION = VEHICLE.add("engine_position_m", 3)  # nominal body frame
+# cold-gas feed of the rcs (rcs.feed, core.feed, 002 sec. 2-3); unused with the constant feed
+V_FEED_MODEL = VEHICLE.add("feed_model_id")  # FEED_*: selects the flight kernel (flight.family)
+V_FEED_TANK_VOLUME = VEHICLE.add("feed_tank_volume_m3")
+V_FEED_GAS_CONSTANT = VEHICLE.add("feed_gas_constant_j_kg_k")  # specific gas constant R
+V_FEED_HEAT_CAPACITY_RATIO = VEHICLE.add("feed_heat_capacity_ratio")  # gamma (in C_F and Gamma below)
+V_FEED_TEMPERATURE = VEHICLE.add("feed_temperature_k")  # isothermal tank (002 sec. 2.1)
+V_FEED_INITIAL_PRESSURE = VEHICLE.add("feed_initial_pressure_pa")
+V_FEED_THROAT_AREA = VEHICLE.add("feed_throat_area_m2")  # per thruster (times its thrust scale)
+V_FEED_EXPANSION_RATIO = VEHICLE.add("feed_expansion_ratio")  # epsilon = A_e / A_t
+V_FEED_AMBIENT_PRESSURE = VEHICLE.add("feed_ambient_pressure_pa")
+V_FEED_REGULATOR_PRESSURE = VEHICLE.add("feed_regulator_pressure_pa")  # inf: blow-down
+V_FEED_THRUST_COEFFICIENT = VEHICLE.add("feed_thrust_coefficient")  # vacuum C_F, 002 eq. 15 (config.feed)
+V_FEED_FLOW_FACTOR = VEHICLE.add("feed_flow_factor")  # Gamma of 002 eq. 10 (config.feed)
 VEHICLE_SIZE = VEHICLE.size
 DERATING_MAX_VALVES = 8
 
@@ -161,6 +174,10 @@ M_GG_DIRECTION = MISSION.add("gravity_gradient_direction", 3)  # unit, inertial:
 M_CONSTANT_TORQUE = MISSION.add("constant_torque_n_m", 3)  # 001 eq. 10: u_const, body axes
 M_POINTING_FROM = MISSION.add("pointing_statistics_from_s")  # pointing RMS/max over t >= this; inf: none
 MISSION_SIZE = MISSION.size
+
+FEED_CONSTANT = 0  # thrust_n until the propellant is gone (core.rcs.segment_thrust)
+FEED_BLOW_DOWN = 1  # nozzles on the tank: thrust and flow follow its pressure (002 eq. 13-20; core.feed)
+FEED_REGULATED = 2  # constant chamber pressure above the regulator's set pressure, then blow-down
 
 TRAJECTORY_NONE = 0  # attitude only: no altitude, no dynamic pressure, no aerodynamic torque
 TRAJECTORY_PLANAR_DRAG = 1  # point mass in the x-z plane, spherical gravity and drag (core.environment)

@@ -1,0 +1,78 @@
+"""Cold-gas feed design quantities from the vehicle file's ``rcs.feed`` (002 sec. 2-3).
+
+The nozzle constants the core takes (``core.feed``): the exit Mach number from the area ratio
+(002 eq. 6, supersonic root), the vacuum thrust coefficient C_F (eq. 15's bracket) and the flow
+factor Gamma (eq. 10), and for ``refexmc inspect`` the exhaust velocity, blow-down time
+constant, thrusts and total impulse.
+"""
+
+import math
+
+import numpy as np
+from scipy.optimize import brentq
+
+MODELS = {"constant": 0, "blow_down": 1, "regulated": 2}
+
+
+def area_ratio(mach, gamma):
+    """A_e / A_t at exit Mach number ``mach`` (002 eq. 6)."""
+    return (
+        math.sqrt((2.0 / (gamma + 1.0)) * (1.0 + 0.5 * (gamma - 1.0) * mach**2) ** ((gamma + 1.0) / (gamma - 1.0)))
+        / mach
+    )
+
+
+def exit_mach(expansion_ratio, gamma):
+    """Supersonic exit Mach number of a nozzle with area ratio ``expansion_ratio`` >= 1 (002 eq. 6)."""
+    if expansion_ratio == 1.0:
+        return 1.0
+    high = 2.0
+    while area_ratio(high, gamma) < expansion_ratio:
+        high *= 2.0
+    return brentq(
+        lambda m: area_ratio(m, gamma) - expansion_ratio, 1.0, high, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200
+    )
+
+
+def thrust_coefficient(expansion_ratio, gamma):
+    """Vacuum thrust coefficient C_F = F / (A_t P_c) at P_a = 0: the bracket of 002 eq. 15."""
+    mach = exit_mach(expansion_ratio, gamma)
+    base = 1.0 + 0.5 * (gamma - 1.0) * mach**2
+    momentum = gamma * mach * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (2.0 * (gamma - 1.0))) * base**-0.5
+    return momentum + expansion_ratio * base ** (-gamma / (gamma - 1.0))
+
+
+def flow_factor(gamma):
+    """Gamma of 002 eq. 10: mdot = A_t P_c Gamma / sqrt(R T)."""
+    return math.sqrt(gamma * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (gamma - 1.0)))
+
+
+def design(feed):
+    """Derived quantities of a ``rcs.feed`` block that is not ``constant``, SI units."""
+    gamma, eps = feed["heat_capacity_ratio"], feed["expansion_ratio"]
+    rt = feed["gas_constant_j_kg_k"] * feed["temperature_k"]
+    area, volume = feed["throat_area_m2"], feed["tank_volume_m3"]
+    p0, ambient = feed["initial_pressure_pa"], feed.get("ambient_pressure_pa", 0.0)
+    regulator = feed.get("regulator_pressure_pa", math.inf)
+    c_f = thrust_coefficient(eps, gamma)
+    factor = flow_factor(gamma)
+    exhaust = c_f * math.sqrt(rt) / factor
+    gas = p0 * volume / rt
+    tau = volume / (area * factor * math.sqrt(rt))
+
+    def thrust(pressure):
+        return max(area * (c_f * min(pressure, regulator) - eps * ambient), 0.0)
+
+    return {
+        "exit_mach": exit_mach(eps, gamma),
+        "thrust_coefficient": c_f,
+        "flow_factor": factor,
+        "exhaust_velocity_m_s": exhaust,
+        "specific_impulse_s": exhaust / 9.80665,
+        "gas_kg": gas,
+        "blow_down_time_constant_s": tau,
+        "initial_thrust_n": thrust(p0),
+        "thrust_at_half_tank_n": thrust(0.5 * p0),
+        # vacuum: all gas through the nozzles, c * m (the ambient term reduces it)
+        "total_impulse_n_s": exhaust * gas,
+    }
