@@ -1,7 +1,7 @@
 """Cold-gas feed design quantities from the vehicle file's ``rcs.feed`` (002 sec. 2-3).
 
 The nozzle constants the core takes (``core.feed``): the exit Mach number from the area ratio
-(002 eq. 6, supersonic root), the vacuum thrust coefficient C_F (eq. 15's bracket) and the flow
+(002 eq. 6 corrected, supersonic root: see :func:`area_ratio`), the vacuum thrust coefficient C_F (eq. 15's bracket) and the flow
 factor Gamma (eq. 10), and for ``refexmc inspect`` the exhaust velocity, blow-down time
 constant, thrusts and total impulse.
 """
@@ -15,15 +15,15 @@ MODELS = {"constant": 0, "blow_down": 1, "regulated": 2}
 
 
 def area_ratio(mach, gamma):
-    """A_e / A_t at exit Mach number ``mach`` (002 eq. 6)."""
-    return (
-        math.sqrt((2.0 / (gamma + 1.0)) * (1.0 + 0.5 * (gamma - 1.0) * mach**2) ** ((gamma + 1.0) / (gamma - 1.0)))
-        / mach
-    )
+    """A_e / A_t at exit Mach number ``mach``: (1/M) [(2/(gamma+1)) (1 + (gamma-1)/2 M^2)]^((gamma+1)/(2(gamma-1)))
+    (Sutton eq. 3-14). 002 eq. 6 as printed leaves 2/(gamma+1) outside the power, which gives
+    1.58 instead of 1 at the throat (M = 1, gamma = 1.4): a misprint, not used."""
+    base = (2.0 / (gamma + 1.0)) * (1.0 + 0.5 * (gamma - 1.0) * mach**2)
+    return base ** ((gamma + 1.0) / (2.0 * (gamma - 1.0))) / mach
 
 
 def exit_mach(expansion_ratio, gamma):
-    """Supersonic exit Mach number of a nozzle with area ratio ``expansion_ratio`` >= 1 (002 eq. 6)."""
+    """Supersonic exit Mach number of a nozzle with area ratio ``expansion_ratio`` >= 1 (002 eq. 6, corrected)."""
     if expansion_ratio == 1.0:
         return 1.0
     high = 2.0
