@@ -159,7 +159,6 @@ def test_ramped_pulses_of_two_thrusters_match_the_integrated_tank(model):
         return total
 
     kinks = sorted({round(k * 0.5 + d, 6) for k in range(40) for d in (0, 0.02, 0.3, 0.33, 0.1, 0.12, 0.45, 0.48)})
-    rt = f["gas_constant_j_kg_k"] * f["temperature_k"]
     reference = naive.tank_history(
         open_sum,
         [*kinks, t_end],
@@ -286,3 +285,28 @@ def test_a_feed_on_a_wheel_vehicle_exits_2(tmp_path):
     result = CliRunner().invoke(main, ["validate", str(path)])
     assert result.exit_code == 2, result.output
     assert "rcs.feed" in result.output and "actuation wheels" in result.output, result.output
+
+
+def test_inspect_shows_the_feed_design(tmp_path):
+    """`refexmc inspect --json`: C_F (textbook), exhaust velocity c = C_F sqrt(RT)/Gamma (so that
+    c mdot = C_F A_t P, 002 eq. 10, 15), initial thrust C_F A_t P0, half of it at half tank, and
+    the total impulse c P0 V/(R T)."""
+    import json
+
+    path, _ = _bad_vehicle(tmp_path, "model: blow_down", "model: blow_down")
+    result = CliRunner().invoke(main, ["inspect", str(path), "--json"])
+    assert result.exit_code == 0, result.output
+    info = json.loads(result.output)["feed"]
+    f = NITROGEN
+    c_f = naive.textbook_thrust_coefficient(f["expansion_ratio"], f["heat_capacity_ratio"])
+    mdot_per_pa = naive.choked_mass_flow(
+        f["throat_area_m2"], 1.0, f["heat_capacity_ratio"], f["gas_constant_j_kg_k"], f["temperature_k"]
+    )
+    gas = f["initial_pressure_pa"] * f["tank_volume_m3"] / (f["gas_constant_j_kg_k"] * f["temperature_k"])
+    assert info["thrust_coefficient"] == pytest.approx(c_f, rel=1e-12)
+    assert info["exhaust_velocity_m_s"] == pytest.approx(c_f * f["throat_area_m2"] / mdot_per_pa, rel=1e-12)
+    assert info["initial_thrust_n"] == pytest.approx(c_f * f["throat_area_m2"] * f["initial_pressure_pa"], rel=1e-12)
+    assert info["thrust_at_half_tank_n"] == pytest.approx(0.5 * info["initial_thrust_n"], rel=1e-12)
+    assert info["total_impulse_n_s"] == pytest.approx(info["exhaust_velocity_m_s"] * gas, rel=1e-12)
+    text = CliRunner().invoke(main, ["inspect", str(path)]).output
+    assert "thrust coefficient C_F" in text and "total impulse" in text

@@ -1,8 +1,8 @@
 """Cold-gas feed design quantities from the vehicle file's ``rcs.feed`` (002 sec. 2-3).
 
 The nozzle constants the core takes (``core.feed``): the exit Mach number from the area ratio
-(002 eq. 6 corrected, supersonic root: see :func:`area_ratio`), the vacuum thrust coefficient C_F (eq. 15's bracket) and the flow
-factor Gamma (eq. 10), and for ``refexmc inspect`` the exhaust velocity, blow-down time
+(002 eq. 6 corrected, supersonic root: see :func:`area_ratio`), the vacuum thrust coefficient
+C_F (eq. 15's bracket) and the flow factor Gamma (eq. 10), and for ``refexmc inspect`` the exhaust velocity, blow-down time
 constant, thrusts and total impulse.
 """
 
@@ -29,9 +29,8 @@ def exit_mach(expansion_ratio, gamma):
     high = 2.0
     while area_ratio(high, gamma) < expansion_ratio:
         high *= 2.0
-    return brentq(
-        lambda m: area_ratio(m, gamma) - expansion_ratio, 1.0, high, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200
-    )
+    tolerance = 4 * np.finfo(float).eps
+    return brentq(lambda m: area_ratio(m, gamma) - expansion_ratio, 1.0, high, xtol=1e-15, rtol=tolerance, maxiter=200)
 
 
 def thrust_coefficient(expansion_ratio, gamma):
