@@ -2,8 +2,8 @@
 
 The nozzle constants the core takes (``core.feed``): the exit Mach number from the area ratio
 (002 eq. 6 corrected, supersonic root: see :func:`area_ratio`), the vacuum thrust coefficient
-C_F (eq. 15's bracket) and the flow factor Gamma (eq. 10), and for ``refexmc inspect`` the exhaust velocity, blow-down time
-constant, thrusts and total impulse.
+C_F (eq. 15's bracket) and the flow factor Gamma (eq. 10), and for ``refexmc inspect`` the
+exhaust velocity, blow-down time constant, thrusts and total impulse.
 """
 
 import math
