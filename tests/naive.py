@@ -611,3 +611,28 @@ def tank_history(open_sum, t_end, tank, rtol=1e-13):
             y = list(sol.y[:, -1])
         t0 = t1
     return y
+
+
+# --------------------------------------------------------------------------------------------
+# Time-optimal law of 002 eq. 41-44 and its plant eq. 21
+# --------------------------------------------------------------------------------------------
+
+
+def time_optimal_u(x1, x2, x3, x3_min, bang_bang=False):
+    """u of 002 eq. 44 (or -sign(sigma2), bang-bang), written out from eq. 41-43 as printed."""
+    sign = np.sign
+    a = abs(x2)
+    if x3 <= a:  # eq. 46: outside the reachable region the logarithms are undefined: brake
+        return -float(sign(x2))
+    log = math.log(x3 / (x3 - a))
+    s2 = x1 + x2 - sign(x2) * (x3 - a) * log
+    if bang_bang:
+        return -float(sign(s2))
+    s1 = x3 - x3_min - a
+    if s1 > 0.0:
+        if x2 == 0.0:
+            s0 = sign(x1)  # x3 / x2^2 -> +inf times the bracket x1
+        else:
+            s0 = x3 / x2**2 * (x1 + (x3 + a) / (x3 - a) * x2 - sign(x2) * (x3 + a) * log)
+        return -0.5 * float(sign(s0) + sign(s2))
+    return -0.5 * float(sign(x2) + sign(s2))
