@@ -483,6 +483,18 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
     if vehicle["flight_software"]["controller"] == "pd" and "gains" not in vehicle["flight_software"]:
         fail_vehicle("controller pd needs given gains (flight_software.gains)", "flight_software", "controller")
     trajectory = vehicle.get("trajectory", "planar_drag")
+    if trajectory == "local":
+        _check_local(vehicle, mission, fail_mission, fail_vehicle)
+    else:
+        if "local" in mission:
+            fail_mission(
+                f"'local' needs a vehicle with the local trajectory; {vehicle['name']} has {trajectory}", "local"
+            )
+        for m, mode in enumerate(mission["modes"]):
+            if mode["kind"] in schema.LOCAL_KINDS:
+                fail_mission(f"kind {mode['kind']} needs the local trajectory", "modes", m, "kind")
+        if "translation" in vehicle["flight_software"]:
+            fail_vehicle("'translation' needs the local trajectory", "flight_software", "translation")
     if trajectory != "orbit":
         if "orbit" in mission:
             fail_mission(
@@ -521,6 +533,48 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
                         g,
                         predicate,
                     )
+
+
+def _check_local(vehicle, mission, fail_mission, fail_vehicle):
+    """A local vehicle and mission: a tank (rcs.feed), the pwpf_table actuation and a translation
+    law; the mission's local block; a fuel reserve the origin can be reached with (002 eq. 45-46)."""
+    from refexmc.config import pack as config_pack
+
+    fsw = vehicle["flight_software"]
+    if "rcs" not in vehicle or vehicle["rcs"].get("feed", {}).get("model", "constant") == "constant":
+        fail_vehicle("the local trajectory flies the thrust a tank gives: expected rcs.feed blow_down or regulated")
+    if fsw["actuation"] != "pwpf_table":
+        fail_vehicle("the local trajectory needs actuation pwpf_table", "flight_software", "actuation")
+    if "translation" not in fsw:
+        fail_vehicle("the local trajectory needs a translation law (flight_software.translation)", "flight_software")
+    if len(vehicle["rcs"]["thrusters"]) > 52:
+        fail_vehicle("the translation law's thruster masks hold at most 52 thrusters", "rcs", "thrusters")
+    if "local" not in mission:
+        fail_mission(f"vehicle {vehicle['name']} has the local trajectory: expected a 'local' block")
+    local = mission["local"]
+    p0 = vehicle["rcs"]["feed"]["initial_pressure_pa"]
+    reserve = local.get("reserve_pressure_pa", 0.0)
+    _, force, tau = config_pack.translation_design(vehicle)
+    accel = [f / vehicle["mass_kg"] for f in force]
+    for axis in range(3):
+        if accel[axis] == 0.0:
+            continue
+        # 002 eq. 45-46 on the scaled state: x3_0 - |x2_0| = k tau^2 (P0 - |v0| / (k tau))
+        reachable = p0 - abs(local["velocity_m_s"][axis]) / (accel[axis] * tau[axis])
+        if reachable <= 0.0:
+            fail_mission(
+                f"the initial speed along body {'xyz'[axis]} cannot be stopped by the tank (002 eq. 46: "
+                f"P0 - |v0|/(k tau) = {reachable:.6g} Pa)",
+                "local",
+                "velocity_m_s",
+            )
+        if reserve >= reachable:
+            fail_mission(
+                f"expected a fuel reserve inside 002 eq. 45, 0 <= reserve < P0 - |v0|/(k tau) = {reachable:.6g} Pa "
+                f"(body {'xyz'[axis]}), got {reserve:g}",
+                "local",
+                "reserve_pressure_pa",
+            )
 
 
 def _check_orbit(vehicle, mission, fail_mission, fail_vehicle):

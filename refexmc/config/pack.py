@@ -24,7 +24,13 @@ def _put(array, fields, name, value):
 
 
 NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0, "drag_area_m2": 0.0, "mistrim_cm": [0.0] * 3}
-TRAJECTORY_MODELS = {"none": L.TRAJECTORY_NONE, "planar_drag": L.TRAJECTORY_PLANAR_DRAG, "orbit": L.TRAJECTORY_ORBIT}
+TRAJECTORY_MODELS = {
+    "none": L.TRAJECTORY_NONE,
+    "planar_drag": L.TRAJECTORY_PLANAR_DRAG,
+    "orbit": L.TRAJECTORY_ORBIT,
+    "local": L.TRAJECTORY_LOCAL,
+}
+TRANSLATION_LAWS = {"time_optimal": L.TRANSLATION_TIME_OPTIMAL, "bang_bang": L.TRANSLATION_BANG_BANG}
 NO_ENGINE = {
     "thrust_n": 0.0,
     "isp_s": 1.0,
@@ -221,7 +227,41 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "smc_gain_rad_s2", smc["gain_rad_s2"])
     _put(out, L.FSW, "smc_boundary_layer_rad_s", smc["boundary_layer_rad_s"])
     _put(out, L.FSW, "wheel_friction_compensation", 1.0 if fsw_cfg.get("wheel_friction_compensation") else 0.0)
+    if "translation" in fsw_cfg:
+        _pack_translation(out, vehicle)
     return out
+
+
+def translation_design(vehicle):
+    """Per body axis: the thruster bit masks pushing + and - (unit direction within 1e-6 of the
+    axis), and for the + set the law's constants (core.time_optimal.scale): force per pascal
+    n C_F A_t and blow-down time constant tau / n, n thrusters open (vacuum, nominal); the
+    acceleration per pascal at t = 0 is the force per pascal over mass_kg."""
+    design = config_feed.design(vehicle["rcs"]["feed"])
+    directions = derived.unit_directions(vehicle)
+    masks, accel, tau = [], [], []
+    for axis in range(3):
+        counts = []
+        for sense in (1.0, -1.0):
+            ids = [i for i, d in enumerate(directions) if abs(d[axis] - sense) < 1e-6]
+            masks.append(sum(1 << i for i in ids))
+            counts.append(len(ids))
+        n = counts[0]
+        accel.append(n * design["thrust_coefficient"] * vehicle["rcs"]["feed"]["throat_area_m2"])
+        tau.append(design["blow_down_time_constant_s"] / n if n else 0.0)
+    return masks, accel, tau
+
+
+def _pack_translation(out, vehicle):
+    masks, force, tau = translation_design(vehicle)
+    feed = vehicle["rcs"]["feed"]
+    gas_per_pa = feed["tank_volume_m3"] / (feed["gas_constant_j_kg_k"] * feed["temperature_k"])
+    _put(out, L.FSW, "translation_law_id", TRANSLATION_LAWS[vehicle["flight_software"]["translation"]["law"]])
+    _put(out, L.FSW, "translation_masks", masks)
+    _put(out, L.FSW, "translation_force_per_pa", force)
+    _put(out, L.FSW, "translation_tau_s", tau)
+    _put(out, L.FSW, "translation_dry_mass_kg", vehicle["mass_kg"] - feed["initial_pressure_pa"] * gas_per_pa)
+    _put(out, L.FSW, "translation_gas_per_pa", gas_per_pa)
 
 
 def pack_mission(mission, trajectory="planar_drag", plan=None):
@@ -261,6 +301,13 @@ def pack_mission(mission, trajectory="planar_drag", plan=None):
         values["entry_interface_altitude_m"] = mission["orbit"]["entry_interface_altitude_m"]
         values["burn_start_s"] = plan.ignition_s
         values["burn_duration_s"] = plan.burn_duration_s
+    local = mission.get("local")
+    if local is not None:
+        values["local_position_m"] = local["position_m"]
+        values["local_velocity_m_s"] = local["velocity_m_s"]
+        values["local_target_m"] = local["target_position_m"]
+        values["local_gravity_m_s2"] = local.get("gravity_m_s2", [0.0, 0.0, 0.0])
+        values["local_reserve_pressure_pa"] = local.get("reserve_pressure_pa", 0.0)
     for name, value in values.items():
         _put(out, L.MISSION, name, value)
     return out

@@ -242,8 +242,9 @@ VEHICLE = obj(
         "trajectory": string(
             "trajectory model: planar_drag (point mass, gravity and drag; altitude and dynamic pressure), "
             "orbit (3D two-body orbit with a main engine, 004 sec. III; the mission's orbit block) "
-            "or none (attitude only); default planar_drag",
-            enum=["planar_drag", "orbit", "none"],
+            "local (position near a small body, uniform gravity, thrust through the attitude; the mission's "
+            "local block, translate modes, docs/cold-gas.md) or none (attitude only); default planar_drag",
+            enum=["planar_drag", "orbit", "none", "local"],
         ),
         "mass_kg": number("vehicle mass [kg]", **POSITIVE),
         "length_m": number("vehicle length (documentation) [m]", **POSITIVE),
@@ -350,6 +351,16 @@ VEHICLE = obj(
                     "H_wheels) with the wheels' distribution D, 001 sec. 9.1, held over the control period)",
                     enum=["pwpf_table", "lp_pwm", "wheels"],
                 ),
+                "translation": obj(
+                    "translation law of translate modes (trajectory local; 002 sec. 4, core.time_optimal)",
+                    {
+                        "law": string(
+                            "time_optimal (002 eq. 41-44, bang-off-bang with the fuel reserve) or bang_bang "
+                            "(sigma2 alone, 002 Fig. 8's comparison)",
+                            enum=["time_optimal", "bang_bang"],
+                        ),
+                    },
+                ),
                 "wheel_friction_compensation": {
                     "type": "boolean",
                     "description": "actuation wheels: each motor command also cancels the friction of 001 eq. 1 "
@@ -399,7 +410,15 @@ VEHICLE = obj(
                     },
                 },
             },
-            optional=("gains", "allocation", "burn_guidance", "smc", "wheel_friction_compensation", *RCS_DESIGN_KEYS),
+            optional=(
+                "gains",
+                "allocation",
+                "burn_guidance",
+                "smc",
+                "wheel_friction_compensation",
+                "translation",
+                *RCS_DESIGN_KEYS,
+            ),
         ),
     },
     optional=("trajectory", "length_m", "span_m", "aerodynamics", "main_engine", "rcs", "wheels"),
@@ -453,7 +472,16 @@ MODE_KINDS = {
         "keys": ((), ()),
         "provides": ("profile", "rate_reference", "attitude_reference"),
     },
+    "translate": {
+        "doc": "trajectory local: to the mission's local.target_position_m and stop, the valves driven by "
+        "flight_software.translation (002 eq. 44 per body axis); no attitude reference",
+        "targets": None,
+        "keys": ((), ()),
+        "provides": ("position",),
+    },
 }
+# kinds of the local trajectory only
+LOCAL_KINDS = ("translate",)
 # targets computed from the trajectory (a vehicle without one cannot use them)
 TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
 # kinds and targets of the orbit trajectory only (the deorbit plan)
@@ -521,6 +549,8 @@ EXIT_PREDICATES = {
         7,
         "attitude_reference",
     ),
+    "position_error_below_m": (number("|position - local target| at most [m]", **POSITIVE), 8, "position"),
+    "speed_below_m_s": (number("|velocity| in the local frame at most [m/s]", **POSITIVE), 8, "position"),
 }
 EXIT_GROUP = {
     "type": "object",
@@ -719,6 +749,21 @@ MISSION = obj(
         "pointing_statistics_from_s": number(
             "pointing RMS and largest error over t >= this (runs columns pointing_*_arcsec) [s]", minimum=0.0
         ),
+        "local": obj(
+            "trajectory local: the vehicle near a small body, local frame = the attitude's inertial frame "
+            "(core.local_flight)",
+            {
+                "position_m": vector("position at t = 0 [m]"),
+                "velocity_m_s": vector("velocity at t = 0 [m/s]"),
+                "target_position_m": vector("where translate modes go and stop [m]"),
+                "gravity_m_s2": vector("uniform gravity (default zero) [m/s^2]"),
+                "reserve_pressure_pa": number(
+                    "tank pressure to keep at arrival: x3_min of 002 eq. 42 (default 0), inside eq. 45 [Pa]",
+                    minimum=0.0,
+                ),
+            },
+            optional=("gravity_m_s2", "reserve_pressure_pa"),
+        ),
         "integrator": obj(
             "numerical integration",
             {
@@ -739,6 +784,7 @@ MISSION = obj(
         "orbit",
         "disturbances",
         "pointing_statistics_from_s",
+        "local",
     ),
 )
 

@@ -36,6 +36,7 @@ from refexmc.core import (
     environment,
     feed,
     guidance,
+    local_flight,
     lp_allocation,
     modes,
     navigation,
@@ -130,6 +131,7 @@ from refexmc.core.layout import (
     S_WHEEL_MOMENTUM_PEAK,
     S_WHEEL_SATURATED_TIME,
     S_WHEEL_TORQUE_PEAK,
+    TRAJECTORY_LOCAL,
     TRAJECTORY_NONE,
     TRAJECTORY_ORBIT,
     TRAJECTORY_PLANAR_DRAG,
@@ -247,7 +249,7 @@ class Work(NamedTuple):
 
 
 _ACTUATIONS = (ACTUATION_PWPF_TABLE, ACTUATION_LP_PWM, ACTUATION_WHEELS)
-_TRAJECTORIES = (TRAJECTORY_NONE, TRAJECTORY_PLANAR_DRAG, TRAJECTORY_ORBIT)
+_TRAJECTORIES = (TRAJECTORY_NONE, TRAJECTORY_PLANAR_DRAG, TRAJECTORY_ORBIT, TRAJECTORY_LOCAL)
 _FEEDS = (FEED_CONSTANT, FEED_BLOW_DOWN, FEED_REGULATED)
 _kernels = {}  # (actuation, trajectory, wheels, feed) -> the family's run_flight
 
@@ -274,6 +276,8 @@ def kernel(actuation, trajectory, wheels_flown, feed_model=FEED_CONSTANT):
     key = (int(actuation), int(trajectory), int(wheels_flown), int(feed_model))
     if key[0] not in _ACTUATIONS or key[1] not in _TRAJECTORIES or key[2] not in (0, 1) or key[3] not in _FEEDS:
         raise ValueError(f"no flight kernel for the family (actuation, trajectory, wheels, feed) = {key}")
+    if key[1] == TRAJECTORY_LOCAL and (key[3] == FEED_CONSTANT or key[0] != ACTUATION_PWPF_TABLE):
+        raise ValueError(f"the local trajectory flies a tank (rcs.feed) with actuation pwpf_table, not {key}")
     if key not in _kernels:
         _kernels[key] = _make_kernel(*key)
     return _kernels[key]
@@ -375,9 +379,13 @@ def _make_kernel(actuation, trajectory, wheels_flown, feed_model):
             tank = None
         else:
             tank = feed.tank()
+        if TRAJECTORY == TRAJECTORY_LOCAL:
+            loc = local_flight.work()
+        else:
+            loc = None
         _fly(
             inputs, nav_seed, history_every, summary, pulse_counts, history, work, fire, table, opt, wh, traj, orb,
-            tank,
+            tank, loc,
         )  # fmt: skip
 
     return jit(run_flight)
@@ -453,7 +461,7 @@ def _start(
 
 
 @jit_noalloc(force_inline=True)
-def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sensed, status, t):
+def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sensed, status, t, loc):
     """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and
     rates. ``traj``: the planar trajectory's work (or None), ``orb`` the orbit's (or None)."""
     altitude, climb, qbar = 0.0, 0.0, 0.0
@@ -482,6 +490,8 @@ def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sense
     sensed.now[modes.NOW_CLIMB] = climb
     sensed.now[modes.NOW_QBAR] = qbar
     sensed.now[modes.NOW_TIME] = t
+    if loc is not None:
+        local_flight.navigate(mission, loc, sensed.now)
     navigation.measure(x, nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4)
 
 
@@ -566,13 +576,14 @@ def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sens
 @jit_noalloc(force_inline=True)
 def _actuate(
     fsw, levels, thrusters, sensed, guide, act, table, opt, masks, t, level, active, controlled, has_reference,
-    pulse_counts,
+    pulse_counts, translation,
 ):  # fmt: skip
     """Controller, actuation (pulse modulation + allocation), switching check and valve commands.
 
     ``active``: False when the mode is locked, the program done or the run failed. ``table``:
     the PWPF + allocation table's work (or None), ``opt`` the LP allocation's (or None); with
-    neither the wheels take ``act.torque_cmd`` (``wheels.drive``).
+    neither the wheels take ``act.torque_cmd`` (``wheels.drive``). ``translation`` >= 0: the
+    valves a translation law wants (core.local_flight.desired) instead of the table's.
     """
     actuation = int(fsw[F_ACTUATION])
     if has_reference:
@@ -608,6 +619,8 @@ def _actuate(
             desired = allocation.thruster_commands(
                 actuation, fsw, levels[level], act.torque_cmd, table.pwpf_state, table.row_masks, t, act.pulse
             )
+            if translation >= 0:
+                desired = translation
     if opt is not None:
         lp_allocation.pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts)
     if table is None:  # lp_pwm, or the wheels take act.torque_cmd (wheels.drive)
@@ -660,8 +673,9 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
 
 @jit_noalloc(force_inline=True)
 def _integrate(
-    mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level, tank
-):
+    mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level, tank,
+    loc,
+):  # fmt: skip
     """Integrate the attitude over one control period, segment by segment, ``thrust`` (N) being the
     level's nominal thrust, with the orbit (``orb`` not None) a further disturbance torque
     ``orb.torque`` (its gravity gradient and main engine), plus the mission's constant torque;
@@ -669,7 +683,9 @@ def _integrate(
     gradient of 001 eq. 11 then evaluated at every RK4 stage (else held over the period).
     ``fire``: True when thrusters fire, None with actuation wheels (no thrust: one coasting
     segment per period). ``tank``: the feed's work (core.feed), None with the constant feed,
-    whose thrust is ``thrust``. Returns True when the propellant ran out."""
+    whose thrust is ``thrust``. ``loc``: the local trajectory (core.local_flight) or None: its
+    position and velocity advance segment by segment with the thrusters' force.
+    Returns True when the propellant ran out."""
     n_thr = thrusters.shape[0]
     gg_coefficient = mission[M_GG_COEFFICIENT]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
@@ -701,9 +717,14 @@ def _integrate(
                 t_next = t_end
             if active and fuel > 0.0:
                 if tank is not None:  # thrust and gas follow the tank pressure (core.feed)
+                    pressure_start = tank.state[feed.TK_PRESSURE]
                     impulse = feed.segment(
                         act.valve_state, thrusters, act.arms, tank, t_seg, t_next, tau0, tau1, valves_active
                     )  # here: the gas used (kg)
+                    if loc is not None:
+                        local_flight.segment_force(
+                            act.valve_state, thrusters, tank, pressure_start, t_seg, t_next, valves_active, loc
+                        )
                 else:
                     impulse = rcs.segment_thrust(
                         act.valve_state, thrusters, vehicle, act.arms, thrust, t_seg, t_next, tau0, tau1, valves_active
@@ -713,6 +734,8 @@ def _integrate(
                 for i in range(3):
                     tau0[i] = 0.0
                     tau1[i] = 0.0
+                if loc is not None:
+                    local_flight.no_force(loc)
         else:  # no thruster fires: one thrust-free segment
             t_next = t_end
             impulse = 0.0
@@ -740,6 +763,8 @@ def _integrate(
             else:
                 dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
             rk4_steps += 1
+        if loc is not None:
+            local_flight.advance(mission, vehicle, loc, tank, body.x[0:4], span_seg)
         if tank is not None:  # the gas left is the tank's, P V / (R T) (002 eq. 1)
             fuel = feed.gas(tank)
         elif fire is not None:  # without thrust: no propellant used
@@ -755,15 +780,17 @@ def _integrate(
 
 
 @jit_noalloc
-def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fire, table, opt, wh, traj, orb, tank):
+def _fly(
+    inputs, nav_seed, history_every, summary, pulse_counts, history, w, fire, table, opt, wh, traj, orb, tank, loc
+):  # fmt: skip
     """The run loop of a :func:`kernel`'s ``run_flight`` on the work arrays it allocated (no
     allocation, no reference counting: see ``refexmc._jit.jit_noalloc``). Each step gets the
     arrays it uses only: every further array argument costs compile time (numba types each one).
 
     ``fire`` (True where thrusters fire, None with actuation wheels), ``table``
     (PWPF + allocation table), ``opt`` (LP allocation), ``wh`` (reaction wheels), ``traj``
-    (planar trajectory), ``orb`` (orbit trajectory), ``tank`` (blow-down or regulated feed):
-    the family's work, None for the others.
+    (planar trajectory), ``orb`` (orbit trajectory), ``tank`` (blow-down or regulated feed),
+    ``loc`` (local trajectory): the family's work, None for the others.
     Every step of a family runs under ``if <its work> is not None``, which numba prunes before
     typing where the argument is None: one compiled loop per family."""
     body, traj_state, sensed, guide, act, status, masks = (
@@ -795,6 +822,8 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
         feed.start(vehicle, tank)
         propellant0 = feed.gas(tank)
         status[ST_FUEL] = propellant0
+        if loc is not None:
+            local_flight.start(mission, loc, tank)
     pointing_from = mission[M_POINTING_FROM]
     pointing = act.rotvec  # free between history rows (_record fills it when it writes one)
     theta_handover = math.nan
@@ -803,7 +832,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
     t = 0.0
     while True:
         t = step * dt
-        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj_state, traj, orb, sensed, status, t)
+        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj_state, traj, orb, sensed, status, t, loc)
         controlled, has_reference = _advance_mode(
             program, exits, mission, vehicle, atmosphere, traj_state, sensed, guide, status, summary, t
         )
@@ -836,6 +865,10 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
                 orbit_flight.steer(
                     inputs.nominal, fsw, inputs.nav, vehicle, body.x, orb, guide, sensed.rng_state, status, t, firing
                 )
+        translation = -1
+        if loc is not None:
+            if active and kind == modes.KIND_TRANSLATE:
+                translation = local_flight.desired(fsw, mission, loc, tank, sensed.q_meas)
         _actuate(
             fsw,
             inputs.levels,
@@ -852,6 +885,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
             controlled,
             has_reference,
             pulse_counts,
+            translation,
         )
         if wh is not None:
             compensate = fsw[F_WHEEL_FRICTION_COMPENSATION] != 0.0
@@ -885,7 +919,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
             orbit_flight.engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
         exhausted = _integrate(
             mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level,
-            tank,
+            tank, loc,
         )  # fmt: skip
         if wh is not None:
             peak = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
@@ -938,6 +972,8 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
         summary[S_WHEEL_TORQUE_PEAK] = status[ST_WHEEL_TORQUE_PEAK]
         summary[S_WHEEL_SATURATED_TIME] = status[ST_WHEEL_SATURATED]
         summary[S_MOMENTUM_RESIDUAL] = wheels.momentum_residual(body.x, wh)
+    if loc is not None:
+        local_flight.finish(mission, loc, tank, summary)
     if orb is not None:
         summary[S_ENGINE_PROPELLANT_USED] = vehicle[V_MASS] - orb.state[6]
         if status[ST_POINTING_COUNT] > 0.0:

@@ -137,7 +137,18 @@ F_SMC_SLOPE = FSW.add("smc_slope_s", 3)  # 001 eq. 12: Lambda, sliding-surface s
 F_SMC_GAIN = FSW.add("smc_gain_rad_s2", 3)  # G (rad/s^2)
 F_SMC_LAYER = FSW.add("smc_boundary_layer_rad_s", 3)  # epsilon of sat(sigma, epsilon) (rad/s)
 F_WHEEL_FRICTION_COMPENSATION = FSW.add("wheel_friction_compensation")  # 1: motor commands add the design friction
+# translation law of translate modes (trajectory local; core.local_flight, core.time_optimal)
+F_TRANSLATION_LAW = FSW.add("translation_law_id")  # TRANSLATION_*
+F_TRANSLATION_MASKS = FSW.add("translation_masks", 6)  # thruster bit masks pushing +x, -x, +y, -y, +z, -z
+F_TRANSLATION_FORCE_PER_PA = FSW.add("translation_force_per_pa", 3)  # n C_F A_t per body axis (N/Pa)
+F_TRANSLATION_DRY_MASS = FSW.add("translation_dry_mass_kg")  # mass_kg - P0 V/(R T): mass = this + P V/(R T)
+F_TRANSLATION_GAS_PER_PA = FSW.add("translation_gas_per_pa")  # V / (R T) (kg/Pa)
+F_TRANSLATION_TAU = FSW.add("translation_tau_s", 3)  # blow-down time constant with the axis's n thrusters open
 FSW_SIZE = FSW.size
+
+TRANSLATION_NONE = 0
+TRANSLATION_TIME_OPTIMAL = 1  # 002 eq. 44
+TRANSLATION_BANG_BANG = 2  # -sign(sigma2), 002 Fig. 8's comparison
 
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35
 CONTROLLER_PD = 1  # 004 eq. 1: torque gains, no feedforward
@@ -173,6 +184,11 @@ M_GG_COEFFICIENT = MISSION.add("gravity_gradient_coefficient_s2")  # 001 eq. 11:
 M_GG_DIRECTION = MISSION.add("gravity_gradient_direction", 3)  # unit, inertial: the line to the attracting bodies
 M_CONSTANT_TORQUE = MISSION.add("constant_torque_n_m", 3)  # 001 eq. 10: u_const, body axes
 M_POINTING_FROM = MISSION.add("pointing_statistics_from_s")  # pointing RMS/max over t >= this; inf: none
+M_LOCAL_POSITION = MISSION.add("local_position_m", 3)  # trajectory local: at t = 0, local frame
+M_LOCAL_VELOCITY = MISSION.add("local_velocity_m_s", 3)
+M_LOCAL_TARGET = MISSION.add("local_target_m", 3)  # where translate modes go and stop
+M_LOCAL_GRAVITY = MISSION.add("local_gravity_m_s2", 3)  # uniform
+M_LOCAL_RESERVE = MISSION.add("local_reserve_pressure_pa")  # the tank pressure to keep: x3_min of 002 eq. 42
 MISSION_SIZE = MISSION.size
 
 FEED_CONSTANT = 0  # thrust_n until the propellant is gone (core.rcs.segment_thrust)
@@ -182,6 +198,7 @@ FEED_REGULATED = 2  # constant chamber pressure above the regulator's set pressu
 TRAJECTORY_NONE = 0  # attitude only: no altitude, no dynamic pressure, no aerodynamic torque
 TRAJECTORY_PLANAR_DRAG = 1  # point mass in the x-z plane, spherical gravity and drag (core.environment)
 TRAJECTORY_ORBIT = 2  # point mass in 3D, two-body gravity and a main engine (core.orbit, 004 sec. III)
+TRAJECTORY_LOCAL = 3  # position near a small body, uniform gravity, thrust through the attitude (core.local_flight)
 
 # --- mode program: one row per mode, flown in order (refexmc.core.modes) ---------------------
 MODE = Fields()
@@ -271,6 +288,10 @@ S_WHEEL_MOMENTUM_END = SUMMARY.add("wheel_momentum_end_n_m_s")  # largest |I_w O
 S_WHEEL_TORQUE_PEAK = SUMMARY.add("wheel_torque_demand_peak_n_m")  # largest motor torque asked for, before limits
 S_WHEEL_SATURATED_TIME = SUMMARY.add("wheel_saturated_s")  # time some wheel was held at a torque or momentum limit
 S_MOMENTUM_RESIDUAL = SUMMARY.add("angular_momentum_residual")  # |L(T) - L(0) - external impulse| / |L|, inertial
+S_LOCAL_POSITION_ERROR = SUMMARY.add("position_error_end_m")  # trajectory local: |position - target| at the end
+S_LOCAL_SPEED = SUMMARY.add("speed_end_m_s")
+S_TANK_PRESSURE_END = SUMMARY.add("tank_pressure_end_pa")
+S_SWITCHES = SUMMARY.add("switches", 3)  # translation command changes per body axis (the first opening counts)
 S_PER_MODE = SUMMARY.size  # summary[S_PER_MODE + m]: time in mode m; + n_modes + m: its t1
 
 
