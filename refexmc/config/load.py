@@ -547,6 +547,13 @@ def _check_local(vehicle, mission, fail_mission, fail_vehicle):
         fail_vehicle("the local trajectory needs actuation pwpf_table", "flight_software", "actuation")
     if "translation" not in fsw:
         fail_vehicle("the local trajectory needs a translation law (flight_software.translation)", "flight_software")
+    law = fsw["translation"]
+    pd_keys = ("position_gain_s2", "velocity_gain_s", "pwm_period_s")
+    for key in pd_keys:
+        if law["law"] == "pd_pwm" and key not in law:
+            fail_vehicle(f"translation law pd_pwm needs '{key}'", "flight_software", "translation")
+        if law["law"] != "pd_pwm" and key in law:
+            fail_vehicle(f"'{key}' is a key of law pd_pwm", "flight_software", "translation", key)
     if len(vehicle["rcs"]["thrusters"]) > 52:
         fail_vehicle("the translation law's thruster masks hold at most 52 thrusters", "rcs", "thrusters")
     if "local" not in mission:

@@ -30,7 +30,11 @@ TRAJECTORY_MODELS = {
     "orbit": L.TRAJECTORY_ORBIT,
     "local": L.TRAJECTORY_LOCAL,
 }
-TRANSLATION_LAWS = {"time_optimal": L.TRANSLATION_TIME_OPTIMAL, "bang_bang": L.TRANSLATION_BANG_BANG}
+TRANSLATION_LAWS = {
+    "time_optimal": L.TRANSLATION_TIME_OPTIMAL,
+    "bang_bang": L.TRANSLATION_BANG_BANG,
+    "pd_pwm": L.TRANSLATION_PD_PWM,
+}
 NO_ENGINE = {
     "thrust_n": 0.0,
     "isp_s": 1.0,
@@ -262,6 +266,11 @@ def _pack_translation(out, vehicle):
     _put(out, L.FSW, "translation_tau_s", tau)
     _put(out, L.FSW, "translation_dry_mass_kg", vehicle["mass_kg"] - feed["initial_pressure_pa"] * gas_per_pa)
     _put(out, L.FSW, "translation_gas_per_pa", gas_per_pa)
+    law = vehicle["flight_software"]["translation"]
+    period = 1.0 / vehicle["flight_software"]["control_rate_hz"]
+    _put(out, L.FSW, "translation_pd_gains", [law.get("position_gain_s2", 0.0), law.get("velocity_gain_s", 0.0)])
+    _put(out, L.FSW, "translation_pwm_steps", max(1, round(law.get("pwm_period_s", period) / period)))
+    _put(out, L.FSW, "translation_deadband", [law.get("deadband_position_m", 0.0), law.get("deadband_speed_m_s", 0.0)])
 
 
 def pack_mission(mission, trajectory="planar_drag", plan=None):

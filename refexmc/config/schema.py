@@ -355,11 +355,29 @@ VEHICLE = obj(
                     "translation law of translate modes (trajectory local; 002 sec. 4, core.time_optimal)",
                     {
                         "law": string(
-                            "time_optimal (002 eq. 41-44, bang-off-bang with the fuel reserve) or bang_bang "
-                            "(sigma2 alone, 002 Fig. 8's comparison)",
-                            enum=["time_optimal", "bang_bang"],
+                            "time_optimal (002 eq. 41-44, bang-off-bang with the fuel reserve), bang_bang "
+                            "(sigma2 alone, 002 Fig. 8's comparison) or pd_pwm (a = -kp e - kd v per body axis, "
+                            "pulse-width modulated over whole control periods)",
+                            enum=["time_optimal", "bang_bang", "pd_pwm"],
                         ),
+                        "deadband_position_m": number(
+                            "an axis within this position error and deadband_speed_m_s coasts (default 0) [m]",
+                            minimum=0.0,
+                        ),
+                        "deadband_speed_m_s": number(
+                            "an axis within this speed and deadband_position_m coasts (default 0) [m/s]", minimum=0.0
+                        ),
+                        "position_gain_s2": number("pd_pwm: kp [1/s^2]", **POSITIVE),
+                        "velocity_gain_s": number("pd_pwm: kd [1/s]", **POSITIVE),
+                        "pwm_period_s": number("pd_pwm: modulation period, whole control periods [s]", **POSITIVE),
                     },
+                    optional=(
+                        "position_gain_s2",
+                        "velocity_gain_s",
+                        "pwm_period_s",
+                        "deadband_position_m",
+                        "deadband_speed_m_s",
+                    ),
                 ),
                 "wheel_friction_compensation": {
                     "type": "boolean",

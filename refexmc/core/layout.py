@@ -143,12 +143,16 @@ F_TRANSLATION_MASKS = FSW.add("translation_masks", 6)  # thruster bit masks push
 F_TRANSLATION_FORCE_PER_PA = FSW.add("translation_force_per_pa", 3)  # n C_F A_t per body axis (N/Pa)
 F_TRANSLATION_DRY_MASS = FSW.add("translation_dry_mass_kg")  # mass_kg - P0 V/(R T): mass = this + P V/(R T)
 F_TRANSLATION_GAS_PER_PA = FSW.add("translation_gas_per_pa")  # V / (R T) (kg/Pa)
+F_TRANSLATION_PD_GAINS = FSW.add("translation_pd_gains", 2)  # pd_pwm: a = -kp e - kd v, kp (1/s^2), kd (1/s)
+F_TRANSLATION_PWM_STEPS = FSW.add("translation_pwm_steps")  # pd_pwm: control periods per modulation period
+F_TRANSLATION_DEADBAND = FSW.add("translation_deadband", 2)  # |e| (m) and |v| (m/s) per axis within which u = 0
 F_TRANSLATION_TAU = FSW.add("translation_tau_s", 3)  # blow-down time constant with the axis's n thrusters open
 FSW_SIZE = FSW.size
 
 TRANSLATION_NONE = 0
 TRANSLATION_TIME_OPTIMAL = 1  # 002 eq. 44
 TRANSLATION_BANG_BANG = 2  # -sign(sigma2), 002 Fig. 8's comparison
+TRANSLATION_PD_PWM = 3  # PD on position and velocity, pulse-width modulated over whole control periods
 
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35
 CONTROLLER_PD = 1  # 004 eq. 1: torque gains, no feedforward

@@ -8,8 +8,10 @@ takes the position error (position minus the mission's target) and the velocity 
 with the tank pressure from a perfect pressure transducer, the design's force per pascal and
 time constant per axis (config.pack: n C_F A_t and tau / n, n thrusters pushing along the axis)
 and the mass the pressure implies (dry mass + P V / (R T), eq. 1): u = +1 opens the axis's '+'
-thrusters, -1 its '-' ones. The axes share one tank and fire at the same time; each law sees
-the pressure the others leave (docs/cold-gas.md).
+thrusters, -1 its '-' ones. Inside the deadband (|e| and |v| of an axis below the
+flight_software.translation deadband) the axis coasts: 002 stops its simulation on arrival, and
+the sampled law, left on, chatters about the origin and spends the tank (docs/cold-gas.md).
+The axes share one tank and fire at the same time; each law sees the pressure the others leave.
 
 Within a segment (no valve breakpoint) the force is evaluated at both ends with the tank
 pressure there (core.feed) and taken as linear in between: exact for a constant feed, for a
@@ -25,11 +27,14 @@ from refexmc._jit import jit, jit_noalloc
 from refexmc.core import feed, quaternion, time_optimal
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
+    F_TRANSLATION_DEADBAND,
     F_TRANSLATION_DRY_MASS,
     F_TRANSLATION_FORCE_PER_PA,
     F_TRANSLATION_GAS_PER_PA,
     F_TRANSLATION_LAW,
     F_TRANSLATION_MASKS,
+    F_TRANSLATION_PD_GAINS,
+    F_TRANSLATION_PWM_STEPS,
     F_TRANSLATION_TAU,
     M_LOCAL_GRAVITY,
     M_LOCAL_POSITION,
@@ -43,6 +48,7 @@ from refexmc.core.layout import (
     T_DIRECTION,
     T_SCALE,
     TRANSLATION_BANG_BANG,
+    TRANSLATION_PD_PWM,
     V_MASS,
 )
 from refexmc.core.modes import NOW_POSITION_ERROR, NOW_SPEED
@@ -51,7 +57,9 @@ from refexmc.core.rcs import level_at
 LS_GAS0 = 0  # gas in the tank at t = 0 (kg): the mass lost since is gas0 - gas
 LS_U = 1  # 3: the law's last command per body axis
 LS_SWITCHES = 4  # 3: command changes per body axis
-LOCAL_STATUS_SIZE = 7
+LS_STEP = 7  # pd_pwm: control periods since the translate mode began
+LS_PWM = 8  # 3: pd_pwm: signed control periods to fire in this modulation period
+LOCAL_STATUS_SIZE = 11
 
 
 class Local(NamedTuple):
@@ -102,16 +110,25 @@ def desired(fsw, mission, loc, tank, q_meas):
     quaternion.rotate_inverse(q_meas, loc.state[3:6], velocity)
     pressure = tank.state[feed.TK_PRESSURE]
     mass = fsw[F_TRANSLATION_DRY_MASS] + pressure * fsw[F_TRANSLATION_GAS_PER_PA]  # the gas left, 002 eq. 1
-    bang_bang = fsw[F_TRANSLATION_LAW] == TRANSLATION_BANG_BANG
+    law = fsw[F_TRANSLATION_LAW]
+    bang_bang = law == TRANSLATION_BANG_BANG
+    steps = int(fsw[F_TRANSLATION_PWM_STEPS])
+    phase = int(loc.status[LS_STEP]) % steps if law == TRANSLATION_PD_PWM else 0
+    loc.status[LS_STEP] += 1.0
     mask = 0
     for i in range(3):
         k = fsw[F_TRANSLATION_FORCE_PER_PA + i] / mass
         tau = fsw[F_TRANSLATION_TAU + i]
         if k <= 0.0:  # no thrusters along this axis
             continue
-        x1, x2, x3 = time_optimal.scale(error[i], velocity[i], k, pressure, tau, 1.0)
-        reserve = k * mission[M_LOCAL_RESERVE] * tau * tau
-        u = time_optimal.command(x1, x2, x3, reserve, bang_bang)
+        if abs(error[i]) <= fsw[F_TRANSLATION_DEADBAND] and abs(velocity[i]) <= fsw[F_TRANSLATION_DEADBAND + 1]:
+            u = 0.0  # arrived on this axis: a bang-off-bang law would chatter about the origin
+        elif law == TRANSLATION_PD_PWM:
+            u = _pd_pwm(fsw, loc, i, error[i], velocity[i], k * pressure, phase, steps)
+        else:
+            x1, x2, x3 = time_optimal.scale(error[i], velocity[i], k, pressure, tau, 1.0)
+            reserve = k * mission[M_LOCAL_RESERVE] * tau * tau
+            u = time_optimal.command(x1, x2, x3, reserve, bang_bang)
         if u > 0.0:
             mask |= int(fsw[F_TRANSLATION_MASKS + 2 * i])
         elif u < 0.0:
@@ -121,6 +138,20 @@ def desired(fsw, mission, loc, tank, q_meas):
             loc.status[LS_SWITCHES + i] += 1.0
             loc.status[LS_U + i] = u
     return mask
+
+
+@jit_noalloc
+def _pd_pwm(fsw, loc, axis, error, velocity, accel_available, phase, steps):
+    """The comparison law: a = -kp e - kd v, fired as a pulse of round(|a| / a_available * steps)
+    control periods at the start of each modulation period of ``steps`` periods; u this period."""
+    if phase == 0:
+        accel = -fsw[F_TRANSLATION_PD_GAINS] * error - fsw[F_TRANSLATION_PD_GAINS + 1] * velocity
+        fraction = min(abs(accel) / accel_available, 1.0) if accel_available > 0.0 else 0.0
+        loc.status[LS_PWM + axis] = math.copysign(math.floor(fraction * steps + 0.5), accel)
+    width = loc.status[LS_PWM + axis]
+    if phase < abs(width):
+        return 1.0 if width > 0.0 else -1.0
+    return 0.0
 
 
 @jit_noalloc
