@@ -112,3 +112,21 @@ def test_bad_local_input_exits_2(tmp_path, file, old, new, words):
     assert "Traceback" not in result.output
     for word in words:
         assert word in result.output, result.output
+
+
+def test_a_translate_mode_flies_to_its_own_target(surveyor):
+    """surveyor-hop-sequential: hop_x goes to the mode's target_position_m [3, 0, 0] and stops
+    (the exit predicates measured against it), then hop_y to the mission's [3, 1, 0]; slower than
+    both axes at once on the shared tank (docs/cold-gas.md sec. 4)."""
+    mission = load_mission(ROOT / "configs/missions/surveyor-hop-sequential.yaml")
+    sequential = fly(pack(surveyor, mission), history_rate_hz=1.0, mode_names=mode_names(mission))
+    assert sequential.success, sequential.failure_reason
+    row = sequential.runs_values()
+    assert row["t_hop_x_s"] > 0.0 and row["t_hop_y_s"] > 0.0
+    assert row["position_error_end_m"] <= 0.05  # against [3, 1, 0], the last mode's target
+    assert row["t_end_s"] > _hop(surveyor).runs_values()["t_end_s"]
+    # hop_x alone: stopping at [3, 0, 0] means y has not moved yet
+    first = copy.deepcopy(mission)
+    first["modes"] = first["modes"][:1]
+    alone = fly(pack(surveyor, first), history_rate_hz=1.0, mode_names=mode_names(first))
+    assert alone.success and alone.runs_values()["switches_y"] <= 2

@@ -371,6 +371,8 @@ def pack_modes(mission, levels=("low", "high"), burn_attitude=None):
         _put(row, L.MODE, "target_quaternion", quaternion)
         _put(row, L.MODE, "rate_rad_s", np.radians(mode.get("rate_deg_s", [0.0, 0.0, 0.0])))
         _put(row, L.MODE, "predicted_at_altitude_m", target.get("predicted_at_altitude_m", 0.0))
+        local_target = mode.get("target_position_m", mission.get("local", {}).get("target_position_m", [0.0] * 3))
+        _put(row, L.MODE, "local_target_m", local_target)
         _put(row, L.MODE, "exit_first_row", len(exit_rows))
         for group, predicates in enumerate(mode["exit"]):
             ranked = sorted(predicates, key=lambda name: schema.EXIT_PREDICATES[name][1])  # cheap first

@@ -491,10 +491,11 @@ MODE_KINDS = {
         "provides": ("profile", "rate_reference", "attitude_reference"),
     },
     "translate": {
-        "doc": "trajectory local: to the mission's local.target_position_m and stop, the valves driven by "
-        "flight_software.translation (002 eq. 44 per body axis); no attitude reference",
+        "doc": "trajectory local: to the mode's target_position_m (default the mission's "
+        "local.target_position_m) and stop, the valves driven by flight_software.translation (002 eq. 44 "
+        "per body axis); no attitude reference",
         "targets": None,
-        "keys": ((), ()),
+        "keys": ((), ("target_position_m",)),
         "provides": ("position",),
     },
 }
@@ -599,6 +600,7 @@ MODE = obj(
         },
         "t1_design_s": number("shortest slew duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
         "rate_deg_s": vector("spin-up: final body rate [deg/s]"),
+        "target_position_m": vector("translate: where this mode goes and stops, local frame [m]"),
         "navigation_calibration": {
             "type": "boolean",
             "description": "the attitude bias decays while this mode runs (navigation.ssm_calibration_time_s)",
@@ -611,7 +613,15 @@ MODE = obj(
         },
         "timeout_s": number("the run fails when the mode lasts longer [s]", **POSITIVE),
     },
-    optional=("target", "thrust", "t1_design_s", "rate_deg_s", "navigation_calibration", "timeout_s"),
+    optional=(
+        "target",
+        "thrust",
+        "t1_design_s",
+        "rate_deg_s",
+        "navigation_calibration",
+        "timeout_s",
+        "target_position_m",
+    ),
 )
 
 

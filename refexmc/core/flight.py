@@ -823,7 +823,7 @@ def _fly(
         propellant0 = feed.gas(tank)
         status[ST_FUEL] = propellant0
         if loc is not None:
-            local_flight.start(mission, loc, tank)
+            local_flight.start(mission, inputs.modes, loc, tank)
     pointing_from = mission[M_POINTING_FROM]
     pointing = act.rotvec  # free between history rows (_record fills it when it writes one)
     theta_handover = math.nan
@@ -867,6 +867,7 @@ def _fly(
                 )
         translation = -1
         if loc is not None:
+            local_flight.target(program[flown], loc)
             if active and kind == modes.KIND_TRANSLATE:
                 translation = local_flight.desired(fsw, mission, loc, tank, sensed.q_meas)
         _actuate(

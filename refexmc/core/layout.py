@@ -218,6 +218,7 @@ MD_RATE = MODE.add("rate_rad_s", 3)  # spin-up body rate
 MD_PREDICT_ALTITUDE = MODE.add("predicted_at_altitude_m")  # entry target: velocity predicted there
 MD_EXIT_FIRST = MODE.add("exit_first_row")  # the mode's rows of the exit table
 MD_EXIT_ROWS = MODE.add("exit_rows")
+MD_LOCAL_TARGET = MODE.add("local_target_m", 3)  # translate: its target (default the mission's local target)
 MODE_SIZE = MODE.size
 
 # --- exit conditions: one row per predicate; a mode ends when every predicate of one of its

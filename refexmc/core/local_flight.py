@@ -39,8 +39,8 @@ from refexmc.core.layout import (
     M_LOCAL_GRAVITY,
     M_LOCAL_POSITION,
     M_LOCAL_RESERVE,
-    M_LOCAL_TARGET,
     M_LOCAL_VELOCITY,
+    MD_LOCAL_TARGET,
     S_LOCAL_POSITION_ERROR,
     S_LOCAL_SPEED,
     S_SWITCHES,
@@ -66,6 +66,7 @@ class Local(NamedTuple):
     """The local trajectory's work."""
 
     state: np.ndarray  # [position (3), velocity (3)], local frame
+    target: np.ndarray  # the target of the mode flown (MD_LOCAL_TARGET), local frame
     force: np.ndarray  # (2, 3): thrust force (N, body axes) at the current segment's start and end
     scratch: np.ndarray  # (3, 3)
     status: np.ndarray  # LS_*
@@ -74,18 +75,26 @@ class Local(NamedTuple):
 @jit
 def work():
     """Allocate the local trajectory's work."""
-    return Local(np.zeros(6), np.zeros((2, 3)), np.zeros((3, 3)), np.zeros(LOCAL_STATUS_SIZE))
+    return Local(np.zeros(6), np.zeros(3), np.zeros((2, 3)), np.zeros((3, 3)), np.zeros(LOCAL_STATUS_SIZE))
 
 
 @jit_noalloc
-def start(mission, loc, tank):
-    """The mission's initial position and velocity; the tank's initial gas."""
+def start(mission, program, loc, tank):
+    """The mission's initial position and velocity, the first mode's target; the tank's initial gas."""
     for i in range(3):
         loc.state[i] = mission[M_LOCAL_POSITION + i]
         loc.state[3 + i] = mission[M_LOCAL_VELOCITY + i]
+    target(program[0], loc)
     for k in range(LOCAL_STATUS_SIZE):
         loc.status[k] = 0.0
     loc.status[LS_GAS0] = feed.gas(tank)
+
+
+@jit_noalloc
+def target(mode, loc):
+    """The target of the mode (its MD_LOCAL_TARGET) is the one the law and the predicates use."""
+    for i in range(3):
+        loc.target[i] = mode[MD_LOCAL_TARGET + i]
 
 
 @jit_noalloc
@@ -93,7 +102,7 @@ def navigate(mission, loc, now):
     """Position error and speed as the exit predicates read them (perfect navigation)."""
     e2, v2 = 0.0, 0.0
     for i in range(3):
-        e = loc.state[i] - mission[M_LOCAL_TARGET + i]
+        e = loc.state[i] - loc.target[i]
         e2 += e * e
         v2 += loc.state[3 + i] * loc.state[3 + i]
     now[NOW_POSITION_ERROR] = math.sqrt(e2)
@@ -105,7 +114,7 @@ def desired(fsw, mission, loc, tank, q_meas):
     """The valves the law opens this control period (bit mask), 002 eq. 44 per body axis."""
     error, velocity = loc.scratch[0], loc.scratch[1]
     for i in range(3):
-        loc.scratch[2, i] = loc.state[i] - mission[M_LOCAL_TARGET + i]
+        loc.scratch[2, i] = loc.state[i] - loc.target[i]
     quaternion.rotate_inverse(q_meas, loc.scratch[2], error)
     quaternion.rotate_inverse(q_meas, loc.state[3:6], velocity)
     pressure = tank.state[feed.TK_PRESSURE]
@@ -207,7 +216,7 @@ def finish(mission, loc, tank, summary):
     """The local trajectory's summary values."""
     e2, v2 = 0.0, 0.0
     for i in range(3):
-        e = loc.state[i] - mission[M_LOCAL_TARGET + i]
+        e = loc.state[i] - loc.target[i]
         e2 += e * e
         v2 += loc.state[3 + i] * loc.state[3 + i]
         summary[S_SWITCHES + i] = loc.status[LS_SWITCHES + i]
