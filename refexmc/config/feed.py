@@ -8,9 +8,6 @@ exhaust velocity, blow-down time constant, thrusts and total impulse.
 
 import math
 
-import numpy as np
-from scipy.optimize import brentq
-
 MODELS = {"constant": 0, "blow_down": 1, "regulated": 2}
 
 
@@ -23,14 +20,22 @@ def area_ratio(mach, gamma):
 
 
 def exit_mach(expansion_ratio, gamma):
-    """Supersonic exit Mach number of a nozzle with area ratio ``expansion_ratio`` >= 1 (002 eq. 6, corrected)."""
+    """Supersonic exit Mach number of a nozzle with area ratio ``expansion_ratio`` >= 1 (002 eq. 6,
+    corrected): bisection on M > 1, where the area ratio increases, to the last bit (no scipy:
+    ``pack`` imports this module for every campaign)."""
     if expansion_ratio == 1.0:
         return 1.0
-    high = 2.0
+    low, high = 1.0, 2.0
     while area_ratio(high, gamma) < expansion_ratio:
-        high *= 2.0
-    tolerance = 4 * np.finfo(float).eps
-    return brentq(lambda m: area_ratio(m, gamma) - expansion_ratio, 1.0, high, xtol=1e-15, rtol=tolerance, maxiter=200)
+        low, high = high, 2.0 * high
+    while True:
+        middle = 0.5 * (low + high)
+        if middle <= low or middle >= high:
+            return high if area_ratio(high, gamma) - expansion_ratio < expansion_ratio - area_ratio(low, gamma) else low
+        if area_ratio(middle, gamma) < expansion_ratio:
+            low = middle
+        else:
+            high = middle
 
 
 def thrust_coefficient(expansion_ratio, gamma):
