@@ -449,6 +449,9 @@ def _format_feed(feed):
         f"    thrust [N]: initial         {feed['initial_thrust_n']:.5g}, "
         f"at half tank {feed['thrust_at_half_tank_n']:.5g}",
         f"    total impulse [N s]         {feed['total_impulse_n_s']:.5g} (all the gas, vacuum)",
+    ] + [
+        f"    regulated {level}: chamber held at {pressure / 1e5:.4g} bar while the tank is above it"
+        for level, pressure in feed.get("set_pressure_pa", {}).items()
     ]
 
 

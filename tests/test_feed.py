@@ -42,10 +42,16 @@ def _vehicle(feed_block):
     return vehicle
 
 
-def _tank(feed_block):
+def _tank(feed_block, set_pressure=math.inf):
+    """The kernel's tank at t = 0; a regulated one holding ``set_pressure`` (what the loop sets
+    from the level flown, layout.LV_REGULATOR_PRESSURE)."""
     tank = feed.tank()
     feed.start(pack_vehicle(_vehicle(feed_block)), tank)
+    tank.state[feed.TK_REGULATOR] = set_pressure
     return tank
+
+
+NO_DERATING = pack_vehicle(_vehicle(NITROGEN))  # generic-12's derating: [1.0]
 
 
 def _thrusters(scales, rise_fall_s=(0.0, 0.0)):
@@ -78,7 +84,7 @@ def _fly_valves(tank, thrusters, commands, t_end, dt=0.025):
             active = rcs.update(valve_state, thrusters, n, t_seg, 0, active)
             t_next = rcs.next_breakpoint(valve_state, n, t_seg, t_stop, active) if active else t_stop
             if active:
-                used += feed.segment(valve_state, thrusters, arms, tank, t_seg, t_next, tau0, tau1, active)
+                used += feed.segment(valve_state, thrusters, NO_DERATING, arms, tank, t_seg, t_next, tau0, tau1, active)
             t_seg = t_next
     return used
 
@@ -129,10 +135,11 @@ def test_ramped_pulses_of_two_thrusters_match_the_integrated_tank(model):
     1e-13, split at every valve kink). 1e-9: the kernel is exact per segment, the reference
     integrates to ~1e-12."""
     f = dict(NITROGEN, model=model)
+    set_pressure = math.inf
     if model == "regulated":
-        f["regulator_pressure_pa"] = 8e5
+        set_pressure = 8e5
         f["tank_volume_m3"] = 0.0005  # small enough to fall below the set pressure in the run
-    tank = _tank(f)
+    tank = _tank(f, set_pressure)
     thrusters = _thrusters([1.0, 0.7], rise_fall_s=(0.02, 0.03))
     commands = []
     for k in range(40):
@@ -170,11 +177,11 @@ def test_ramped_pulses_of_two_thrusters_match_the_integrated_tank(model):
             "pressure": f["initial_pressure_pa"],
             "throat_area": f["throat_area_m2"],
             "thrust_coefficient": naive.textbook_thrust_coefficient(f["expansion_ratio"], f["heat_capacity_ratio"]),
-            "regulator": f.get("regulator_pressure_pa", math.inf),
+            "regulator": set_pressure,
         },
     )
     if model == "regulated":  # it starts above the set pressure and ends below: both regimes flown
-        assert reference[0] < f["regulator_pressure_pa"] < f["initial_pressure_pa"]
+        assert reference[0] < set_pressure < f["initial_pressure_pa"]
     assert tank.state[feed.TK_PRESSURE] == pytest.approx(reference[0], rel=1e-9)
     assert used == pytest.approx(reference[1], rel=1e-9)
     assert tank.state[feed.TK_IMPULSE] == pytest.approx(reference[2], rel=1e-9)
@@ -183,7 +190,7 @@ def test_ramped_pulses_of_two_thrusters_match_the_integrated_tank(model):
 def test_regulated_tank_falls_linearly_above_the_set_pressure():
     """Above P_reg the chamber is at P_reg: the tank falls by P_reg t / tau, a straight line."""
     p_reg = 5e5
-    tank = _tank(dict(NITROGEN, model="regulated", regulator_pressure_pa=p_reg))
+    tank = _tank(dict(NITROGEN, model="regulated"), p_reg)
     tau = tank.state[feed.TK_TAU]
     p0 = NITROGEN["initial_pressure_pa"]
     assert feed.pressure_after(p0, 10.0, tau, p_reg) == pytest.approx(p0 - p_reg * 10.0 / tau, rel=1e-15)
@@ -310,3 +317,48 @@ def test_inspect_shows_the_feed_design(tmp_path):
     assert info["total_impulse_n_s"] == pytest.approx(info["exhaust_velocity_m_s"] * gas, rel=1e-12)
     text = CliRunner().invoke(main, ["inspect", str(path)]).output
     assert "thrust coefficient C_F" in text and "total impulse" in text
+
+
+def test_a_regulated_level_holds_its_thrust_derated_as_the_pressure_reducers():
+    """Feed regulated: each level's set pressure gives its thrust_n (C_F A_t P_set = thrust_n, in
+    the levels table), and with two valves open the set pressure is derated like 000 sec. 2.1's
+    reducers: each thruster's torque is the derated thrust while the tank is above it."""
+    vehicle = _vehicle(dict(NITROGEN, model="regulated", initial_pressure_pa=20e6))  # 34.6 N full
+    vehicle["rcs"]["derating"] = [1.0, 0.91]
+    inputs = pack(vehicle, load_mission(ROOT / "configs/missions/generic-slew.yaml"))
+    c_f = naive.textbook_thrust_coefficient(NITROGEN["expansion_ratio"], NITROGEN["heat_capacity_ratio"])
+    for k, level in enumerate(("low", "high")):
+        set_pressure = inputs.levels[k, L.LV_REGULATOR_PRESSURE]
+        assert c_f * NITROGEN["throat_area_m2"] * set_pressure == pytest.approx(
+            vehicle["rcs"]["thrust_n"][level], rel=1e-12
+        )
+    tank = feed.tank()
+    feed.start(inputs.vehicle, tank)
+    tank.state[feed.TK_REGULATOR] = inputs.levels[1, L.LV_REGULATOR_PRESSURE]  # high: 4 N
+    thrusters = _thrusters([1.0, 1.0])
+    valve_state = np.zeros((2, rcs.VALVE_STATE_SIZE))
+    for i in range(2):
+        rcs.command(valve_state, thrusters, i, True, 0.0, 0)
+    active = rcs.update(valve_state, thrusters, 2, 0.0, 0, 0b11)
+    arms = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    tau0, tau1 = np.zeros(3), np.zeros(3)
+    feed.segment(valve_state, thrusters, inputs.vehicle, arms, tank, 0.0, 0.1, tau0, tau1, active)
+    np.testing.assert_allclose(tau0[:2], [4.0 * 0.91, 4.0 * 0.91], rtol=1e-12)
+    np.testing.assert_allclose(tau1[:2], tau0[:2], rtol=1e-15)  # still regulated at the end
+
+
+def test_a_regulated_tank_far_above_its_set_pressures_flies_like_the_constant_feed():
+    """While the regulator holds, the thrusts are thrust_n: the generic slew flies as with the
+    constant feed at the tank's Isp (c / g0) and gas. Same modes and times; the gas used equal to
+    1e-6 (the two thrust paths differ in the last bits: C_F A_t P_set against thrust_n)."""
+    mission = load_mission(ROOT / "configs/missions/generic-slew.yaml")
+    regulated = _vehicle(dict(NITROGEN, model="regulated", initial_pressure_pa=20e6))
+    design = config_feed.design(regulated["rcs"]["feed"])
+    constant = load_vehicle(GENERIC)
+    constant["rcs"]["isp_s"] = design["specific_impulse_s"]
+    constant["rcs"]["propellant_kg"] = design["gas_kg"]
+    a = fly(pack(regulated, mission), mode_names=mode_names(mission)).runs_values()
+    b = fly(pack(constant, mission), mode_names=mode_names(mission)).runs_values()
+    assert a["t_end_s"] == b["t_end_s"]
+    assert [a[k] for k in a if k.startswith("pulses_")] == [b[k] for k in b if k.startswith("pulses_")]
+    assert a["fuel_used_kg"] == pytest.approx(b["fuel_used_kg"], rel=1e-6)

@@ -264,6 +264,10 @@ def design(vehicle):
             from refexmc.config import feed as config_feed
 
             out["feed"] = {"model": feed["model"], **config_feed.design(feed)}
+            if feed["model"] == "regulated":
+                out["feed"]["set_pressure_pa"] = {
+                    level: config_feed.set_pressure(vehicle, level) for level in vehicle["rcs"]["thrust_n"]
+                }
     return out
 
 

@@ -266,6 +266,9 @@ def _undeclared(path, vehicle, mission):
         return f"'{path}' needs an atmosphere; the mission has none"
     if path in ("mass_kg", "aerodynamics.drag_area_m2", "aerodynamics.mistrim_cm") and trajectory == "none":
         return f"'{path}' acts through the trajectory; vehicle {vehicle['name']} has none (trajectory: none)"
+    feed_model = vehicle.get("rcs", {}).get("feed", {}).get("model", "constant")
+    if path.startswith("rcs.thrust_n.") and feed_model == "blow_down":
+        return f"'{path}': vehicle {vehicle['name']} has a blow-down tank: its pressure gives the thrust"
     if path.startswith("rcs.") and "rcs" in vehicle and derived.flies_wheels(vehicle):
         return f"'{path}': vehicle {vehicle['name']} flies reaction wheels (actuation wheels); its thrusters never fire"
     try:
@@ -344,7 +347,10 @@ def apply(inputs, path, values, nominal_atmosphere, levels=("low", "high")):
     ``levels``: the vehicle's thrust-level names, in order (``derived.level_names``)."""
     values = np.asarray(values, dtype=float)
     if path.startswith("rcs.thrust_n."):
-        inputs.levels[list(levels).index(path.split(".")[2]), L.LV_THRUST] = values[0]
+        row = inputs.levels[list(levels).index(path.split(".")[2])]
+        # a regulated feed delivers the level's thrust through its set pressure (config.feed.set_pressure)
+        row[L.LV_REGULATOR_PRESSURE] *= values[0] / row[L.LV_THRUST]
+        row[L.LV_THRUST] = values[0]
     elif path in _VEHICLE_SCALARS:
         field, scale = _VEHICLE_SCALARS[path]
         _put(inputs.vehicle, L.VEHICLE, field, values * scale)

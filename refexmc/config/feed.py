@@ -57,7 +57,6 @@ def design(feed):
     rt = feed["gas_constant_j_kg_k"] * feed["temperature_k"]
     area, volume = feed["throat_area_m2"], feed["tank_volume_m3"]
     p0, ambient = feed["initial_pressure_pa"], feed.get("ambient_pressure_pa", 0.0)
-    regulator = feed.get("regulator_pressure_pa", math.inf)
     c_f = thrust_coefficient(eps, gamma)
     factor = flow_factor(gamma)
     exhaust = c_f * math.sqrt(rt) / factor
@@ -65,7 +64,7 @@ def design(feed):
     tau = volume / (area * factor * math.sqrt(rt))
 
     def thrust(pressure):
-        return max(area * (c_f * min(pressure, regulator) - eps * ambient), 0.0)
+        return max(area * (c_f * pressure - eps * ambient), 0.0)
 
     return {
         "exit_mach": exit_mach(eps, gamma),
@@ -80,3 +79,17 @@ def design(feed):
         # vacuum: all gas through the nozzles, c * m (the ambient term reduces it)
         "total_impulse_n_s": exhaust * gas,
     }
+
+
+def set_pressure(vehicle, level):
+    """Feed regulated: the chamber pressure the regulator holds at thrust ``level``, the one that
+    gives its thrust_n (002 eq. 15 solved for P_c); inf for any other feed or level (no rcs)."""
+    rcs = vehicle.get("rcs", {})
+    feed = rcs.get("feed", {})
+    if feed.get("model") != "regulated" or level not in rcs.get("thrust_n", {}):
+        return math.inf
+    area = feed["throat_area_m2"]
+    ambient_force = feed["expansion_ratio"] * feed.get("ambient_pressure_pa", 0.0) * area
+    return (rcs["thrust_n"][level] + ambient_force) / (
+        thrust_coefficient(feed["expansion_ratio"], feed["heat_capacity_ratio"]) * area
+    )

@@ -10,6 +10,7 @@ import jsonschema
 import numpy as np
 import yaml
 
+from refexmc.config import feed as config_feed
 from refexmc.config import published, requirements, schema
 from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
 from refexmc.config.errors import ConfigError
@@ -316,23 +317,17 @@ def _check_feed(vehicle, fail):
     for key in schema.FEED_TANK_KEYS:
         if key not in feed:
             fail(f"'{key}' is required with feed {model}", "rcs", "feed")
-    if model == "regulated" and "regulator_pressure_pa" not in feed:
-        fail("'regulator_pressure_pa' is required with feed regulated", "rcs", "feed")
-    if model == "blow_down" and "regulator_pressure_pa" in feed:
-        fail(
-            "'regulator_pressure_pa' is a key of feed regulated; the feed is blow_down",
-            "rcs",
-            "feed",
-            "regulator_pressure_pa",
-        )
-    if model == "regulated" and feed["regulator_pressure_pa"] >= feed["initial_pressure_pa"]:
-        fail(
-            f"expected a set pressure below the tank's initial pressure {feed['initial_pressure_pa']} Pa, "
-            f"got {feed['regulator_pressure_pa']}",
-            "rcs",
-            "feed",
-            "regulator_pressure_pa",
-        )
+    if model == "regulated":
+        full = config_feed.design(feed)["initial_thrust_n"]
+        for level, thrust in rcs["thrust_n"].items():
+            if thrust >= full:
+                fail(
+                    f"a regulated level needs less thrust than the full tank gives (C_F A_t P0 = {full:.6g} N), "
+                    f"got {thrust:g}",
+                    "rcs",
+                    "thrust_n",
+                    level,
+                )
 
 
 def _check_wheels(vehicle, fail):

@@ -80,6 +80,7 @@ def pack_levels(vehicle, excluded_wheels=()):
         _put(row, L.LEVEL, "kd", kd)
         _put(row, L.LEVEL, "torque_max_n_m", derived.level_torque_max(vehicle, level, excluded_wheels))
         _put(row, L.LEVEL, "accel_max_rad_s2", derived.level_accel_max(vehicle, level, excluded_wheels))
+        _put(row, L.LEVEL, "regulator_pressure_pa", config_feed.set_pressure(vehicle, level))
     return out
 
 
@@ -160,7 +161,6 @@ def _pack_feed(out, feed):
     for key in schema.FEED_TANK_KEYS:
         _put(out, L.VEHICLE, "feed_" + key, feed[key])
     _put(out, L.VEHICLE, "feed_ambient_pressure_pa", feed.get("ambient_pressure_pa", 0.0))
-    _put(out, L.VEHICLE, "feed_regulator_pressure_pa", feed.get("regulator_pressure_pa", math.inf))
     _put(out, L.VEHICLE, "feed_thrust_coefficient", design["thrust_coefficient"])
     _put(out, L.VEHICLE, "feed_flow_factor", design["flow_factor"])
 

@@ -191,9 +191,10 @@ WHEELS = obj(
 FEED = obj(
     "cold-gas feed behind the valves (002 sec. 2-3; core.feed, docs/cold-gas.md): constant (thrust_n "
     "until propellant_kg is used, at isp_s; the default), blow_down (nozzles on an isothermal tank: thrust "
-    "and flow proportional to its pressure, 002 eq. 13-20) or regulated (constant chamber pressure while "
-    "the tank is above the set pressure, then blow-down). Not constant: isp_s and propellant_kg are "
-    "derived from the tank and nozzle, and thrust_n is what the flight software assumes",
+    "and flow proportional to its pressure, 002 eq. 13-20) or regulated (each level's thrust_n while the "
+    "tank is above the chamber pressure that gives it, derated with several valves open as the "
+    "pressure reducers are (000 sec. 2.1), then blow-down). Not constant: isp_s and propellant_kg are "
+    "derived from the tank and nozzle; blow_down: thrust_n is what the flight software assumes",
     {
         "model": string("feed model (default constant)", enum=["constant", "blow_down", "regulated"]),
         "tank_volume_m3": number("tank volume V [m^3]", **POSITIVE),
@@ -204,7 +205,6 @@ FEED = obj(
         "throat_area_m2": number("nozzle throat area A_t of each thruster (times its thrust scale) [m^2]", **POSITIVE),
         "expansion_ratio": number("nozzle area ratio epsilon = A_e / A_t (002 eq. 6) [-]", minimum=1.0),
         "ambient_pressure_pa": number("ambient pressure P_a of 002 eq. 15 (default 0: vacuum) [Pa]", minimum=0.0),
-        "regulator_pressure_pa": number("regulated: the regulator's set (chamber) pressure [Pa]", **POSITIVE),
     },
     optional=(
         "tank_volume_m3",
@@ -215,10 +215,9 @@ FEED = obj(
         "throat_area_m2",
         "expansion_ratio",
         "ambient_pressure_pa",
-        "regulator_pressure_pa",
     ),
 )
-# rcs.feed keys a blow-down or regulated feed needs (regulated: regulator_pressure_pa too)
+# rcs.feed keys a blow-down or regulated feed needs
 FEED_TANK_KEYS = (
     "tank_volume_m3",
     "gas_constant_j_kg_k",

@@ -8,8 +8,11 @@ F_i = L_i s_i A_t (C_F P_c - epsilon P_a), C_F the vacuum thrust coefficient (eq
 
 - ``blow_down`` (002 sec. 3.2): the nozzle sits on the tank, P_c = P, so
   dP/dt = -P S(t) / tau with S = sum_i L_i s_i and tau = V / (A_t Gamma sqrt(R T)) (eq. 16).
-- ``regulated``: P_c = min(P, P_reg); above the set pressure the tank falls linearly,
-  dP/dt = -P_reg S(t) / tau, below it the regulator is wide open and the tank blows down.
+- ``regulated``: P_c = min(P, P_reg d(n)), P_reg the set pressure of the thrust level flown
+  (``layout.LV_REGULATOR_PRESSURE``: its thrust_n / (C_F A_t)) and d(n) the vehicle's derating
+  with n valves open (000 sec. 2.1: the pressure reducers' flow limit); above it the tank falls
+  linearly, dP/dt = -P_reg d S(t) / tau, below it the regulator is wide open and the tank blows
+  down. The loop sets the level's set pressure every control period (core.flight._fly).
 
 Between two valve breakpoints every level is linear in time (core.rcs), so S is linear and its
 integral over a segment is exactly the trapezoid: the tank pressure at a segment's end is the
@@ -37,13 +40,12 @@ from refexmc.core.layout import (
     V_FEED_FLOW_FACTOR,
     V_FEED_GAS_CONSTANT,
     V_FEED_INITIAL_PRESSURE,
-    V_FEED_REGULATOR_PRESSURE,
     V_FEED_TANK_VOLUME,
     V_FEED_TEMPERATURE,
     V_FEED_THROAT_AREA,
     V_FEED_THRUST_COEFFICIENT,
 )
-from refexmc.core.rcs import level_at
+from refexmc.core.rcs import derating_factor, level_at
 
 # Tank.state slots
 TK_PRESSURE = 0  # tank pressure now (Pa)
@@ -51,7 +53,7 @@ TK_TAU = 1  # blow-down time constant tau = V / (A_t Gamma sqrt(R T)) (s), per u
 TK_EXHAUST_VELOCITY = 2  # c = C_F sqrt(R T) / Gamma (m/s)
 TK_FORCE_PER_PA = 3  # C_F A_t (N/Pa)
 TK_AMBIENT_FORCE = 4  # epsilon P_a A_t (N)
-TK_REGULATOR = 5  # set pressure P_reg (Pa); inf: blow-down
+TK_REGULATOR = 5  # set pressure P_reg of the level flown (Pa); inf: blow-down
 TK_GAS_PER_PA = 6  # V / (R T) (kg/Pa)
 TK_IMPULSE = 7  # total impulse delivered so far, sum of |F_i| dt (N s)
 TANK_SIZE = 8
@@ -81,7 +83,7 @@ def start(vehicle, tank):
     s[TK_EXHAUST_VELOCITY] = vehicle[V_FEED_THRUST_COEFFICIENT] * sqrt_rt / flow_factor
     s[TK_FORCE_PER_PA] = vehicle[V_FEED_THRUST_COEFFICIENT] * area
     s[TK_AMBIENT_FORCE] = vehicle[V_FEED_EXPANSION_RATIO] * vehicle[V_FEED_AMBIENT_PRESSURE] * area
-    s[TK_REGULATOR] = vehicle[V_FEED_REGULATOR_PRESSURE]
+    s[TK_REGULATOR] = math.inf  # the level's, set by the loop every period
     s[TK_GAS_PER_PA] = vehicle[V_FEED_TANK_VOLUME] / (vehicle[V_FEED_GAS_CONSTANT] * vehicle[V_FEED_TEMPERATURE])
     s[TK_IMPULSE] = 0.0
 
@@ -136,26 +138,45 @@ def _torque(valve_state, thrusters, arms, t, force_per_level, active, out):
 
 
 @jit_noalloc
-def thrust_per_level(tank, pressure):
-    """Thrust (N) of one thruster fully open at tank ``pressure`` (002 eq. 15), at least 0."""
+def _thrust(tank, pressure, regulator):
     s = tank.state
-    f = s[TK_FORCE_PER_PA] * chamber_pressure(pressure, s[TK_REGULATOR]) - s[TK_AMBIENT_FORCE]
+    f = s[TK_FORCE_PER_PA] * chamber_pressure(pressure, regulator) - s[TK_AMBIENT_FORCE]
     return f if f > 0.0 else 0.0
 
 
 @jit_noalloc
-def segment(valve_state, thrusters, arms, tank, t_start, t_end, tau_start, tau_end, active):
+def thrust_per_level(tank, pressure):
+    """Thrust (N) of one thruster fully open at tank ``pressure`` (002 eq. 15), at least 0 (at the
+    level's set pressure, not derated)."""
+    return _thrust(tank, pressure, tank.state[TK_REGULATOR])
+
+
+@jit_noalloc
+def segment(valve_state, thrusters, vehicle, arms, tank, t_start, t_end, tau_start, tau_end, active):
     """Advance the tank over a segment without valve breakpoints; the torques at both ends in
-    ``tau_start``/``tau_end``; returns the gas used (kg)."""
+    ``tau_start``/``tau_end``; returns the gas used (kg). A regulator's set pressure is derated
+    by the number of valves open at the segment's midpoint (constant within it, as in core.rcs)."""
     s = tank.state
     p0 = s[TK_PRESSURE]
+    regulator = s[TK_REGULATOR]
+    if regulator < math.inf:
+        n = thrusters.shape[0]
+        t_mid = 0.5 * (t_start + t_end)
+        n_open = 0
+        m = active & ((1 << n) - 1)
+        while m != 0:
+            i = lowest_bit(m)
+            m &= m - 1
+            if level_at(valve_state, i, t_mid) > 0.0:
+                n_open += 1
+        regulator *= derating_factor(vehicle, n_open)
     open_time = 0.5 * (
         open_sum(valve_state, thrusters, t_start, active) + open_sum(valve_state, thrusters, t_end, active)
     )
     open_time *= t_end - t_start
-    p1 = pressure_after(p0, open_time, s[TK_TAU], s[TK_REGULATOR])
-    _torque(valve_state, thrusters, arms, t_start, thrust_per_level(tank, p0), active, tau_start)
-    _torque(valve_state, thrusters, arms, t_end, thrust_per_level(tank, p1), active, tau_end)
+    p1 = pressure_after(p0, open_time, s[TK_TAU], regulator)
+    _torque(valve_state, thrusters, arms, t_start, _thrust(tank, p0, regulator), active, tau_start)
+    _torque(valve_state, thrusters, arms, t_end, _thrust(tank, p1, regulator), active, tau_end)
     s[TK_PRESSURE] = p1
     used = (p0 - p1) * s[TK_GAS_PER_PA]
     s[TK_IMPULSE] += used * s[TK_EXHAUST_VELOCITY] - s[TK_AMBIENT_FORCE] * open_time

@@ -87,6 +87,7 @@ from refexmc.core.layout import (
     LV_ACCEL_MAX,
     LV_KD,
     LV_KP,
+    LV_REGULATOR_PRESSURE,
     LV_THRUST,
     M_BURN_DURATION,
     M_BURN_START,
@@ -719,7 +720,7 @@ def _integrate(
                 if tank is not None:  # thrust and gas follow the tank pressure (core.feed)
                     pressure_start = tank.state[feed.TK_PRESSURE]
                     impulse = feed.segment(
-                        act.valve_state, thrusters, act.arms, tank, t_seg, t_next, tau0, tau1, valves_active
+                        act.valve_state, thrusters, vehicle, act.arms, tank, t_seg, t_next, tau0, tau1, valves_active
                     )  # here: the gas used (kg)
                     if loc is not None:
                         local_flight.segment_force(
@@ -916,6 +917,8 @@ def _fly(
 
         qbar = sensed.now[modes.NOW_QBAR]
         thrust = inputs.levels[level, LV_THRUST]
+        if tank is not None:  # a regulated feed holds the level's set pressure (core.feed)
+            tank.state[feed.TK_REGULATOR] = inputs.levels[level, LV_REGULATOR_PRESSURE]
         if orb is not None:
             orbit_flight.engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
         exhausted = _integrate(

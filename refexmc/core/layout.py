@@ -51,7 +51,6 @@ V_FEED_INITIAL_PRESSURE = VEHICLE.add("feed_initial_pressure_pa")
 V_FEED_THROAT_AREA = VEHICLE.add("feed_throat_area_m2")  # per thruster (times its thrust scale)
 V_FEED_EXPANSION_RATIO = VEHICLE.add("feed_expansion_ratio")  # epsilon = A_e / A_t
 V_FEED_AMBIENT_PRESSURE = VEHICLE.add("feed_ambient_pressure_pa")
-V_FEED_REGULATOR_PRESSURE = VEHICLE.add("feed_regulator_pressure_pa")  # inf: blow-down
 V_FEED_THRUST_COEFFICIENT = VEHICLE.add("feed_thrust_coefficient")  # vacuum C_F, 002 eq. 15 (config.feed)
 V_FEED_FLOW_FACTOR = VEHICLE.add("feed_flow_factor")  # Gamma of 002 eq. 10 (config.feed)
 VEHICLE_SIZE = VEHICLE.size
@@ -90,6 +89,9 @@ LV_KP = LEVEL.add("kp", 3)  # flight software: 000 eq. 38 or given
 LV_KD = LEVEL.add("kd", 3)  # 000 eq. 34 or given
 LV_TORQUE_MAX = LEVEL.add("torque_max_n_m", 3)  # PWPF full scale tau_max (000 eq. 41)
 LV_ACCEL_MAX = LEVEL.add("accel_max_rad_s2", 3)  # omega_dot_max (000 eq. 1)
+# feed regulated: the chamber pressure the regulator holds at this level, thrust_n / (C_F A_t) (core.feed);
+# inf otherwise (blow-down: the tank's pressure)
+LV_REGULATOR_PRESSURE = LEVEL.add("regulator_pressure_pa")
 LEVEL_SIZE = LEVEL.size
 
 # --- reaction wheels: one row per wheel (001 sec. 4, 8; core.wheels) -------------------------
