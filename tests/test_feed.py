@@ -362,3 +362,34 @@ def test_a_regulated_tank_far_above_its_set_pressures_flies_like_the_constant_fe
     assert a["t_end_s"] == b["t_end_s"]
     assert [a[k] for k in a if k.startswith("pulses_")] == [b[k] for k in b if k.startswith("pulses_")]
     assert a["fuel_used_kg"] == pytest.approx(b["fuel_used_kg"], rel=1e-6)
+
+
+def test_refex_on_its_estimated_tank_runs_below_the_high_set_pressure():
+    """configs/vehicles/refex-blow-down.yaml, nominal: the flight succeeds and ends with the tank
+    below the high level's set pressure (docs/cold-gas.md sec. 5: 5.3 bar against 9.9 bar)."""
+    vehicle = load_vehicle(ROOT / "configs/vehicles/refex-blow-down.yaml")
+    mission = load_mission(ROOT / "configs/missions/refex-exo.yaml")
+    inputs = pack(vehicle, mission)
+    high = inputs.levels[1, L.LV_REGULATOR_PRESSURE]
+    assert high == pytest.approx(9.92e5, rel=1e-3)
+    result = fly(inputs, mode_names=mode_names(mission))
+    assert result.success
+    end_pressure = result.value("fuel_remaining") * vehicle["rcs"]["feed"]["initial_pressure_pa"]
+    assert end_pressure < high
+
+
+def test_dispersing_a_regulated_level_scales_its_set_pressure():
+    """rcs.thrust_n.high drawn 5 % high: the regulated level's set pressure follows (the thrust it
+    delivers is C_F A_t P_set); with a blow-down tank the path is refused."""
+    from refexmc.config import dispersions
+
+    vehicle = load_vehicle(ROOT / "configs/vehicles/refex-blow-down.yaml")
+    mission = load_mission(ROOT / "configs/missions/refex-exo.yaml")
+    inputs = pack(vehicle, mission)
+    nominal = inputs.levels[1, L.LV_REGULATOR_PRESSURE]
+    dispersions.apply(inputs, "rcs.thrust_n.high", [8.92 * 1.05], None)
+    assert inputs.levels[1, L.LV_REGULATOR_PRESSURE] == pytest.approx(1.05 * nominal, rel=1e-12)
+    blow_down = _vehicle(NITROGEN)
+    assert "blow-down tank" in dispersions._undeclared(
+        "rcs.thrust_n.high", blow_down, load_mission(ROOT / "configs/missions/generic-slew.yaml")
+    )
