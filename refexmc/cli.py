@@ -416,6 +416,8 @@ def format_design(name, info):
     if "lever_arms_m" in info:
         lines.append(f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}")
         lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
+    if "feed" in info:
+        lines += _format_feed(info["feed"])
     lines.append(f"  controller {info['controller']}, gains {info['gains_source']}, actuation {info['actuation']}")
     if "smc" in info:
         smc = info["smc"]
@@ -464,6 +466,22 @@ def format_design(name, info):
     for key, ids in info["allocation"].items():
         lines.append(f"    {key:8s} {', '.join(map(str, ids))}")
     return "\n".join(lines)
+
+
+def _format_feed(feed):
+    """The cold-gas tank and nozzle of a blow-down or regulated feed (002 eq. 1-20; config.feed)."""
+    return [
+        f"  feed {feed['model']} (002 sec. 3): {feed['gas_kg']:.4g} kg of gas, blow-down time constant "
+        f"{feed['blow_down_time_constant_s']:.4g} s per open thruster",
+        f"    thrust coefficient C_F      {feed['thrust_coefficient']:.5f} (vacuum, exit Mach {feed['exit_mach']:.3f})",
+        f"    exhaust velocity [m/s]      {feed['exhaust_velocity_m_s']:.2f} (Isp {feed['specific_impulse_s']:.2f} s)",
+        f"    thrust [N]: initial         {feed['initial_thrust_n']:.5g}, "
+        f"at half tank {feed['thrust_at_half_tank_n']:.5g}",
+        f"    total impulse [N s]         {feed['total_impulse_n_s']:.5g} (all the gas, vacuum)",
+    ] + [
+        f"    regulated {level}: chamber held at {pressure / 1e5:.4g} bar while the tank is above it"
+        for level, pressure in feed.get("set_pressure_pa", {}).items()
+    ]
 
 
 def _format_wheels(wheels, vec):

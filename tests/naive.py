@@ -650,3 +650,101 @@ def entry_aero_moment(coefficients, qsl, beta, deflection):
             c["yaw_per_beta_rad"] * beta + c["yaw_per_aileron_rad"] * aileron + c["yaw_per_rudder_rad"] * deflection[2],
         ]
     )
+
+
+# Cold-gas tank and nozzle, 002 eq. 1-20 (textbook forms: Sutton and Biblarz, ch. 3)
+# --------------------------------------------------------------------------------------------
+
+
+def nozzle_pressure_ratio(expansion_ratio, gamma):
+    """p_e / p_c of an ideal nozzle with area ratio A_e / A_t (Sutton eq. 3-25, supersonic branch),
+    from the pressure form of the area ratio rather than the Mach form of 002 eq. 6."""
+    from scipy.optimize import brentq
+
+    def inverse_area_ratio(ratio):  # A_t / A_e as a function of p_e / p_c
+        g = gamma
+        return (
+            ((g + 1.0) / 2.0) ** (1.0 / (g - 1.0))
+            * ratio ** (1.0 / g)
+            * math.sqrt((g + 1.0) / (g - 1.0) * (1.0 - ratio ** ((g - 1.0) / g)))
+        )
+
+    critical = (2.0 / (gamma + 1.0)) ** (gamma / (gamma - 1.0))  # the throat's p / p_c
+    if expansion_ratio == 1.0:
+        return critical
+    return brentq(lambda r: inverse_area_ratio(r) - 1.0 / expansion_ratio, 1e-300, critical, xtol=1e-300, rtol=1e-15)
+
+
+def textbook_thrust_coefficient(expansion_ratio, gamma, ambient_over_chamber=0.0):
+    """C_F = F / (A_t p_c) (Sutton eq. 3-30)."""
+    g = gamma
+    ratio = nozzle_pressure_ratio(expansion_ratio, gamma)
+    momentum = math.sqrt(
+        2.0 * g * g / (g - 1.0) * (2.0 / (g + 1.0)) ** ((g + 1.0) / (g - 1.0)) * (1.0 - ratio ** ((g - 1.0) / g))
+    )
+    return momentum + (ratio - ambient_over_chamber) * expansion_ratio
+
+
+def choked_mass_flow(throat_area, chamber_pressure, gamma, gas_constant, temperature):
+    """mdot through a choked throat (Sutton eq. 3-24; 002 eq. 10)."""
+    g = gamma
+    return (
+        throat_area
+        * chamber_pressure
+        * g
+        * math.sqrt((2.0 / (g + 1.0)) ** ((g + 1.0) / (g - 1.0)))
+        / math.sqrt(g * gas_constant * temperature)
+    )
+
+
+def tank_history(open_sum, t_end, tank, rtol=1e-13):
+    """Integrate the isothermal tank (002 eq. 2, 3, 10, 15) with scipy at tight tolerance:
+    y = [tank pressure, gas used, impulse] at ``t_end``. ``open_sum(t)``: sum of valve level times
+    thrust scale; ``tank``: dict of volume, gas_constant, gamma, temperature, pressure, throat_area,
+    thrust_coefficient (vacuum), regulator (inf for blow-down). ``t_end``: a list of breakpoints,
+    integrated piece by piece so the solver never steps over a kink."""
+    from scipy.integrate import solve_ivp
+
+    rt = tank["gas_constant"] * tank["temperature"]
+
+    def rhs(t, y):
+        chamber = min(y[0], tank["regulator"])
+        flow = open_sum(t) * choked_mass_flow(
+            tank["throat_area"], chamber, tank["gamma"], tank["gas_constant"], tank["temperature"]
+        )
+        thrust = open_sum(t) * tank["thrust_coefficient"] * tank["throat_area"] * chamber
+        return [-rt / tank["volume"] * flow, flow, thrust]
+
+    y = [tank["pressure"], 0.0, 0.0]
+    t0 = 0.0
+    for t1 in t_end:
+        if t1 > t0:
+            sol = solve_ivp(rhs, (t0, t1), y, method="DOP853", rtol=rtol, atol=1e-30)
+            y = list(sol.y[:, -1])
+        t0 = t1
+    return y
+
+
+# --------------------------------------------------------------------------------------------
+# Time-optimal law of 002 eq. 41-44 and its plant eq. 21
+# --------------------------------------------------------------------------------------------
+
+
+def time_optimal_u(x1, x2, x3, x3_min, bang_bang=False):
+    """u of 002 eq. 44 (or -sign(sigma2), bang-bang), written out from eq. 41-43 as printed."""
+    sign = np.sign
+    a = abs(x2)
+    if x3 <= a:  # eq. 46: outside the reachable region the logarithms are undefined: brake
+        return -float(sign(x2))
+    log = math.log(x3 / (x3 - a))
+    s2 = x1 + x2 - sign(x2) * (x3 - a) * log
+    if bang_bang:
+        return -float(sign(s2))
+    s1 = x3 - x3_min - a
+    if s1 > 0.0:
+        if x2 == 0.0:
+            s0 = sign(x1)  # x3 / x2^2 -> +inf times the bracket x1
+        else:
+            s0 = x3 / x2**2 * (x1 + (x3 + a) / (x3 - a) * x2 - sign(x2) * (x3 + a) * log)
+        return -0.5 * float(sign(s0) + sign(s2))
+    return -0.5 * float(sign(x2) + sign(s2))

@@ -188,6 +188,46 @@ WHEELS = obj(
     optional=("null_space_management",),
 )
 
+FEED = obj(
+    "cold-gas feed behind the valves (002 sec. 2-3; core.feed, docs/cold-gas.md): constant (thrust_n "
+    "until propellant_kg is used, at isp_s; the default), blow_down (nozzles on an isothermal tank: thrust "
+    "and flow proportional to its pressure, 002 eq. 13-20) or regulated (each level's thrust_n while the "
+    "tank is above the chamber pressure that gives it, derated with several valves open as the "
+    "pressure reducers are (000 sec. 2.1), then blow-down). Not constant: isp_s and propellant_kg are "
+    "derived from the tank and nozzle; blow_down: thrust_n is what the flight software assumes",
+    {
+        "model": string("feed model (default constant)", enum=["constant", "blow_down", "regulated"]),
+        "tank_volume_m3": number("tank volume V [m^3]", **POSITIVE),
+        "gas_constant_j_kg_k": number("specific gas constant R of the gas (nitrogen 296.8) [J/(kg K)]", **POSITIVE),
+        "heat_capacity_ratio": number("gamma = c_p / c_v of the gas (nitrogen 1.4) [-]", exclusive_minimum=1.0),
+        "temperature_k": number("tank and chamber temperature T, constant (002 sec. 2.1) [K]", **POSITIVE),
+        "initial_pressure_pa": number("tank pressure at t = 0 [Pa]", **POSITIVE),
+        "throat_area_m2": number("nozzle throat area A_t of each thruster (times its thrust scale) [m^2]", **POSITIVE),
+        "expansion_ratio": number("nozzle area ratio epsilon = A_e / A_t (002 eq. 6) [-]", minimum=1.0),
+        "ambient_pressure_pa": number("ambient pressure P_a of 002 eq. 15 (default 0: vacuum) [Pa]", minimum=0.0),
+    },
+    optional=(
+        "tank_volume_m3",
+        "gas_constant_j_kg_k",
+        "heat_capacity_ratio",
+        "temperature_k",
+        "initial_pressure_pa",
+        "throat_area_m2",
+        "expansion_ratio",
+        "ambient_pressure_pa",
+    ),
+)
+# rcs.feed keys a blow-down or regulated feed needs
+FEED_TANK_KEYS = (
+    "tank_volume_m3",
+    "gas_constant_j_kg_k",
+    "heat_capacity_ratio",
+    "temperature_k",
+    "initial_pressure_pa",
+    "throat_area_m2",
+    "expansion_ratio",
+)
+
 # flight_software keys of the thruster design: required with an rcs, refused without one
 RCS_DESIGN_KEYS = ("damping_ratio", "deadband_angle_deg", "thrusters_per_axis", "pwpf")
 # actuation -> the vehicle block it drives
@@ -306,8 +346,9 @@ VEHICLE = obj(
         "trajectory": string(
             "trajectory model: planar_drag (point mass, gravity and drag; altitude and dynamic pressure), "
             "orbit (3D two-body orbit with a main engine, 004 sec. III; the mission's orbit block) "
-            "or none (attitude only); default planar_drag",
-            enum=["planar_drag", "orbit", "none"],
+            "local (position near a small body, uniform gravity, thrust through the attitude; the mission's "
+            "local block, translate modes, docs/cold-gas.md) or none (attitude only); default planar_drag",
+            enum=["planar_drag", "orbit", "none", "local"],
         ),
         "mass_kg": number("vehicle mass [kg]", **POSITIVE),
         "length_m": number("vehicle length (documentation) [m]", **POSITIVE),
@@ -373,7 +414,9 @@ VEHICLE = obj(
                     "minItems": 1,
                     "maxItems": 63,
                 },
+                "feed": FEED,
             },
+            optional=("isp_s", "propellant_kg", "feed"),
         ),
         "wheels": WHEELS,
         "flight_software": obj(
@@ -411,6 +454,34 @@ VEHICLE = obj(
                     "modulation in the control period), both with the rcs; wheels (motor torques -D (u + omega x "
                     "H_wheels) with the wheels' distribution D, 001 sec. 9.1, held over the control period)",
                     enum=["pwpf_table", "lp_pwm", "wheels"],
+                ),
+                "translation": obj(
+                    "translation law of translate modes (trajectory local; 002 sec. 4, core.time_optimal)",
+                    {
+                        "law": string(
+                            "time_optimal (002 eq. 41-44, bang-off-bang with the fuel reserve), bang_bang "
+                            "(sigma2 alone, 002 Fig. 8's comparison) or pd_pwm (a = -kp e - kd v per body axis, "
+                            "pulse-width modulated over whole control periods)",
+                            enum=["time_optimal", "bang_bang", "pd_pwm"],
+                        ),
+                        "deadband_position_m": number(
+                            "an axis within this position error and deadband_speed_m_s coasts (default 0) [m]",
+                            minimum=0.0,
+                        ),
+                        "deadband_speed_m_s": number(
+                            "an axis within this speed and deadband_position_m coasts (default 0) [m/s]", minimum=0.0
+                        ),
+                        "position_gain_s2": number("pd_pwm: kp [1/s^2]", **POSITIVE),
+                        "velocity_gain_s": number("pd_pwm: kd [1/s]", **POSITIVE),
+                        "pwm_period_s": number("pd_pwm: modulation period, whole control periods [s]", **POSITIVE),
+                    },
+                    optional=(
+                        "position_gain_s2",
+                        "velocity_gain_s",
+                        "pwm_period_s",
+                        "deadband_position_m",
+                        "deadband_speed_m_s",
+                    ),
                 ),
                 "wheel_friction_compensation": {
                     "type": "boolean",
@@ -461,7 +532,15 @@ VEHICLE = obj(
                     },
                 },
             },
-            optional=("gains", "allocation", "burn_guidance", "smc", "wheel_friction_compensation", *RCS_DESIGN_KEYS),
+            optional=(
+                "gains",
+                "allocation",
+                "burn_guidance",
+                "smc",
+                "wheel_friction_compensation",
+                "translation",
+                *RCS_DESIGN_KEYS,
+            ),
         ),
         # issue 24 (003, X-38): the entry flight's air, aerodynamic tables and surfaces (config.entry)
         "atmosphere": string(
@@ -534,7 +613,17 @@ MODE_KINDS = {
         "keys": ((), ()),
         "provides": ("profile", "rate_reference", "attitude_reference"),
     },
+    "translate": {
+        "doc": "trajectory local: to the mode's target_position_m (default the mission's "
+        "local.target_position_m) and stop, the valves driven by flight_software.translation (002 eq. 44 "
+        "per body axis); no attitude reference",
+        "targets": None,
+        "keys": ((), ("target_position_m",)),
+        "provides": ("position",),
+    },
 }
+# kinds of the local trajectory only
+LOCAL_KINDS = ("translate",)
 # targets computed from the trajectory (a vehicle without one cannot use them)
 TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
 # kinds and targets of the orbit trajectory only (the deorbit plan)
@@ -602,6 +691,8 @@ EXIT_PREDICATES = {
         7,
         "attitude_reference",
     ),
+    "position_error_below_m": (number("|position - local target| at most [m]", **POSITIVE), 8, "position"),
+    "speed_below_m_s": (number("|velocity| in the local frame at most [m/s]", **POSITIVE), 8, "position"),
 }
 EXIT_GROUP = {
     "type": "object",
@@ -632,6 +723,7 @@ MODE = obj(
         },
         "t1_design_s": number("shortest slew duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
         "rate_deg_s": vector("spin-up: final body rate [deg/s]"),
+        "target_position_m": vector("translate: where this mode goes and stops, local frame [m]"),
         "navigation_calibration": {
             "type": "boolean",
             "description": "the attitude bias decays while this mode runs (navigation.ssm_calibration_time_s)",
@@ -644,7 +736,15 @@ MODE = obj(
         },
         "timeout_s": number("the run fails when the mode lasts longer [s]", **POSITIVE),
     },
-    optional=("target", "thrust", "t1_design_s", "rate_deg_s", "navigation_calibration", "timeout_s"),
+    optional=(
+        "target",
+        "thrust",
+        "t1_design_s",
+        "rate_deg_s",
+        "navigation_calibration",
+        "timeout_s",
+        "target_position_m",
+    ),
 )
 
 
@@ -800,6 +900,21 @@ MISSION = obj(
         "pointing_statistics_from_s": number(
             "pointing RMS and largest error over t >= this (runs columns pointing_*_arcsec) [s]", minimum=0.0
         ),
+        "local": obj(
+            "trajectory local: the vehicle near a small body, local frame = the attitude's inertial frame "
+            "(core.local_flight)",
+            {
+                "position_m": vector("position at t = 0 [m]"),
+                "velocity_m_s": vector("velocity at t = 0 [m/s]"),
+                "target_position_m": vector("where translate modes go and stop [m]"),
+                "gravity_m_s2": vector("uniform gravity (default zero) [m/s^2]"),
+                "reserve_pressure_pa": number(
+                    "tank pressure to keep at arrival: x3_min of 002 eq. 42 (default 0), inside eq. 45 [Pa]",
+                    minimum=0.0,
+                ),
+            },
+            optional=("gravity_m_s2", "reserve_pressure_pa"),
+        ),
         "integrator": obj(
             "numerical integration",
             {
@@ -820,6 +935,7 @@ MISSION = obj(
         "orbit",
         "disturbances",
         "pointing_statistics_from_s",
+        "local",
     ),
 )
 
