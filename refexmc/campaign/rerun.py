@@ -57,5 +57,8 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
         history = storage.empty_history_table()
     storage.write_table_atomic(history, path)
     stored = stored_row(out, run_id)
-    differ = [] if stored is None else [key for key in row if key not in stored or not _same(row[key], stored[key])]
+    differ = []
+    if stored is not None:  # a column either row lacks differs too (a stored column the new row lost)
+        keys = list(row) + [key for key in stored if key not in row]
+        differ = [key for key in keys if key not in row or key not in stored or not _same(row[key], stored[key])]
     return {"row": row, "stored": stored, "differ": differ, "path": path, "campaign": campaign}
