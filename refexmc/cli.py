@@ -158,7 +158,9 @@ def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, s
 
 
 def format_run_summary(result):
-    """A few lines a reviewer reads first: success, propellant, hand-over error, mode times."""
+    """A few lines a reviewer reads first: success, propellant, final angle error, mode times."""
+    from refexmc.config.mission_words import end_name
+
     table = result["runs"]
     counts = result["counts"]
     lines = [
@@ -169,10 +171,12 @@ def format_run_summary(result):
     if len(ok) == 1:
         row = ok.iloc[0]
         verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
-        lines.append(f"  flight: {verdict}, hand-over at t = {row['t_end_s']:.1f} s")
+        end = end_name(result["campaign"]["mission"]) if row["success"] else "flight stopped"
+        lines.append(f"  flight: {verdict}, {end} at t = {row['t_end_s']:.1f} s")
         lines.append(f"  propellant remaining: {100 * row['fuel_remaining']:.1f} % ({row['fuel_used_kg']:.3f} kg used)")
         theta = row["theta_t_handover_deg"]
-        lines.append(f"  total angle error at hand-over: {theta:.2f} deg" if not math.isnan(theta) else "")
+        at = f"at the {end}" if row["success"] else "when it stopped"
+        lines.append(f"  total angle error {at}: {theta:.2f} deg" if not math.isnan(theta) else "")
         names = [mode["name"] for mode in result["campaign"]["mission"]["modes"]]
         times = ", ".join(f"{m} {row[f't_{m.lower()}_s']:.1f}" for m in names)
         lines.append(f"  time in mode [s]: {times}")
@@ -268,12 +272,19 @@ def rerun(out, run_id, history_rate, dest):
         _os_error(exc, "rerun failed")
     except ArrowException as exc:
         _unreadable(exc, f"rerun failed: cannot read {out}", DAMAGED_HINT)
+    from refexmc.config.mission_words import end_condition, end_name
+
     row = result["row"]
+    mission = result["campaign"]["mission"]
     verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
     click.echo(f"run {run_id} of {result['campaign']['name']}: {verdict}, status {row['status']}")
+    click.echo(f"  the mission: {end_condition(mission)}")
+    stopped = end_name(mission) if row["success"] else "flight stopped"
+    theta = row["theta_t_handover_deg"]
     click.echo(
-        f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, hand-over at t = {row['t_end_s']:.2f} s, "
-        f"theta_t {row['theta_t_handover_deg']:.3f} deg, failed thrusters [{row['failed_thrusters']}]"
+        f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, {stopped} at t = {row['t_end_s']:.2f} s"
+        + (f", total angle error {theta:.3f} deg" if not math.isnan(theta) else "")
+        + f", failed thrusters [{row['failed_thrusters']}]"
         + (f", failed wheels [{row['failed_wheels']}]" if "failed_wheels" in row else "")
     )
     click.echo(f"  history: {result['path']}")

@@ -45,7 +45,7 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
         raise ConfigError("not a refexmc output directory (no campaign.resolved.yaml)", file=out)
     campaign = load_campaign(resolved)
     if not 0 <= run_id < campaign["runs"]:
-        raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", path=("RUN_ID",))
+        raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", file=out, path=("RUN_ID",))
     plan = RunPlan(campaign)
     if history_rate_hz is None:
         history_rate_hz = 1.0 / control_period(plan.nominal_inputs)
