@@ -1,0 +1,104 @@
+"""Every requirement operator evaluated (not only parsed) on campaigns with failed and errored runs.
+
+A failed flight or errored run stands at the failing end of the distribution: -inf for >= and >,
++inf for <= and <, and == cannot be met (report/requirements.py, docs/report.md). Each case is
+checked on the same runs without the failures too, so a verdict that ignored them would show.
+"""
+
+import pytest
+from test_report import synthetic_runs, write_out
+
+from refexmc.report import make_report
+
+FAILED, ERRORED = (3, 11), (7,)
+
+
+def verdicts(tmp_path, name, requirements, failed=(), errored=()):
+    rows = synthetic_runs(n=30, failed=failed, errored=errored)
+    out = write_out(tmp_path / name, rows, requirements=requirements, histories=False)
+    report = make_report(out, html=False)
+    return {v["requirement"]: v for v in report["requirements"]}, report, rows
+
+
+def successful_extremes(rows):
+    fuel = [r["fuel_remaining"] for r in rows if r["status"] == "ok" and r["success"]]
+    return min(fuel), max(fuel)
+
+
+def requirement_set(low, high):
+    """Requirements every successful flight meets, strict and not, on both sides; the bounds are
+    the successful flights' own extremes; p1 and p99 of 30 runs fall within the failing ones."""
+    below, above = low - 0.01, high + 0.01
+    return {
+        f"fuel_remaining.min >= {below}": "low",
+        f"fuel_remaining.min > {below}": "low",
+        f"fuel_remaining.p1 > {below}": "low",
+        f"fuel_remaining.mean > {below}": "low",
+        f"fuel_remaining.max <= {above}": "high",
+        f"fuel_remaining.max < {above}": "high",
+        f"fuel_remaining.p99 < {above}": "high",
+        f"fuel_remaining.mean_plus_3sd < {above + 1.0}": "high",
+        "modes_completed.min == 7": None,
+    }
+
+
+@pytest.mark.parametrize(("failed", "errored"), [(FAILED, ()), ((), ERRORED), (FAILED, ERRORED)])
+def test_failing_runs_fail_every_operator_that_the_successful_flights_meet(tmp_path, failed, errored):
+    clean_rows = synthetic_runs(n=30, failed=(), errored=())
+    texts = list(requirement_set(*successful_extremes(clean_rows)))
+    clean, clean_report, _ = verdicts(tmp_path, "clean", texts)
+    assert clean_report["verdict"] == "PASS", [v for v in clean.values() if not v["passed"]]
+    # the same runs, some of them failed or errored: every requirement fails, with the ids named
+    judged, report, _ = verdicts(tmp_path, "failing", texts, failed=failed, errored=errored)
+    assert report["verdict"] == ("ERRORED" if errored else "FAIL")
+    for text in texts:
+        verdict = judged[text]
+        assert verdict["passed"] is False, (text, verdict)
+        assert verdict["failing_run_ids"] == sorted((*failed, *errored)), text
+
+
+def test_strict_operators_put_the_failing_runs_on_their_failing_side(tmp_path):
+    """min > x and max < x: the failing runs rank at -inf and +inf respectively (not the other way
+    round, which would leave min and max to the successful flights and read PASS)."""
+    low, high = successful_extremes(synthetic_runs(n=30, failed=FAILED, errored=()))
+    texts = [f"fuel_remaining.min > {low - 0.2}", f"fuel_remaining.max < {high + 0.2}"]
+    judged, _, _ = verdicts(tmp_path, "strict", texts, failed=FAILED)
+    assert judged[texts[0]]["actual"] is None and judged[texts[0]]["passed"] is False  # -inf: not computable
+    assert judged[texts[1]]["actual"] is None and judged[texts[1]]["passed"] is False
+    assert "fails because of the failed flights 3, 11" in judged[texts[0]]["note"]
+    # a percentile whose tail holds the two failing runs still passes, from the successful flights
+    tolerant = [f"fuel_remaining.p50 > {low - 0.2}", f"fuel_remaining.p50 < {high + 0.2}"]
+    judged, _, _ = verdicts(tmp_path, "tolerant", tolerant, failed=FAILED)
+    assert all(judged[t]["passed"] for t in tolerant), judged
+
+
+def test_strict_operators_are_strict_at_the_boundary(tmp_path):
+    """With no failing run, a bound equal to the statistic passes >= and <= and fails > and <."""
+    low, high = successful_extremes(synthetic_runs(n=30, failed=(), errored=()))
+    texts = [
+        f"fuel_remaining.min >= {low!r}",
+        f"fuel_remaining.min > {low!r}",
+        f"fuel_remaining.max <= {high!r}",
+        f"fuel_remaining.max < {high!r}",
+    ]
+    judged, _, _ = verdicts(tmp_path, "boundary", texts)
+    assert [judged[t]["passed"] for t in texts] == [True, False, True, False]
+    assert judged[texts[1]]["actual"] == low
+
+
+@pytest.mark.parametrize(
+    ("text", "passes"),
+    [
+        ("success_rate >= 0.9", True),  # 27 of 30: 0.9
+        ("success_rate > 0.9", False),
+        ("success_rate <= 0.9", True),
+        ("success_rate < 0.9", False),
+        ("success_rate < 0.91", True),
+        ("success_rate == 0.9", True),
+    ],
+)
+def test_campaign_metrics_count_errored_runs_as_unsuccessful(tmp_path, text, passes):
+    """Two failed flights and one errored run of 30: success_rate = 27 / 30 = 0.9 exactly as computed."""
+    judged, _, _ = verdicts(tmp_path, "rate", [text], failed=FAILED, errored=ERRORED)
+    assert judged[text]["actual"] == 27 / 30
+    assert judged[text]["passed"] is passes
