@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo smoke baseline test test-fast bench bench-campaign lint format clean
+.PHONY: demo smoke baseline test test-fast mutate bench bench-campaign lint format clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -40,6 +40,12 @@ test: $(STAMP)
 ## test-fast: skip tests marked slow
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"
+
+## mutate: mutation testing (mutmut) of refexmc/core/ and report/requirements.py against their unit tests,
+## kernels as plain Python; hours on 2 cores, not in CI. MUTANTS='refexmc.core.navigation*' narrows it (docs/mutation.md)
+mutate: $(STAMP)
+	REFEXMC_DISABLE_JIT=1 $(BIN)/mutmut run $(MUTANTS)
+	$(BIN)/mutmut results
 
 ## bench: flight-kernel benchmarks (results go to benchmarks/RESULTS.md by hand)
 bench: $(STAMP)

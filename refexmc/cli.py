@@ -12,6 +12,12 @@ import click
 
 from refexmc.config.errors import ConfigError
 
+STRICT = click.option("--strict", is_flag=True, help="Design warnings are errors (exit 2): docs/missions.md.")
+
+
+def plural(count, word):
+    return f"{count} {word}{'' if count == 1 else 's'}"
+
 
 def _bad_input(message):
     click.echo(f"error: {message}", err=True)
@@ -65,7 +71,8 @@ def main():
     "or local:N to start N worker processes here (docs/cluster.md).",
 )
 @click.option("--no-progress", is_flag=True, help="No progress bar or lines on stderr.")
-def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress):
+@STRICT
+def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, strict):
     """Run CAMPAIGN (default: campaigns/refex-mc100.yaml) and write OUT (default runs/<name>).
 
     Chunks of runs are flown in parallel worker processes; a run that raises, crashes its
@@ -94,7 +101,9 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
 
         dask_backend.start_local_early(dask_local)  # its start overlaps the validation as well
     try:
-        result = _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress)
+        result = _run_campaign(
+            campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, strict
+        )
     finally:
         pool.stop()  # idle now, and this process ends: its exit would wait ~0.4 s for them to leave
         if dask_local:
@@ -122,7 +131,7 @@ def _local_workers(scheduler, jobs):
     return workers or jobs or pool.usable_cores()
 
 
-def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress):
+def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, strict):
     """The result of ``run_campaign``; bad input, a failure or an interrupt exits with its message and code."""
     from refexmc.campaign import storage
     from refexmc.campaign.progress import progress_mode
@@ -140,6 +149,7 @@ def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, s
             overwrite=overwrite,
             resume=resume,
             progress=None if no_progress else progress_mode(),
+            strict=strict,
         )
     except ConfigError as exc:
         _bad_input(str(exc))
@@ -299,22 +309,31 @@ def rerun(out, run_id, history_rate, dest):
 
 @main.command()
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-def validate(files):
+@STRICT
+def validate(files, strict):
     """Check campaign, vehicle or mission FILES without running anything.
 
-    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml
+    Design warnings (a design that validates but may not fly as meant: docs/missions.md) are
+    printed on stderr; --strict makes them errors (exit 2).
+    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml --strict
     """
     from refexmc.config.load import load_any
 
     bad = 0
     for path in files:
+        warnings = []
         try:
-            kind, _ = load_any(path)
+            kind, _ = load_any(path, warnings)
         except ConfigError as exc:
             click.echo(f"error: {exc}", err=True)
             bad += 1
             continue
-        click.echo(f"{path}: valid {kind}")
+        for warning in warnings:
+            click.echo(f"{'error' if strict else 'warning'}: {warning}", err=True)
+        if strict and warnings:
+            bad += 1
+            continue
+        click.echo(f"{path}: valid {kind}" + (f", {plural(len(warnings), 'design warning')}" if warnings else ""))
     if bad:
         sys.exit(2)
 
@@ -324,7 +343,8 @@ def validate(files):
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("--torque", help="TX,TY,TZ: show what fires for this body torque (N m).")
 @click.option("--level", help="thrust level for --torque (default: the vehicle's first).")
-def inspect(file, as_json, torque, level):
+@STRICT
+def inspect(file, as_json, torque, level, strict):
     """Print the design quantities derived from a vehicle (or a campaign's vehicle).
 
     omega_dot_max (000 eq. 1), gains (eq. 38, 34), f_min (eq. 44), switching times, allocation table;
@@ -332,12 +352,18 @@ def inspect(file, as_json, torque, level):
     Example: refexmc inspect configs/vehicles/refex.yaml --json
     """
     from refexmc.config.derived import design
+    from refexmc.config.design_checks import strict_error
     from refexmc.config.load import load_any
 
+    warnings = []
     try:
-        kind, data = load_any(file)
+        kind, data = load_any(file, warnings)
     except ConfigError as exc:
         _bad_input(str(exc))
+    if strict and warnings:
+        _bad_input(str(strict_error(warnings)))
+    for warning in warnings:
+        click.echo(f"warning: {warning}", err=True)
     if kind == "mission":
         _bad_input(f"{file}: a mission has no design quantities; give a vehicle or campaign file")
     vehicle = data["vehicle"] if kind == "campaign" else data
@@ -378,6 +404,9 @@ def _inspect_torque(vehicle, text, level, as_json):
         click.echo("\n".join(lines))
         return
     lines = [f"allocation ({alloc['method']}, {alloc['level']} thrust) of torque {values} N m"]
+    if alloc["method"] == "table":
+        opened = sum(u > 0.0 for u in alloc["commands"])
+        lines[0] += f": {opened} valves open, thrust derated x{alloc['derating']:g}"
     for i, u in enumerate(alloc["commands"]):
         if u > 0.0:
             lines.append(f"  thruster {i + 1:2d}  {u:10.6f} N")
