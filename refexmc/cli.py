@@ -442,6 +442,15 @@ def format_design(name, info):
         if info["controller"] != "smc":
             lines.append(f"    Kp                          {vec(info['gains'][level]['kp'], '8.3f')}")
             lines.append(f"    Kd                          {vec(info['gains'][level]['kd'], '8.3f')}")
+        if level in info.get("deadbands", {}):
+            band, bit = info["deadbands"][level], info["minimum_impulse_bit"][level]
+            j = "" if info["controller"] == "pd" else "J "
+            lines.append(f"    rate deadband [deg/s]       {vec(band['rate_deg_s'], '8.4f')}   tau_min / ({j}Kd)")
+            lines.append(
+                f"    angle deadband [deg]        {vec(band['angle_deg'], '8.4f')}   2 asin(tau_min / ({j}Kp))"
+            )
+            lines.append(f"    min impulse bit [N m s]     {vec(bit['n_m_s'], '8.4f')}   shortest pulse, '+' entry")
+            lines.append(f"      its rate change [deg/s]   {vec(bit['rate_deg_s'], '8.4f')}")
         if level in info.get("pulse_equivalent_ms", {}):
             lines.append(
                 f"    valves: a {info['hardware_min_on_ms']:g} ms pulse gives {info['pulse_equivalent_ms'][level]:.2f} "
@@ -471,9 +480,12 @@ def format_design(name, info):
         if info["actuation"] == "lp_pwm":
             lines.append(f"  actuation {info['actuation']}: LP allocation (004 eq. 2-5); see --torque")
         return "\n".join(lines)
-    lines.append("  allocation (axis command -> thrusters):")
+    levels = list(info["allocation_torque_n_m"])
+    lines.append("  allocation: axis command -> thrusters; the torque they realise [N m, x y z], derated, per level")
+    lines.append(f"    {'':8s} {'':14s}" + "".join(f"{level:>30s}" for level in levels))
     for key, ids in info["allocation"].items():
-        lines.append(f"    {key:8s} {', '.join(map(str, ids))}")
+        torques = "".join(f"  {vec(info['allocation_torque_n_m'][level][key], '8.3f')}" for level in levels)
+        lines.append(f"    {key:8s} {', '.join(map(str, ids)):14s}{torques}")
     return "\n".join(lines)
 
 

@@ -261,3 +261,34 @@ def test_inspect_torque_derates_the_open_valves():
     as_json = json.loads(invoke("inspect", REFEX, "--torque", "0,1,0", "--level", "high", "--json").output)
     assert as_json["allocation"]["realised_torque_n_m"][1] == pytest.approx(hand, rel=1e-12)
     assert as_json["allocation"]["derating"] == derating
+
+
+def test_inspect_prints_the_deadbands_of_000_eq_38_per_axis_and_level():
+    """With derived gains the angle deadband is the design's phi_db (000 eq. 38 solved for the
+    angle), and the rate deadband is tau_min / (J Kd) = 0.35 omega_dot_max / (2 sqrt(Kp)) (eq. 34),
+    computed here from the vehicle file alone."""
+    vehicle = yaml.safe_load(REFEX.read_text())
+    info = json.loads(invoke("inspect", REFEX, "--json").output)
+    fsw = vehicle["flight_software"]
+    inertia = [vehicle["inertia_kg_m2"][i][i] for i in range(3)]
+    arms = [0.171, 1.05, 1.05]  # largest |r x d| per axis of the thruster table: y of 2/3, x of all
+    for level, thrust in vehicle["rcs"]["thrust_n"].items():
+        accel = [arms[i] * fsw["thrusters_per_axis"][i] * thrust / inertia[i] for i in range(3)]
+        kp = [0.35 * a / math.sin(math.radians(fsw["deadband_angle_deg"]) / 2) for a in accel]
+        rate = [math.degrees(0.35 * a / (2 * math.sqrt(k))) for a, k in zip(accel, kp, strict=True)]
+        assert info["deadbands"][level]["rate_deg_s"] == pytest.approx(rate, rel=1e-12)
+        assert info["deadbands"][level]["angle_deg"] == pytest.approx([fsw["deadband_angle_deg"]] * 3, rel=1e-12)
+    text = invoke("inspect", REFEX).output
+    assert "rate deadband [deg/s]         0.1958    0.1391    0.0976   tau_min / (J Kd)" in text
+    assert "angle deadband [deg]          0.4156    0.4156    0.4156" in text
+
+
+def test_inspect_prints_the_minimum_impulse_bit():
+    """generic-12, low thrust: a 25 ms pulse through 5 ms delays, a 2 ms rise and a 5 ms fall gives
+    (25 + 5 - 7) + (2 + 5) / 2 = 26.5 ms of full thrust; '+x' is a 1 N couple at 0.5 m (1 N m):
+    0.0265 N m s, over J_xx = 60 kg m^2."""
+    info = json.loads(invoke("inspect", GENERIC, "--json").output)
+    bit = info["minimum_impulse_bit"]["low"]
+    assert bit["n_m_s"] == pytest.approx([0.0265] * 3, rel=1e-12)
+    assert bit["rate_deg_s"] == pytest.approx([math.degrees(0.0265 / j) for j in (60.0, 80.0, 90.0)], rel=1e-12)
+    assert info["allocation_torque_n_m"]["high"]["-z"] == pytest.approx([0.0, 0.0, -4.0])

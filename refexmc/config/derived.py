@@ -373,6 +373,16 @@ def _rcs_design(vehicle):
         out["pulse_correction_matching_ms"][level] = pulse_correction_matching_ms(vehicle, level)
         if flies_wheels(vehicle):  # the thrusters are not flown; their design is still shown
             out.setdefault("rcs_omega_dot_max_rad_s2", {})[level] = omega_dot_max(vehicle, level).tolist()
+    if deadbands(vehicle, rcs_level_names(vehicle)[0]) is not None:
+        out["deadbands"], out["minimum_impulse_bit"] = {}, {}
+        for level in rcs_level_names(vehicle):
+            rate, angle = deadbands(vehicle, level)
+            out["deadbands"][level] = {"rate_deg_s": np.degrees(rate).tolist(), "angle_deg": np.degrees(angle).tolist()}
+            impulse, rate_change = minimum_impulse_bit(vehicle, level)
+            out["minimum_impulse_bit"][level] = {
+                "n_m_s": impulse.tolist(),
+                "rate_deg_s": np.degrees(rate_change).tolist(),
+            }
     pwpf = fsw["pwpf"]
     limits = vehicle["rcs"]["switching_limits_ms"]
     out["f_min_fraction"] = f_min_fraction(vehicle)
@@ -394,6 +404,7 @@ def _rcs_design(vehicle):
         if key:
             row = (w[0] + 1) * 9 + (w[1] + 1) * 3 + (w[2] + 1)
             out["allocation"][key] = [int(i) + 1 for i in np.flatnonzero(table[row])]
+    out["allocation_torque_n_m"] = {level: allocation_torques(vehicle, level) for level in rcs_level_names(vehicle)}
     return out
 
 
