@@ -292,3 +292,37 @@ def test_inspect_prints_the_minimum_impulse_bit():
     assert bit["n_m_s"] == pytest.approx([0.0265] * 3, rel=1e-12)
     assert bit["rate_deg_s"] == pytest.approx([math.degrees(0.0265 / j) for j in (60.0, 80.0, 90.0)], rel=1e-12)
     assert info["allocation_torque_n_m"]["high"]["-z"] == pytest.approx([0.0, 0.0, -4.0])
+
+
+# --- messages ----------------------------------------------------------------------------------
+
+
+def test_dispersing_an_undeclared_thrust_level_lists_the_declared_ones(tmp_path):
+    """A vehicle whose one level is 'nominal': dispersing rcs.thrust_n.low names what it has."""
+    vehicle = edited(
+        tmp_path,
+        GENERIC,
+        ("thrust_n: {low: 1.0, high: 4.0}", "thrust_n: {nominal: 1.0}"),
+        (
+            "    low: {on_delay: 5.0, rise: 2.0, off_delay: 5.0, fall: 5.0}\n",
+            "    nominal: {on_delay: 5.0, rise: 2.0, off_delay: 5.0, fall: 5.0}\n",
+        ),
+        ("    high: {on_delay: 5.0, rise: 2.0, off_delay: 5.0, fall: 5.0}\n", ""),
+        ("kp: {low: [10.8, 14.4, 16.2], high: [10.8, 14.4, 16.2]}", "kp: {nominal: [10.8, 14.4, 16.2]}"),
+        ("kd: {low: [36.0, 48.0, 54.0], high: [36.0, 48.0, 54.0]}", "kd: {nominal: [36.0, 48.0, 54.0]}"),
+    )
+    campaign = campaign_copy(
+        "generic-slew.yaml",
+        tmp_path,
+        replace=[
+            (str(GENERIC), str(vehicle)),
+            ("dispersions:\n", "dispersions:\n  rcs.thrust_n.low: {dist: normal, sigma: 0.01}\n"),
+        ],
+    )
+    result = invoke("validate", campaign)
+    assert result.exit_code == 2
+    line = line_of(campaign, "rcs.thrust_n.low")
+    assert result.output.strip() == (
+        f"error: {campaign}:{line}: dispersions.rcs.thrust_n.low: 'rcs.thrust_n.low': the vehicle file does not "
+        "declare it; rcs.thrust_n declares: nominal"
+    )
