@@ -228,6 +228,10 @@ def test_run_prints_the_warnings_records_them_in_the_manifest_and_strict_writes_
     flown = invoke("run", campaign, "-o", out, "--runs", "1", "-j", "1", "--no-progress")
     assert flown.exit_code == 0, flown.output
     assert "warning: " in flown.output and "rates_below_deg_s 0.07 lies inside" in flown.output
+    # the warning was real: the nominal flight's rates freeze inside the deadband, the detumble
+    # times out; the summary speaks of the flight stopping, not of a hand-over it does not have
+    assert "flight: FAILED (detumble_timeout), flight stopped at t = 120.0 s" in flown.output
+    assert "hand-over" not in flown.output
     manifest = json.loads((out / "manifest.json").read_text())
     assert len(manifest["design_warnings"]) == 1 and "rates_below_deg_s 0.07" in manifest["design_warnings"][0]
 
