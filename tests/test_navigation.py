@@ -122,7 +122,7 @@ small_angle = st.floats(-0.02, 0.02)
     attitude_noise=st.sampled_from([0.0, 1e-4, 3e-3]),
     rate_bias=st.tuples(small_angle, small_angle, small_angle),
     rate_noise=st.sampled_from([0.0, 1e-5, 1e-3]),
-    calibration_time=st.sampled_from([0.0, 5.0, 60.0]),
+    calibration_time=st.sampled_from([0.0, 0.5, 5.0, 60.0]),  # 0.5: a time constant under 1 s decays too
     time_calibrating=st.floats(0.0, 300.0),
     seed=st.integers(0, 2**64 - 1),
 )
