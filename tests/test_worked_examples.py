@@ -47,3 +47,19 @@ def test_every_generic_slew_run_reaches_its_hold_below_the_stated_rate_bound():
         # the hold keeps the attitude: its error never exceeds the mission's bound at the end
         theta = result.column("theta_t_deg")[hold_start:]
         assert np.nanmax(theta) < mission["handover_max_angle_deg"], run_id
+
+
+def test_every_flight_software_and_pwpf_key_has_a_row_in_the_vehicle_table():
+    """docs/missions.md sec. 1 defines each flight-software key (meaning and unit) in a row of its
+    own; the pwpf block key by key: a key the schema accepts but the page does not define fails."""
+    from refexmc.config import schema
+
+    rows = set()
+    for cell in re.findall(r"^\| ((?:`[a-z_.]+`(?:, )?)+) \|", MISSIONS_DOC.read_text(), flags=re.M):
+        rows.update(re.findall(r"`([a-z_.]+)`", cell))
+    fsw = schema.VEHICLE["properties"]["flight_software"]["properties"]
+    keys = [f"flight_software.{k}" for k in fsw if k != "pwpf"]
+    keys += [f"flight_software.pwpf.{k}" for k in fsw["pwpf"]["properties"]]
+    keys += [f"rcs.{k}" for k in schema.VEHICLE["properties"]["rcs"]["properties"]]
+    missing = [k for k in keys if k not in rows]
+    assert not missing, f"docs/missions.md defines no row for {missing}"
