@@ -9,6 +9,7 @@ import pytest
 from test_report import synthetic_runs, write_out
 
 from refexmc.report import make_report
+from refexmc.report.requirements import overall_verdict
 
 FAILED, ERRORED = (3, 11), (7,)
 
@@ -48,9 +49,10 @@ def test_failing_runs_fail_every_operator_that_the_successful_flights_meet(tmp_p
     texts = list(requirement_set(*successful_extremes(clean_rows)))
     clean, clean_report, _ = verdicts(tmp_path, "clean", texts)
     assert clean_report["verdict"] == "PASS", [v for v in clean.values() if not v["passed"]]
+    assert clean_report["passed"] is True
     # the same runs, some of them failed or errored: every requirement fails, with the ids named
     judged, report, _ = verdicts(tmp_path, "failing", texts, failed=failed, errored=errored)
-    assert report["verdict"] == ("ERRORED" if errored else "FAIL")
+    assert report["verdict"] == ("ERRORED" if errored else "FAIL") and report["passed"] is False
     for text in texts:
         verdict = judged[text]
         assert verdict["passed"] is False, (text, verdict)
@@ -102,3 +104,44 @@ def test_campaign_metrics_count_errored_runs_as_unsuccessful(tmp_path, text, pas
     judged, _, _ = verdicts(tmp_path, "rate", [text], failed=FAILED, errored=ERRORED)
     assert judged[text]["actual"] == 27 / 30
     assert judged[text]["passed"] is passes
+
+
+def completeness(complete=True, errored=0, missing=(), planned=30):
+    return {
+        "complete": complete,
+        "runs_planned": planned,
+        "runs_stored": planned - len(missing),
+        "problems": [] if complete else ["manifest status running"],
+        "missing_run_count": len(missing),
+        "missing_run_ids": list(missing),
+        "errored_count": errored,
+        "errored_run_ids": list(range(errored)),
+    }
+
+
+MET, UNMET = {"passed": True}, {"passed": False}
+
+
+@pytest.mark.parametrize(
+    ("state", "verdicts", "expected"),
+    [
+        (completeness(), [MET, MET], ("PASS", True)),
+        (completeness(), [MET, UNMET], ("FAIL", False)),
+        (completeness(), [], ("NO REQUIREMENTS", True)),
+        (completeness(errored=1), [MET], ("ERRORED", False)),  # every requirement met, still not accepted
+        (completeness(errored=1), [], ("ERRORED", False)),
+        (completeness(complete=False, missing=(4, 5)), [MET], ("INCOMPLETE", False)),
+        (completeness(complete=False, missing=(4,), errored=1), [], ("INCOMPLETE", False)),
+    ],
+)
+def test_only_pass_and_no_requirements_exit_zero(state, verdicts, expected):
+    """The overall verdict and whether `report` exits 0 (docs/report.md): incompleteness first,
+    then errored runs, whatever the requirements say."""
+    verdict, passed, banner = overall_verdict(state, verdicts)
+    assert (verdict, passed) == expected
+    assert (banner != "") == (verdict in ("INCOMPLETE", "ERRORED"))  # a banner: no verdict can be given
+    if verdict == "INCOMPLETE":
+        assert f"missing run ids {list(state['missing_run_ids'])}" in banner and "--resume" in banner
+        assert f"requirements: {sum(v['passed'] for v in verdicts)} of {len(verdicts)} met" in banner
+    if verdict == "ERRORED":
+        assert "1 of 30 runs raised errors (run ids 0)" in banner
