@@ -108,3 +108,46 @@ def test_the_kernel_itself_matches_the_dispatch(attitude_controlled):
     out = np.zeros(3)
     control.pd_feedback_linearisation(*args, KP, KD, INERTIA, attitude_controlled, out)
     assert np.array_equal(out, flown(*args, attitude_controlled))
+
+
+def test_sliding_mode_uses_each_axis_own_slope_gain_and_layer():
+    """001 eq. 12 against its twin (tests/naive.py) with a different Lambda, G and epsilon on every
+    axis, inside and outside the boundary layer: an axis reading another axis' constant shows."""
+    from naive import sliding_mode_torque
+
+    smc = np.array([[0.05, 0.08, 0.11], [0.002, 0.003, 0.005], [1e-4, 3e-4, 7e-4]])
+    rng = np.random.default_rng(26)
+    for scale in (1e-5, 3e-4, 1e-2):
+        for _ in range(20):
+            q_vec = rng.normal(0, scale, 3)
+            q_error = np.append(q_vec, np.sqrt(1.0 - q_vec @ q_vec))
+            rate_error, accel = rng.normal(0, scale, 3), rng.normal(0, 1e-5, 3)
+            rate = rate_error + rng.normal(0, 1e-3, 3)
+            for attitude_controlled in (True, False):
+                out = np.zeros(3)
+                control.torque_command(
+                    layout.CONTROLLER_SMC,
+                    q_error,
+                    rate_error,
+                    rate,
+                    accel,
+                    KP,
+                    KD,
+                    smc,
+                    INERTIA,
+                    attitude_controlled,
+                    out,
+                )
+                if attitude_controlled:
+                    expected = sliding_mode_torque(q_error, rate_error, rate, accel, *smc, INERTIA)
+                else:  # rate damping: no attitude terms (Lambda = 0 in the twin)
+                    expected = sliding_mode_torque(q_error, rate_error, rate, accel, 0.0 * smc[0], *smc[1:], INERTIA)
+                np.testing.assert_allclose(out, expected, rtol=1e-12, atol=1e-15)
+
+
+def test_an_unknown_controller_commands_no_torque():
+    out = np.full(3, 7.0)
+    control.torque_command(
+        99, NO_ERROR, np.ones(3), np.ones(3), np.ones(3), KP, KD, np.ones((3, 3)), INERTIA, True, out
+    )
+    assert np.array_equal(out, np.zeros(3))

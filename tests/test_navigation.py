@@ -83,6 +83,17 @@ def test_the_bias_stays_where_calibration_left_it():
     assert np.allclose(error_vector(x[0:4], never), BIAS, atol=ANGLE_TOL)
 
 
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_a_bias_about_one_axis_alone_is_measured(axis):
+    """A bias on one axis (the others exactly 0) still turns the measured attitude: the kernel's
+    no-error shortcut must need all three components to be zero."""
+    bias = np.zeros(3)
+    bias[axis] = 0.01
+    q_truth = np.array([0.2, 0.1, -0.3, 0.9]) / np.linalg.norm([0.2, 0.1, -0.3, 0.9])
+    q_meas, _, _ = measure(state(q_truth), nav_table(attitude_bias=bias), 0.0)
+    assert np.allclose(error_vector(q_truth, q_meas), bias, rtol=0, atol=ANGLE_TOL)
+
+
 def test_rate_bias_is_added_to_the_true_rate():
     rate = np.array([0.1, -0.05, 0.02])
     bias = np.array([1e-3, -2e-3, 5e-4])
