@@ -145,3 +145,17 @@ def test_only_pass_and_no_requirements_exit_zero(state, verdicts, expected):
         assert f"requirements: {sum(v['passed'] for v in verdicts)} of {len(verdicts)} met" in banner
     if verdict == "ERRORED":
         assert "1 of 30 runs raised errors (run ids 0)" in banner
+
+
+@pytest.mark.parametrize(("op", "passes"), [("<=", True), ("<", False), (">=", True), (">", False)])
+def test_an_input_column_is_judged_over_every_run_failed_and_errored_included(tmp_path, op, passes):
+    """p.<path> is an input: every run has its value, a failed or errored run's too, and none is
+    ranked at a failing end. The bound is the largest (<=, <) or smallest (>=, >) drawn value."""
+    rows = synthetic_runs(n=30, failed=FAILED, errored=ERRORED)
+    drawn = [r["p.rcs.isp_s"] for r in rows]
+    bound = max(drawn) if op.startswith("<") else min(drawn)
+    stat = "max" if op.startswith("<") else "min"
+    text = f"p.rcs.isp_s.{stat} {op} {bound!r}"
+    judged, _, _ = verdicts(tmp_path, "input", [text], failed=FAILED, errored=ERRORED)
+    assert judged[text]["actual"] == bound and judged[text]["passed"] is passes
+    assert judged[text]["failing_count"] == 0 and judged[text]["covers"].startswith("all 30 runs (an input")
