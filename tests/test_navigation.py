@@ -61,7 +61,7 @@ BIAS = np.radians([0.5, -0.3, 0.2])  # rad, well inside the small-angle range th
 TAU = 40.0  # s
 
 
-@pytest.mark.parametrize("t_cal", [0.0, 10.0, 40.0, 120.0])
+@pytest.mark.parametrize("t_cal", [0.0, 0.5, 10.0, 40.0, 120.0])
 def test_attitude_bias_decays_as_exp_minus_t_over_tau_while_calibrating(t_cal):
     """Closed form: the attitude error is b e^(-t_cal / tau) exactly (no noise): t = tau leaves b / e."""
     q_truth = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
