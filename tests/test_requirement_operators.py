@@ -9,7 +9,7 @@ import pytest
 from test_report import synthetic_runs, write_out
 
 from refexmc.report import make_report
-from refexmc.report.requirements import overall_verdict
+from refexmc.report.requirements import failing_description, listed_ids, overall_verdict, plural, requirement_label
 
 FAILED, ERRORED = (3, 11), (7,)
 
@@ -104,6 +104,7 @@ def test_campaign_metrics_count_errored_runs_as_unsuccessful(tmp_path, text, pas
     judged, _, _ = verdicts(tmp_path, "rate", [text], failed=FAILED, errored=ERRORED)
     assert judged[text]["actual"] == 27 / 30
     assert judged[text]["passed"] is passes
+    assert judged[text]["covers"] == "all 30 runs (1 errored run count as unsuccessful)"
 
 
 def completeness(complete=True, errored=0, missing=(), planned=30):
@@ -159,3 +160,28 @@ def test_an_input_column_is_judged_over_every_run_failed_and_errored_included(tm
     judged, _, _ = verdicts(tmp_path, "input", [text], failed=FAILED, errored=ERRORED)
     assert judged[text]["actual"] == bound and judged[text]["passed"] is passes
     assert judged[text]["failing_count"] == 0 and judged[text]["covers"].startswith("all 30 runs (an input")
+
+
+@pytest.mark.parametrize(
+    ("passed", "overall", "label"),
+    [
+        (True, "PASS", "PASS"),
+        (True, "FAIL", "PASS"),
+        (False, "FAIL", "FAIL"),
+        (True, "ERRORED", "met"),  # no PASS anywhere while the campaign cannot be accepted
+        (True, "INCOMPLETE", "met"),
+        (False, "INCOMPLETE", "FAIL"),
+    ],
+)
+def test_a_met_requirement_reads_pass_only_when_the_campaign_can_pass(passed, overall, label):
+    assert requirement_label({"passed": passed}, overall) == label
+
+
+def test_the_words_around_a_verdict_count_and_list_runs():
+    """What `report` prints beside a verdict: singular and plural, ids truncated after ten."""
+    assert [plural(n, "run") for n in (0, 1, 2)] == ["0 runs", "1 run", "2 runs"]
+    assert listed_ids(range(10)) == "0, 1, 2, 3, 4, 5, 6, 7, 8, 9"
+    assert listed_ids(range(11)) == "0, 1, 2, 3, 4, 5, 6, 7, 8, 9, ... (11 in all)"
+    assert failing_description([3], []) == "failed flight 3"
+    assert failing_description([3, 11], [7]) == "failed flights 3, 11 and errored run 7"
+    assert failing_description([], [7, 8]) == "errored runs 7, 8"
