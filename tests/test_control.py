@@ -151,3 +151,21 @@ def test_an_unknown_controller_commands_no_torque():
         99, NO_ERROR, np.ones(3), np.ones(3), np.ones(3), KP, KD, np.ones((3, 3)), INERTIA, True, out
     )
     assert np.array_equal(out, np.zeros(3))
+
+
+def test_control_errors_are_the_shortest_arc_from_reference_to_measurement():
+    """q_e = conj(q_ref) (x) q_meas with q_e4 >= 0 (000 eq. 35's q_e, the shortest arc; scipy's
+    composition as the reference) and omega_e = omega_meas - omega_ref."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(35)
+    for _ in range(50):
+        q_ref, q_meas = Rotation.random(2, random_state=rng).as_quat()
+        rate_meas, rate_ref = rng.normal(size=3), rng.normal(size=3)
+        q_error, rate_error = np.zeros(4), np.zeros(3)
+        control.control_errors(q_meas, rate_meas, q_ref, rate_ref, q_error, rate_error)
+        expected = (Rotation.from_quat(q_ref).inv() * Rotation.from_quat(q_meas)).as_quat()
+        expected *= 1.0 if expected[3] >= 0 else -1.0
+        assert q_error[3] >= 0.0
+        assert np.allclose(q_error, expected, rtol=0, atol=1e-15)
+        assert np.array_equal(rate_error, rate_meas - rate_ref)
