@@ -421,7 +421,8 @@ def format_design(name, info):
     from refexmc.config.derived import CORRECTION_WARNING_MS
 
     def vec(values, fmt):
-        return "  ".join(format(v, fmt) for v in values)
+        width = int(fmt.split(".")[0].rstrip("dfg") or 0)
+        return "  ".join(format(v, fmt) if v is not None else "-".rjust(width) for v in values)
 
     lines = [f"vehicle {name}"]
     if "lever_arms_m" in info:

@@ -330,3 +330,26 @@ def test_dispersing_an_undeclared_thrust_level_lists_the_declared_ones(tmp_path)
         f"error: {campaign}:{line}: dispersions.rcs.thrust_n.low: 'rcs.thrust_n.low': the vehicle file does not "
         "declare it; rcs.thrust_n declares: nominal"
     )
+
+
+def test_a_vehicle_without_torque_about_its_axes_validates_clean(tmp_path):
+    """Thrusters through the centre of mass (a translation-only lander): every allocation entry
+    empty and no gains. Empty entries are no sign error, n_t describes no torque, and a rate exit
+    threshold has no deadband to lie in (the controller never acts): no error, no warning."""
+    text = GENERIC.read_text()
+    start, end = text.index("  allocation:"), len(text)
+    keys = ["+x", "-x", "+y", "-y", "+z", "-z", "+x+y", "+x-y", "-x+y", "-x-y", "+x+z", "+x-z", "-x+z", "-x-z"]
+    keys += ["+y+z", "+y-z", "-y+z", "-y-z"]
+    empty = "  allocation: {" + ", ".join(f'"{k}": []' for k in keys) + "}\n"
+    vehicle = tmp_path / "vehicle.yaml"
+    vehicle.write_text(
+        (text[:start] + empty + text[end:])
+        .replace("kp: {low: [10.8, 14.4, 16.2], high: [10.8, 14.4, 16.2]}", "kp: {low: [0, 0, 0], high: [0, 0, 0]}")
+        .replace("kd: {low: [36.0, 48.0, 54.0], high: [36.0, 48.0, 54.0]}", "kd: {low: [0, 0, 0], high: [0, 0, 0]}")
+    )
+    campaign = campaign_copy("generic-slew.yaml", tmp_path, replace=[(str(GENERIC), str(vehicle))])
+    result = invoke("validate", "--strict", vehicle, campaign)
+    assert result.exit_code == 0 and "warning" not in result.output, result.output
+    inspected = json.loads(invoke("inspect", vehicle, "--json").output)
+    assert inspected["deadbands"]["low"] == {"rate_deg_s": [None] * 3, "angle_deg": [None] * 3}
+    assert invoke("inspect", vehicle).exit_code == 0

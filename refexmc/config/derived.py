@@ -290,11 +290,11 @@ def deadbands(vehicle, level):
     tau_min = fsw["pwpf"]["tau_min_fraction"] * torque_max(vehicle, level)
     kp, kd = gains_flown(vehicle, level)
     scale = np.ones(3) if fsw["controller"] == "pd" else np.diag(np.asarray(vehicle["inertia_kg_m2"], dtype=float))
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # 0 / 0 where a gain and the torque are 0
         rate = np.where(kd > 0.0, tau_min / (scale * kd), np.inf)
         ratio = np.where(kp > 0.0, tau_min / (scale * kp), np.inf)
     angle = np.where(ratio < 1.0, 2.0 * np.arcsin(np.minimum(ratio, 1.0)), np.pi)  # beyond 1: never fires
-    return rate, angle
+    return rate, np.where(kp > 0.0, angle, np.inf)  # inf: no gain, the error is never acted on
 
 
 def minimum_impulse_bit(vehicle, level):
@@ -357,6 +357,11 @@ def _wheel_design(vehicle):
     }
 
 
+def _finite(values):
+    """A list for JSON: None where a value is not finite (a deadband without a gain)."""
+    return [float(v) if np.isfinite(v) else None for v in values]
+
+
 def _rcs_design(vehicle):
     """The thruster design (000): lever arms, omega_dot_max and gains per thrust level, PWPF, switching
     limits, the allocation table."""
@@ -377,7 +382,7 @@ def _rcs_design(vehicle):
         out["deadbands"], out["minimum_impulse_bit"] = {}, {}
         for level in rcs_level_names(vehicle):
             rate, angle = deadbands(vehicle, level)
-            out["deadbands"][level] = {"rate_deg_s": np.degrees(rate).tolist(), "angle_deg": np.degrees(angle).tolist()}
+            out["deadbands"][level] = {"rate_deg_s": _finite(np.degrees(rate)), "angle_deg": _finite(np.degrees(angle))}
             impulse, rate_change = minimum_impulse_bit(vehicle, level)
             out["minimum_impulse_bit"][level] = {
                 "n_m_s": impulse.tolist(),

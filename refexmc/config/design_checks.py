@@ -101,6 +101,8 @@ def _check_directions(vehicle, fail):
 def _check_allocation_signs(vehicle, fail):
     """Each listed entry turns the body the way its key says about every axis the key names."""
     for key, ids in vehicle["flight_software"]["allocation"].items():
+        if not ids:  # opens nothing: the vehicle declares no torque for this command (thrusters through the CoM)
+            continue
         per_newton = derived.entry_torque_per_newton(vehicle, ids)
         scale = max(float(np.abs(derived.torque_arms(vehicle)).max()), 1e-12)
         for sign, axis in zip(key[::2], key[1::2], strict=True):
@@ -126,8 +128,12 @@ def _check_allocation_signs(vehicle, fail):
 def _thrusters_per_axis(vehicle, warn):
     n_t = vehicle["flight_software"]["thrusters_per_axis"]
     effective = derived.effective_thrusters_per_axis(vehicle)
+    entries = vehicle["flight_software"]["allocation"]
+    arms = derived.lever_arms(vehicle)
     out = []
     for k, axis in enumerate("xyz"):
+        if arms[k] == 0.0 or not (entries.get("+" + axis) or entries.get("-" + axis)):
+            continue  # no torque about this axis at all: nothing for n_t to describe
         worth = {sign: effective[sign + axis] for sign in "+-"}
         off = {sign: n for sign, n in worth.items() if abs(n - n_t[k]) >= THRUSTER_COUNT_TOLERANCE}
         if off:
@@ -208,7 +214,8 @@ def check_flight(vehicle, mission, warn_fail):
                     why = "angle errors below it are not corrected"
                 else:
                     continue
-                inside = [axis for axis, b in zip("xyz", band, strict=True) if value < b]
+                # an axis with no torque or no gain has no deadband to speak of (never controlled)
+                inside = [axis for axis, b in zip("xyz", band, strict=True) if math.isfinite(b) and value < b]
                 if inside:
                     out.append(
                         warn(
