@@ -2,6 +2,7 @@
 
 import atexit
 import errno
+import functools
 import gc
 import json
 import math
@@ -71,8 +72,30 @@ def main():
     "or local:N to start N worker processes here (docs/cluster.md).",
 )
 @click.option("--no-progress", is_flag=True, help="No progress bar or lines on stderr.")
+@click.option(
+    "--until-decided",
+    is_flag=True,
+    help="Fly in batches until every requirement is decided; the runs are the budget (docs/studies.md).",
+)
+@click.option("--batch", type=int, help="With --until-decided: runs between looks [default: budget / 10, >= 10].")
+@click.option("--alpha", type=float, help="With --until-decided: wrong-verdict rate [default: 0.05].")
 @STRICT
-def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, strict):
+def run(
+    campaign,
+    out,
+    jobs,
+    runs,
+    seed,
+    resume,
+    overwrite,
+    backend,
+    scheduler,
+    no_progress,
+    until_decided,
+    batch,
+    alpha,
+    strict,
+):
     """Run CAMPAIGN (default: campaigns/refex-mc100.yaml) and write OUT (default runs/<name>).
 
     Chunks of runs are flown in parallel worker processes; a run that raises, crashes its
@@ -88,6 +111,8 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
     \b
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler tcp://head:8786
       refexmc run campaigns/refex-mc100.yaml --backend dask --scheduler local:4
+
+    Stopping when decided (docs/studies.md): refexmc run CAMPAIGN --runs 2000 --until-decided
     """
     if resume and overwrite:
         _bad_input("--resume and --overwrite exclude each other")
@@ -100,15 +125,22 @@ def run(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, 
         from refexmc.campaign import dask_backend
 
         dask_backend.start_local_early(dask_local)  # its start overlaps the validation as well
+    if not until_decided and (batch is not None or alpha is not None):
+        _bad_input("--batch and --alpha go with --until-decided")
+    until = {"batch": batch, "alpha": 0.05 if alpha is None else alpha} if until_decided else None
     try:
         result = _run_campaign(
-            campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, strict
+            campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until, strict
         )
     finally:
         pool.stop()  # idle now, and this process ends: its exit would wait ~0.4 s for them to leave
         if dask_local:
             dask_backend.stop_early()  # a cluster that no campaign took (bad input)
     click.echo(format_run_summary(result))
+    if until_decided:
+        from refexmc.campaign.decided import format_stopping
+
+        click.echo(format_stopping(result["until_decided"]))
     errored = result["runs"].loc[result["runs"]["status"] == "error", "run_id"].tolist()
     if errored:
         click.echo(f"runs with errors: {', '.join(map(str, errored))}", err=True)
@@ -131,12 +163,20 @@ def _local_workers(scheduler, jobs):
     return workers or jobs or pool.usable_cores()
 
 
-def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, strict):
-    """The result of ``run_campaign``; bad input, a failure or an interrupt exits with its message and code."""
+def _run_campaign(
+    campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until=None, strict=False
+):
+    """The result of ``run_campaign`` (``until``: of ``run_until_decided`` with these options); bad
+    input, a failure or an interrupt exits with its message and code."""
     from refexmc.campaign import storage
     from refexmc.campaign.progress import progress_mode
-    from refexmc.campaign.run import CampaignInterrupted, resume_command, run_campaign
+    from refexmc.campaign.run import CampaignInterrupted, resume_command
+    from refexmc.campaign.sweep import run_campaign_or_sweep as run_campaign
 
+    if until is not None:
+        from refexmc.campaign.decided import run_until_decided
+
+        run_campaign = functools.partial(run_until_decided, **until)
     try:
         return run_campaign(
             campaign,
@@ -158,6 +198,8 @@ def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, s
         _os_error(exc, "run stopped", RESUME_HINT if started else "")
     except CampaignInterrupted as exc:
         command = resume_command(campaign, out or exc.out, runs, seed, backend, scheduler)
+        if until is not None:  # the looks replay on the stored runs
+            command += " --until-decided" + "".join(f" --{k} {v}" for k, v in until.items() if v is not None)
         click.echo(
             f"{exc}: {exc.done} of {exc.total} runs done and kept in {exc.out}; finish with: {command}", err=True
         )
@@ -428,6 +470,8 @@ def format_design(name, info):
     if "lever_arms_m" in info:
         lines.append(f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}")
         lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
+    if "feed" in info:
+        lines += _format_feed(info["feed"])
     lines.append(f"  controller {info['controller']}, gains {info['gains_source']}, actuation {info['actuation']}")
     if "smc" in info:
         smc = info["smc"]
@@ -488,6 +532,22 @@ def format_design(name, info):
         torques = "".join(f"  {vec(info['allocation_torque_n_m'][level][key], '8.3f')}" for level in levels)
         lines.append(f"    {key:8s} {', '.join(map(str, ids)):14s}{torques}")
     return "\n".join(lines)
+
+
+def _format_feed(feed):
+    """The cold-gas tank and nozzle of a blow-down or regulated feed (002 eq. 1-20; config.feed)."""
+    return [
+        f"  feed {feed['model']} (002 sec. 3): {feed['gas_kg']:.4g} kg of gas, blow-down time constant "
+        f"{feed['blow_down_time_constant_s']:.4g} s per open thruster",
+        f"    thrust coefficient C_F      {feed['thrust_coefficient']:.5f} (vacuum, exit Mach {feed['exit_mach']:.3f})",
+        f"    exhaust velocity [m/s]      {feed['exhaust_velocity_m_s']:.2f} (Isp {feed['specific_impulse_s']:.2f} s)",
+        f"    thrust [N]: initial         {feed['initial_thrust_n']:.5g}, "
+        f"at half tank {feed['thrust_at_half_tank_n']:.5g}",
+        f"    total impulse [N s]         {feed['total_impulse_n_s']:.5g} (all the gas, vacuum)",
+    ] + [
+        f"    regulated {level}: chamber held at {pressure / 1e5:.4g} bar while the tank is above it"
+        for level, pressure in feed.get("set_pressure_pa", {}).items()
+    ]
 
 
 def _format_wheels(wheels, vec):

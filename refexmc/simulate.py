@@ -8,7 +8,13 @@ import math
 
 import numpy as np
 
-from refexmc.config.requirements import ORBIT_COLUMNS, POINTING_COLUMNS, WHEEL_COLUMNS, mode_time_columns
+from refexmc.config.requirements import (
+    LOCAL_COLUMNS,
+    ORBIT_COLUMNS,
+    POINTING_COLUMNS,
+    WHEEL_COLUMNS,
+    mode_time_columns,
+)
 from refexmc.core import flight
 from refexmc.core import layout as L
 
@@ -24,7 +30,9 @@ def failure_name(code, mode_name=None):
 class FlightResult:
     """One flight's outputs, named."""
 
-    def __init__(self, summary, pulse_counts, history, mode_names, orbit=False, pointing=False, wheels=False):
+    def __init__(
+        self, summary, pulse_counts, history, mode_names, orbit=False, pointing=False, wheels=False, local=False
+    ):
         self.summary = summary  # layout.SUMMARY then per-mode values
         self.pulse_counts = pulse_counts  # valve open commands sent, per thruster
         self.history = history  # rows x layout.HISTORY_SIZE
@@ -32,6 +40,7 @@ class FlightResult:
         self.orbit = orbit  # the orbit trajectory: entry-state values (config.requirements.ORBIT_COLUMNS)
         self.pointing = pointing  # a pointing window: config.requirements.POINTING_COLUMNS
         self.wheels = wheels  # reaction wheels: config.requirements.WHEEL_COLUMNS
+        self.local = local  # the local trajectory: config.requirements.LOCAL_COLUMNS
 
     def value(self, name):
         """A summary value by name; ``t_mode_s`` and ``t1_mode_s`` give one value per mode."""
@@ -73,6 +82,11 @@ class FlightResult:
                 row[name] = float(entry[k])
             for name in ORBIT_COLUMNS[5:]:
                 row[name] = float(self.value(name))
+        if self.local:
+            switches = self.value("switches")
+            values = [self.value(name) for name in LOCAL_COLUMNS[:3]] + list(switches)
+            for name, value in zip(LOCAL_COLUMNS, values, strict=True):
+                row[name] = float(value)
         if self.pointing:
             end, rms = self.value("pointing_end_arcsec"), self.value("pointing_rms_arcsec")
             values = [*end, *rms, self.value("pointing_max_arcsec")]
@@ -176,7 +190,8 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
     orbit = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_ORBIT
     pointing = bool(np.isfinite(inputs.mission[L.M_POINTING_FROM]))
     wheels = inputs.wheels.shape[0] > 0
-    return FlightResult(summary, pulses, history[:rows], mode_names, orbit, pointing, wheels)
+    local = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_LOCAL
+    return FlightResult(summary, pulses, history[:rows], mode_names, orbit, pointing, wheels, local)
 
 
 def keyed_uniforms(entropy, count):

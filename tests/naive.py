@@ -4,6 +4,7 @@ Each function here is plain Python, readable next to the equation it cites, and 
 with ``refexmc.core``. The unit tests compare the kernels with them.
 """
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -604,3 +605,212 @@ def pd_feedback_linearisation_torque(q_error, rate_error, rate_meas, accel_ref, 
     if attitude_controlled:
         v = v - np.asarray(kp, float) * np.asarray(q_error[:3], float)
     return inertia @ v + np.cross(omega, inertia @ omega)
+
+
+# Entry flight over a rotating spherical Earth, 003 eq. 3 (longitude/latitude rates and the
+# centripetal sign in gamma-dot as for a heading from north: core.entry's docstring)
+# --------------------------------------------------------------------------------------------
+
+
+def entry_derivative(state, radius, mu, omega, air, forces, mass, bank):
+    """d/dt [h, lon, lat, V, gamma, chi]; ``air(h) -> (rho, sound)``, ``forces(rho, V, sound) ->
+    (L, D, Y)`` in N."""
+    h, _lon, lat, v, gamma, chi = state
+    r = radius + h
+    g = mu / r**2
+    rho, sound = air(h)
+    lift, drag, side = forces(rho, v, sound)
+    w = omega
+    return [
+        v * math.sin(gamma),
+        v * math.cos(gamma) * math.sin(chi) / (r * math.cos(lat)),
+        v * math.cos(gamma) * math.cos(chi) / r,
+        -drag / mass
+        - g * math.sin(gamma)
+        + w**2
+        * r
+        * math.cos(lat)
+        * (math.sin(gamma) * math.cos(lat) - math.cos(gamma) * math.sin(lat) * math.cos(chi)),
+        (lift * math.cos(bank) - side * math.sin(bank)) / (mass * v)
+        + math.cos(gamma) * (v / r - g / v)
+        + 2 * w * math.cos(lat) * math.sin(chi)
+        + w**2
+        * r
+        / v
+        * math.cos(lat)
+        * (math.cos(gamma) * math.cos(lat) + math.sin(gamma) * math.sin(lat) * math.cos(chi)),
+        (lift * math.sin(bank) + side * math.cos(bank)) / (mass * v * math.cos(gamma))
+        + v * math.cos(gamma) * math.sin(chi) * math.tan(lat) / r
+        - 2 * w * (math.tan(gamma) * math.cos(lat) * math.cos(chi) - math.sin(lat))
+        + w**2 * r / (v * math.cos(gamma)) * math.sin(lat) * math.cos(lat) * math.sin(chi),
+    ]
+
+
+# --------------------------------------------------------------------------------------------
+# Blending thrusters with surfaces, 003 eq. 5-10: vertex enumeration, no LP solver
+# --------------------------------------------------------------------------------------------
+
+
+def blend_rate(effectiveness, offset, torque, weights, d):
+    """003 eq. 8: sum_i w_i |tau_i - (B d + offset)_i|."""
+    t = np.asarray(torque) - np.asarray(effectiveness) @ np.asarray(d) - np.asarray(offset)
+    return float(np.sum(np.asarray(weights) * np.abs(t)))
+
+
+def blend_candidates(effectiveness, offset, torque, lower, upper):
+    """Every point where the minimum of eq. 8 over the box can lie: the vertices of the
+    arrangement of the zero-thruster-moment planes (eq. 9a-c, 10a-c) and the box faces, in the
+    free surfaces (lower < upper; the fixed ones, such as a blocked flap, stay at their bound)."""
+    b = np.asarray(effectiveness, dtype=float)
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    free = [j for j in range(len(lo)) if hi[j] > lo[j]]
+    fixed = [j for j in range(len(lo)) if hi[j] <= lo[j]]
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float) - b[:, fixed] @ lo[fixed]
+    n = len(free)
+    planes = [(b[i, free], c[i]) for i in range(3)]
+    for k in range(n):
+        unit = np.eye(n)[k]
+        planes += [(unit, lo[free[k]]), (unit, hi[free[k]])]
+    points = []
+    for combination in itertools.combinations(planes, n):
+        m = np.array([normal for normal, _ in combination])
+        if n and abs(np.linalg.det(m)) < 1e-300:
+            continue
+        x = np.linalg.solve(m, [value for _, value in combination]) if n else np.zeros(0)
+        slack = 1e-12 * (1.0 + np.abs(x))
+        if np.all(x >= lo[free] - slack) and np.all(x <= hi[free] + slack):
+            point = lo.copy()
+            point[free] = np.clip(x, lo[free], hi[free])
+            points.append(point)
+    return points
+
+
+def triangle_vertices(effectiveness, offset, torque, lower, upper):
+    """The three vertices of the triangle of eq. 10a-c in the two free surfaces (the free flap and
+    the rudder): pairwise intersections of the lines where one thruster moment is zero."""
+    b = np.asarray(effectiveness, dtype=float)
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    free = [j for j in range(len(lo)) if hi[j] > lo[j]]
+    fixed = [j for j in range(len(lo)) if hi[j] <= lo[j]]
+    c = np.asarray(torque, dtype=float) - np.asarray(offset, dtype=float) - b[:, fixed] @ lo[fixed]
+    vertices = []
+    for i, j in ((0, 1), (1, 2), (0, 2)):
+        point = lo.copy()
+        point[free] = np.linalg.solve(b[[i, j]][:, free], c[[i, j]])
+        vertices.append(point)
+    return vertices
+
+
+def entry_aero_moment(coefficients, qsl, beta, deflection):
+    """Body moments of the entry flight (core.entry_flight): ``coefficients`` a dict of the
+    vehicle-file names at the flight condition; deflection (left, right, rudder) in rad."""
+    elevon = (deflection[0] + deflection[1]) / 2
+    aileron = (deflection[0] - deflection[1]) / 2
+    c = coefficients
+    return qsl * np.array(
+        [
+            c["roll_per_beta_rad"] * beta
+            + c["roll_per_aileron_rad"] * aileron
+            + c["roll_per_rudder_rad"] * deflection[2],
+            c["pitch"] + c["pitch_per_elevon_rad"] * elevon,
+            c["yaw_per_beta_rad"] * beta + c["yaw_per_aileron_rad"] * aileron + c["yaw_per_rudder_rad"] * deflection[2],
+        ]
+    )
+
+
+# Cold-gas tank and nozzle, 002 eq. 1-20 (textbook forms: Sutton and Biblarz, ch. 3)
+# --------------------------------------------------------------------------------------------
+
+
+def nozzle_pressure_ratio(expansion_ratio, gamma):
+    """p_e / p_c of an ideal nozzle with area ratio A_e / A_t (Sutton eq. 3-25, supersonic branch),
+    from the pressure form of the area ratio rather than the Mach form of 002 eq. 6."""
+    from scipy.optimize import brentq
+
+    def inverse_area_ratio(ratio):  # A_t / A_e as a function of p_e / p_c
+        g = gamma
+        return (
+            ((g + 1.0) / 2.0) ** (1.0 / (g - 1.0))
+            * ratio ** (1.0 / g)
+            * math.sqrt((g + 1.0) / (g - 1.0) * (1.0 - ratio ** ((g - 1.0) / g)))
+        )
+
+    critical = (2.0 / (gamma + 1.0)) ** (gamma / (gamma - 1.0))  # the throat's p / p_c
+    if expansion_ratio == 1.0:
+        return critical
+    return brentq(lambda r: inverse_area_ratio(r) - 1.0 / expansion_ratio, 1e-300, critical, xtol=1e-300, rtol=1e-15)
+
+
+def textbook_thrust_coefficient(expansion_ratio, gamma, ambient_over_chamber=0.0):
+    """C_F = F / (A_t p_c) (Sutton eq. 3-30)."""
+    g = gamma
+    ratio = nozzle_pressure_ratio(expansion_ratio, gamma)
+    momentum = math.sqrt(
+        2.0 * g * g / (g - 1.0) * (2.0 / (g + 1.0)) ** ((g + 1.0) / (g - 1.0)) * (1.0 - ratio ** ((g - 1.0) / g))
+    )
+    return momentum + (ratio - ambient_over_chamber) * expansion_ratio
+
+
+def choked_mass_flow(throat_area, chamber_pressure, gamma, gas_constant, temperature):
+    """mdot through a choked throat (Sutton eq. 3-24; 002 eq. 10)."""
+    g = gamma
+    return (
+        throat_area
+        * chamber_pressure
+        * g
+        * math.sqrt((2.0 / (g + 1.0)) ** ((g + 1.0) / (g - 1.0)))
+        / math.sqrt(g * gas_constant * temperature)
+    )
+
+
+def tank_history(open_sum, t_end, tank, rtol=1e-13):
+    """Integrate the isothermal tank (002 eq. 2, 3, 10, 15) with scipy at tight tolerance:
+    y = [tank pressure, gas used, impulse] at ``t_end``. ``open_sum(t)``: sum of valve level times
+    thrust scale; ``tank``: dict of volume, gas_constant, gamma, temperature, pressure, throat_area,
+    thrust_coefficient (vacuum), regulator (inf for blow-down). ``t_end``: a list of breakpoints,
+    integrated piece by piece so the solver never steps over a kink."""
+    from scipy.integrate import solve_ivp
+
+    rt = tank["gas_constant"] * tank["temperature"]
+
+    def rhs(t, y):
+        chamber = min(y[0], tank["regulator"])
+        flow = open_sum(t) * choked_mass_flow(
+            tank["throat_area"], chamber, tank["gamma"], tank["gas_constant"], tank["temperature"]
+        )
+        thrust = open_sum(t) * tank["thrust_coefficient"] * tank["throat_area"] * chamber
+        return [-rt / tank["volume"] * flow, flow, thrust]
+
+    y = [tank["pressure"], 0.0, 0.0]
+    t0 = 0.0
+    for t1 in t_end:
+        if t1 > t0:
+            sol = solve_ivp(rhs, (t0, t1), y, method="DOP853", rtol=rtol, atol=1e-30)
+            y = list(sol.y[:, -1])
+        t0 = t1
+    return y
+
+
+# --------------------------------------------------------------------------------------------
+# Time-optimal law of 002 eq. 41-44 and its plant eq. 21
+# --------------------------------------------------------------------------------------------
+
+
+def time_optimal_u(x1, x2, x3, x3_min, bang_bang=False):
+    """u of 002 eq. 44 (or -sign(sigma2), bang-bang), written out from eq. 41-43 as printed."""
+    sign = np.sign
+    a = abs(x2)
+    if x3 <= a:  # eq. 46: outside the reachable region the logarithms are undefined: brake
+        return -float(sign(x2))
+    log = math.log(x3 / (x3 - a))
+    s2 = x1 + x2 - sign(x2) * (x3 - a) * log
+    if bang_bang:
+        return -float(sign(s2))
+    s1 = x3 - x3_min - a
+    if s1 > 0.0:
+        if x2 == 0.0:
+            s0 = sign(x1)  # x3 / x2^2 -> +inf times the bracket x1
+        else:
+            s0 = x3 / x2**2 * (x1 + (x3 + a) / (x3 - a) * x2 - sign(x2) * (x3 + a) * log)
+        return -0.5 * float(sign(s0) + sign(s2))
+    return -0.5 * float(sign(x2) + sign(s2))

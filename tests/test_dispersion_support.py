@@ -49,9 +49,17 @@ def wheel_base():
     return load_campaign(ROOT / "campaigns/irassi-fine-pointing.yaml")
 
 
+LOCAL_PATHS = ("rcs.feed.", "local.")  # a tank (rcs.feed) and the local trajectory only
+_LOCAL_BASE = {}
+
+
 def _base_for(path, base, orbit_base, wheel_base):
     if path.startswith(ORBIT_PATHS):
         return orbit_base
+    if path.startswith(LOCAL_PATHS):
+        if not _LOCAL_BASE:
+            _LOCAL_BASE["campaign"] = load_campaign(ROOT / "campaigns/surveyor-hop.yaml")
+        return _LOCAL_BASE["campaign"]
     return wheel_base if path.startswith(WHEEL_PATHS) else base
 
 
@@ -299,7 +307,7 @@ def test_a_file_value_obeys_the_range_its_dispersions_are_checked_against(base, 
     file's own value; at the range's edge it accepts it. One range, declared once."""
     base = _base_for(path, base, orbit_base, wheel_base)
     param = dispersions.PARAMETERS[path]
-    kind = "mission" if path.split(".")[0] in ("separation", "navigation") else "vehicle"
+    kind = "mission" if path.split(".")[0] in ("separation", "navigation", "local") else "vehicle"
     schema_def = schema.MISSION if kind == "mission" else schema.VEHICLE
     outside, inside = [math.inf, -math.inf, math.nan], []
     if math.isfinite(param.lower):

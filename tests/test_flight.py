@@ -297,7 +297,8 @@ import json, sys
 from refexmc import simulate
 from refexmc.config.load import load_campaign
 from refexmc.config.pack import pack
-from refexmc.core import allocation, environment, lp_allocation, orbit_flight, rcs, switching, wheels
+from refexmc.core import allocation, environment, feed, local_flight, lp_allocation, orbit_flight, rcs, switching
+from refexmc.core import wheels
 
 STEPS = {  # each family's own step functions: compiled only by a kernel of that family
     "thrusters": [rcs.update, rcs.next_breakpoint, rcs.segment_thrust, rcs.open_mask, rcs.torque_arms],
@@ -306,6 +307,8 @@ STEPS = {  # each family's own step functions: compiled only by a kernel of that
     "wheels": [wheels.drive, wheels.start, wheels.rk4_step],
     "planar_drag": [environment.advance_nodes, environment.interpolate],
     "orbit": [orbit_flight.start, orbit_flight.steer, orbit_flight.engine_period, orbit_flight.translate],
+    "feed": [feed.start, feed.segment, feed.gas],
+    "local": [local_flight.start, local_flight.desired, local_flight.advance, local_flight.navigate],
 }
 out = []
 for campaign in sys.argv[1:]:
@@ -337,14 +340,14 @@ def test_a_family_compiles_none_of_the_other_families_steps(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     irassi, refex = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert irassi["family"] == [L.ACTUATION_WHEELS, L.TRAJECTORY_NONE, 1]
-    assert refex["family"] == [L.ACTUATION_PWPF_TABLE, L.TRAJECTORY_PLANAR_DRAG, 0]
+    assert irassi["family"] == [L.ACTUATION_WHEELS, L.TRAJECTORY_NONE, 1, L.FEED_CONSTANT]
+    assert refex["family"] == [L.ACTUATION_PWPF_TABLE, L.TRAJECTORY_PLANAR_DRAG, 0, L.FEED_CONSTANT]
     first = irassi["compiled"]
-    for family in ("thrusters", "pwpf_table", "lp_pwm", "planar_drag", "orbit"):
+    for family in ("thrusters", "pwpf_table", "lp_pwm", "planar_drag", "orbit", "feed", "local"):
         assert first[family] == [0] * len(first[family]), f"the IRASSI kernel compiled {family} steps: {first}"
     assert all(n >= 1 for n in first["wheels"]), first
     second = refex["compiled"]  # after both kernels: the wheel steps are the IRASSI kernel's
-    for family in ("lp_pwm", "orbit"):
+    for family in ("lp_pwm", "orbit", "feed", "local"):
         assert second[family] == [0] * len(second[family]), f"the ReFEx kernel compiled {family} steps: {second}"
     assert second["wheels"] == first["wheels"], "the ReFEx kernel compiled wheel steps"
     assert all(n >= 1 for n in second["thrusters"] + second["pwpf_table"] + second["planar_drag"]), second

@@ -236,7 +236,10 @@ def test_each_column_shows_its_worse_tail_and_no_negative_bounds_on_angles_or_du
     lower = lines.index("smaller is worse (lower tail):")
     assert lines[upper + 1].split() == ["n", "p50", "mean", "p99", "p99.865", "max", "mean+3sd", "tol99/95"]
     assert lines[lower + 1].split() == ["n", "p50", "mean", "p1", "p0.135", "min", "mean-3sd", "tol99/95"]
-    assert lines[upper + 3].split()[:2] == ["theta_t_handover_deg", "55"]
+    # the requirements' metrics first (theta_t_handover_deg and pulses_total by --require), then the others
+    assert lines[upper + 2].split()[:2] == ["theta_t_handover_deg", "55"]
+    assert lines[upper + 3].split()[:2] == ["pulses_total", "55"]
+    assert lines[upper + 4].split()[:2] == ["fuel_used_kg", "55"]
     assert lines[lower + 2].split()[:2] == ["fuel_remaining", "55"]
     assert "  over 55 successful flights; 5 of 60 runs not included (failed or errored)" in lines
 
@@ -289,14 +292,49 @@ def test_summary_json_is_strict_json_with_the_report(synthetic):
 
 
 def test_sensitivity_matches_scipy_spearman(synthetic):
+    """Sensitivity of the requirements' metrics (here fuel_remaining, failing: first)."""
     _, rows, report = synthetic
     section = report["summary"]["sensitivity"]
-    used = ok_values(rows, "fuel_used_kg")
-    top = section["fuel_used_kg"][0]
+    assert section["targets"][0] == "fuel_remaining"
+    remaining = ok_values(rows, "fuel_remaining")
+    top = section["fuel_remaining"][0]
     assert top["parameter"] == "p.rcs.isp_s"  # the parameter that drives the propellant
-    expected = sps.spearmanr(ok_values(rows, "p.rcs.isp_s"), used)
+    expected = sps.spearmanr(ok_values(rows, "p.rcs.isp_s"), remaining)
     assert top["rho"] == pytest.approx(expected.statistic, abs=1e-12)
     assert top["p_value"] == pytest.approx(expected.pvalue, rel=1e-9)
+
+
+def residual_rank_correlation(inputs, output, j):
+    """PRCC the slow way: regress rank(x_j) and rank(y) on the other inputs' ranks, correlate the residuals."""
+    ranks = sps.rankdata(inputs, axis=0)
+    others = np.column_stack([np.ones(len(output)), np.delete(ranks, j, axis=1)])
+    ry = sps.rankdata(output)
+    ex = ranks[:, j] - others @ np.linalg.lstsq(others, ranks[:, j], rcond=None)[0]
+    ey = ry - others @ np.linalg.lstsq(others, ry, rcond=None)[0]
+    return float(np.corrcoef(ex, ey)[0, 1])
+
+
+def test_partial_rank_correlation_matches_residual_regression(synthetic):
+    _, rows, report = synthetic
+    parameters = ["p.rcs.isp_s", "p.navigation.rate_noise_deg_s"]
+    inputs = np.column_stack([ok_values(rows, p) for p in parameters])
+    output = ok_values(rows, "fuel_remaining")
+    by_parameter = {r["parameter"]: r for r in report["summary"]["sensitivity"]["fuel_remaining"]}
+    for j, parameter in enumerate(parameters):
+        # the inverse-correlation identity and two least-squares fits agree to round-off
+        assert by_parameter[parameter]["prcc"] == pytest.approx(residual_rank_correlation(inputs, output, j), abs=1e-9)
+    assert by_parameter["p.rcs.isp_s"]["prcc"] < -0.9  # fuel_remaining = 0.5 - 0.3 (drive - 1) + small noise
+
+
+def test_partial_rank_correlation_not_computable_with_too_few_runs():
+    rng = np.random.default_rng(3)
+    inputs = rng.normal(size=(6, 4))  # n < k + 3: no residual degrees of freedom
+    rho, p = stats.partial_rank_correlation(inputs, rng.normal(size=6))
+    assert np.isnan(rho).all() and np.isnan(p).all()
+    inputs = rng.normal(size=(300, 3))
+    output = inputs[:, 0] + 0.2 * rng.normal(size=300)
+    rho, p = stats.partial_rank_correlation(inputs, output)
+    assert rho[0] > 0.9 and p[0] < 1e-50 and abs(rho[2]) < 0.2
 
 
 def test_html_is_self_contained(synthetic):
@@ -310,7 +348,8 @@ def test_html_is_self_contained(synthetic):
         assert base64.b64decode(src.split(",", 1)[1]).startswith(PNG_MAGIC)
     assert not re.search(r"<(script|link|iframe)\b", page)
     assert "refexmc rerun" in page and "FAIL" in page
-    assert report["summary"]["figures"][0].startswith("Angle and rate errors per mode")
+    assert report["summary"]["figures"][0] == "The requirements' metrics"
+    assert "Angle and rate errors per mode (000 Fig. 11 analogue)" in report["summary"]["figures"]
 
 
 def test_mode_envelopes_align_runs_at_mode_start(synthetic):
@@ -328,10 +367,16 @@ def test_mode_envelopes_align_runs_at_mode_start(synthetic):
         assert lo / ratio <= q[sam, b, 0] and q[sam, b, 4] <= hi * ratio
     assert result["nominal"] is not None and (np.diff(result["nominal"]["t_s"]) > 0).all()
     assert result["rows"] == sum(len(synthetic_history(r)) for r in synthetic[1] if r["status"] == "ok")
-    # the figure shows the controlled modes, RDM1 ... GEEM, as 000 Fig. 11: not NCM (no angle error, no valve)
+    # the controlled modes, RDM1 ... GEEM, as 000 Fig. 11: not NCM (no angle error, no valve)
     assert result["mode_names"] == list(REFEX_MODES)
     assert result["valve_samples"][0] == 0 and (result["valve_samples"][1:] > 0).all()
     assert [result["mode_names"][m] for m in aggregate.plotted_modes(result)] == list(REFEX_MODES)[1:]
+    # the figure: a panel per mode with samples of the quantity; no angle panel where there is no angle error
+    shown, left_out = aggregate.modes_with_samples(result, len(data.load(out).ok))
+    names = result["mode_names"]
+    assert [names[m] for m in shown["theta_t_deg"]] == [m for m in REFEX_MODES if m not in REFEX_WITHOUT_ANGLE_ERROR]
+    assert [names[m] for m in shown["omega_m_deg_s"]] == list(REFEX_MODES)  # the rates are measured in NCM too
+    assert left_out == {"theta_t_deg": {}, "omega_m_deg_s": {}}
 
 
 OTHER_MODES = {"detumble": 20.0, "slew": 45.0, "hold": 90.0}  # another vehicle: names of its own, 3 modes
@@ -375,8 +420,8 @@ def test_report_of_a_vehicle_with_three_modes_of_its_own_names(tmp_path, monkeyp
     page = without_images((out / "report" / "index.html").read_text())
     assert "Modes: detumble → slew → hold." in page
     assert (out / "report" / "figures" / "modes.png").read_bytes().startswith(PNG_MAGIC)
-    assert summary["figures"][0].startswith("Angle and rate errors per mode")
-    assert titles[0] == ["detumble", "slew", "hold"]  # the modes figure
+    assert "Angle and rate errors per mode" in summary["figures"]  # no 000 figure number: not ReFEx
+    assert ["slew", "hold", "detumble", "slew", "hold"] in titles  # the modes figure: angle row, rate row
     written = (out / "report" / "summary.json").read_text()
     for where, text in (("text", report["text"]), ("summary.json", written), ("index.html", page)):
         assert not REFEX_WORDS.search(text), f"{where} names a ReFEx mode: {REFEX_WORDS.search(text).group()}"
@@ -392,7 +437,7 @@ def test_output_without_modes_in_its_manifest_takes_them_from_the_runs_table(tmp
     titles = figure_titles(monkeypatch)
     report = make_report(out, html=True)
     assert report["summary"]["modes"] == ["DETUMBLE", "SLEW", "HOLD"]
-    assert titles[0] == ["SLEW", "HOLD"]
+    assert ["SLEW", "HOLD", "DETUMBLE", "SLEW", "HOLD"] in titles  # the modes figure: angle (not coasting), rates
     assert "time in mode [s], median/max: DETUMBLE " in report["text"]
 
 
@@ -553,7 +598,7 @@ def test_report_on_flown_campaign(tmp_path):
     assert report["summary"]["nominal"]["run_id"] == 0
     fuel = np.array([r["fuel_remaining"] for r in rows if r["status"] == "ok" and r["success"]])
     assert report["summary"]["columns"]["fuel_remaining"]["min"] == fuel.min()
-    assert "Angle and rate errors per mode" in report["summary"]["figures"][0]
+    assert "Angle and rate errors per mode (000 Fig. 11 analogue)" in report["summary"]["figures"]
 
 
 def test_failure_reason_table_counts_and_examples(tmp_path):
@@ -640,3 +685,30 @@ def test_docs_list_every_tail_rule():
         "lower",
         None,
     ]
+
+
+def test_rows_get_the_digits_that_show_their_spread():
+    """SPORE's entry flight-path angle varies by 1e-6 deg about -5: 4 digits would print every statistic as -5."""
+    from refexmc.report.text import number, row_digits
+
+    narrow = {"std": 1.42e-6, "median": -5.0000026}
+    digits = row_digits(narrow)
+    assert number(-5.0000043, 4) == number(-4.9999975, 4) == "-5"
+    assert number(-5.0000043, digits) != number(-4.9999975, digits)
+    assert row_digits({"std": 0.1, "median": 0.5}) == 4  # a spread the 4 digits show already
+    assert row_digits({"std": 0.0, "median": 3.0}) == 4 and row_digits({"std": None, "median": 1.0}) == 4
+    assert row_digits({"std": 1e-300, "median": 1e10}) == 10  # capped
+
+
+def test_scatter_draws_every_run_or_a_spread_and_the_worst():
+    from refexmc.report import scatter_runs
+
+    values = np.arange(20_000, dtype=float)[::-1].copy()  # run 0 has the largest value
+    values[7] = np.nan
+    assert (scatter_runs(values[:300], "upper") == np.arange(300)).all()
+    shown = scatter_runs(values, "upper", limit=1000, worst=10)
+    assert {0, 1, 2, 3, 4, 5, 6, 8, 9, 10} <= set(shown.tolist())  # the 10 largest (run 7 has no value)
+    assert 7 not in shown
+    assert 1000 <= len(shown) <= 1010 and (np.diff(shown) > 0).all()
+    lower = scatter_runs(values, "lower", limit=1000, worst=10)
+    assert set(range(19_990, 20_000)) <= set(lower.tolist())

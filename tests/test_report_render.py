@@ -178,7 +178,7 @@ def test_page_renders_and_every_figure_decodes(chromium, report, tmp_path):
     name = summary["campaign"]["name"]
     assert result["title"] == f"refexmc report: {name}"
     assert result["h1"] == [f"Campaign {name}"]
-    headings = ["Requirements", "Success", "Failure reasons", "Statistics over the successful flights", *titles]
+    headings = ["Requirements", "Success", "Failure reasons", "Other outputs over the successful flights", *titles]
     for heading in [*headings, "Worst cases"]:
         assert heading in result["h2"], f"heading {heading!r} not rendered; rendered: {result['h2']}"
     met = sum(r["passed"] for r in summary["requirements"])

@@ -311,3 +311,23 @@ def test_wilcoxon_and_ks_p_values_match_scipy_with_their_edge_cases():
     a, b = differences[:15], differences[15:] + 1.0
     assert stats.ks_p(a, b) == pytest.approx(sps.ks_2samp(a, b).pvalue, rel=1e-12)
     assert math.isnan(stats.ks_p(a, []))
+
+
+def test_spearman_of_all_columns_at_once_matches_one_by_one():
+    from refexmc.report import stats
+
+    rng = np.random.default_rng(11)
+    inputs = rng.normal(size=(200, 4))
+    inputs[:, 2] = np.round(inputs[:, 2])  # ties
+    inputs[:, 3] = 1.0  # constant: no correlation
+    output = np.exp(inputs[:, 0]) + 0.3 * inputs[:, 2] + 0.1 * rng.normal(size=200)
+    rho, p = stats.spearman_columns(inputs, output)
+    for j in range(3):
+        expected = sps.spearmanr(inputs[:, j], output)
+        assert rho[j] == pytest.approx(expected.statistic, abs=1e-12)
+        assert p[j] == pytest.approx(expected.pvalue, rel=1e-9)
+    assert np.isnan(rho[3]) and np.isnan(p[3])
+    inputs[5, 1] = np.nan  # not finite: column by column, the pair dropped
+    rho, _ = stats.spearman_columns(inputs, output)
+    keep = np.arange(200) != 5
+    assert rho[1] == pytest.approx(sps.spearmanr(inputs[keep, 1], output[keep]).statistic, abs=1e-12)

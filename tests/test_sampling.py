@@ -402,6 +402,7 @@ def _flight_arrays(inputs, seed):
 
 ORBIT_PATHS = ("main_engine.", "navigation.gps_")  # quantities of an orbit vehicle and mission only
 WHEEL_PATHS = ("wheels.",)  # quantities of a vehicle with reaction wheels only (tests/test_wheel_failures.py)
+LOCAL_PATHS = ("rcs.feed.", "local.")  # a tank (rcs.feed) and the local trajectory only
 
 
 def _paths_change_the_flight(campaign, paths):
@@ -437,8 +438,16 @@ def test_every_dispersion_path_and_component_changes_the_flight(base):
     campaign = copy.deepcopy(base)
     # calibration time only acts on an attitude bias, noise only with a non-zero seed
     campaign["mission"]["navigation"]["attitude_bias_deg"] = [0.5, -0.4, 0.3]
-    paths = [p for p in dispersions.PARAMETERS if not p.startswith(ORBIT_PATHS + WHEEL_PATHS)]
+    paths = [p for p in dispersions.PARAMETERS if not p.startswith(ORBIT_PATHS + WHEEL_PATHS + LOCAL_PATHS)]
     assert _paths_change_the_flight(campaign, paths) >= 100
+
+
+def test_every_tank_and_local_dispersion_path_changes_the_surveyor_hop():
+    """The feed's and the local trajectory's paths, on the cold-gas surveyor's hop (issue 23)."""
+    campaign = load_campaign(ROOT / "campaigns/surveyor-hop.yaml")
+    campaign["dispersions"] = {}
+    paths = [p for p in dispersions.PARAMETERS if p.startswith(LOCAL_PATHS)]
+    assert _paths_change_the_flight(campaign, paths) == 3 + 3 + 3
 
 
 def test_every_orbit_dispersion_path_changes_the_deorbit_flight():

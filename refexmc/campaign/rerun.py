@@ -44,6 +44,8 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
     if not resolved.is_file():
         raise ConfigError("not a refexmc output directory (no campaign.resolved.yaml)", file=out)
     campaign = load_campaign(resolved)
+    if "sweep" in campaign:  # its runs are the points' (refexmc.campaign.sweep)
+        raise ConfigError("a sweep's output: re-fly a run of one point, OUT/points/NNN", file=out)
     if not 0 <= run_id < campaign["runs"]:
         raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", file=out, path=("RUN_ID",))
     plan = RunPlan(campaign)

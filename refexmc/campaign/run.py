@@ -88,8 +88,12 @@ def _chunk_size(chunk_size, runs):
     return chunk_size
 
 
-def check_resumable(out, campaign):
-    """The manifest of ``out`` if it holds this very campaign; ConfigError (nothing changed) otherwise."""
+def check_resumable(out, campaign, extend=False):
+    """The manifest of ``out`` if it holds this very campaign; ConfigError (nothing changed) otherwise.
+
+    ``extend``: a campaign that differs only in having at least as many runs is accepted too (its
+    first runs are those stored: ``refexmc run --until-decided``, refexmc.campaign.decided).
+    """
     out = Path(out)
     resolved = out / "campaign.resolved.yaml"
     if not (out / "manifest.json").is_file() or not resolved.is_file():
@@ -112,6 +116,8 @@ def check_resumable(out, campaign):
             "cannot resume: campaign.resolved.yaml holds no campaign; remove OUT or use another -o", file=out
         )
     current = storage.normalized_campaign(campaign)
+    if extend and isinstance(stored.get("runs"), int) and stored["runs"] <= current["runs"]:
+        stored = {**stored, "runs": current["runs"]}
     if stored != current:
         keys = sorted(key for key in {*stored, *current} if stored.get(key) != current.get(key))
         raise ConfigError(
@@ -222,6 +228,7 @@ def run_campaign(
     scheduler=None,
     notify=notify_stderr,
     strict=False,
+    extend=False,
 ):
     """Validate and run a campaign file (default: DEFAULT_CAMPAIGN); return output path, counts, runs table.
 
@@ -232,6 +239,8 @@ def run_campaign(
     the user should know on the way (a damaged part flown again, a stale lock taken over), and
     each design warning of the campaign (config.design_checks; also in ``manifest.json``'s
     ``design_warnings``); ``strict``: a design warning is bad input instead.
+    ``extend`` (with ``resume``): OUT may hold the same campaign with fewer runs; the missing runs
+    are added (refexmc.campaign.decided).
 
     OUT is locked for the whole campaign (:mod:`refexmc.campaign.lock`). Raises ConfigError for
     bad input, an OUT this run may not write (:func:`storage.check_output`) or one another run
@@ -251,6 +260,10 @@ def run_campaign(
     jobs = default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
+    if "sweep" in campaign:  # every point a campaign of its own
+        raise ConfigError(
+            "a sweep flies with refexmc.campaign.sweep.run_campaign_or_sweep (`refexmc run`)", file=campaign_file
+        )
     options = check_backend(backend, scheduler=scheduler)
     out = Path(out) if out is not None else default_output(campaign)
     flight = {
@@ -270,7 +283,7 @@ def run_campaign(
     def check():
         """The manifest of the OUT to resume (None for a new one); ConfigError when OUT is not to be written."""
         storage.check_output(out, overwrite=overwrite, resume=resume, protect=[campaign_file])
-        return check_resumable(out, campaign) if resume and not storage.is_empty(out) else None
+        return check_resumable(out, campaign, extend) if resume and not storage.is_empty(out) else None
 
     lock.check_free(out)
     check()  # before OUT is created or locked: a refusal leaves no trace
@@ -322,6 +335,8 @@ def _run_locked(flight, previous, options, progress, notify):
     if previous:
         chunk_size, started = previous["chunk_size"], previous["started"]
         resumed = [*previous.get("resumed", []), storage.now()]
+        if previous["runs"] != campaign["runs"]:  # extended (check_resumable): now it holds more runs
+            storage.write_resolved(out, campaign)
     else:
         chunk_size, started, resumed = flight["chunk_size"], storage.now(), []
         storage.write_resolved(out, campaign)

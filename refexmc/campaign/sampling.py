@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from refexmc import crmath
+from refexmc.campaign import saltelli
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem, level_names, thruster_count, unphysical_inertias, wheel_count
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
@@ -67,18 +68,7 @@ def _design(sampling, seed, name, n, dims):
     return design
 
 
-def dims(spec, n_components):
-    """Uniforms one draw of ``spec`` consumes."""
-    dist = spec["dist"]
-    if dist == "constant":
-        return 0
-    if dist == "choice":
-        return n_components if spec["per_component"] else 1
-    if dist == "uniform_so3":
-        return 3
-    if dist == "inertia":
-        return 6
-    return n_components
+dims = dispersions.uniforms_per_draw  # uniforms one draw of a spec consumes
 
 
 def so3_rotation_vector_deg(u):
@@ -282,6 +272,8 @@ class Sampler:
             return np.empty(0)
         if self.sampling == "random" or attempt > 0:
             u = keyed_uniforms(self.seed, run_id, path, count, attempt)
+        elif self.sampling == "saltelli":  # one joint design over every path (refexmc.campaign.saltelli)
+            u = saltelli.uniforms(self, path, [run_id - self.offset])[0]
         else:
             u = _design(self.sampling, self.seed, path, self.n_dispersed, count)[run_id - self.offset]
         return np.clip(u, _TINY, 1.0 - _TINY)
@@ -292,6 +284,8 @@ class Sampler:
             return np.empty((len(run_ids), 0))
         if self.sampling == "random":
             u = keyed_uniforms_for_runs(self.seed, run_ids, path, count)
+        elif self.sampling == "saltelli":
+            u = saltelli.uniforms(self, path, np.asarray(run_ids, dtype=np.int64) - self.offset)
         else:
             rows = np.asarray(run_ids, dtype=np.int64) - self.offset
             u = _design(self.sampling, self.seed, path, self.n_dispersed, count)[rows]

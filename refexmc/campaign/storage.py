@@ -303,6 +303,7 @@ REPORT_DIR = "report"  # written by `refexmc report`
 # what refexmc writes at the top of an output directory, besides the temporary files of atomic writes
 OUTPUT_ENTRIES = frozenset(
     {"manifest.json", "campaign.resolved.yaml", "runs", "histories", REPORT_DIR, "reruns", WORK_DIR, LOCK_NAME}
+    | {"points"}  # a sweep's points (refexmc.campaign.sweep)
 )
 _TEMPORARY = re.compile(r"\..+\.tmp-\d+")
 

@@ -338,6 +338,15 @@ def design(vehicle):
         out["wheels"] = _wheel_design(vehicle)
     if "rcs" in vehicle:
         out.update(_rcs_design(vehicle))
+        feed = vehicle["rcs"].get("feed", {})
+        if feed.get("model", "constant") != "constant":
+            from refexmc.config import feed as config_feed
+
+            out["feed"] = {"model": feed["model"], **config_feed.design(feed)}
+            if feed["model"] == "regulated":
+                out["feed"]["set_pressure_pa"] = {
+                    level: config_feed.set_pressure(vehicle, level) for level in vehicle["rcs"]["thrust_n"]
+                }
     return out
 
 

@@ -22,6 +22,7 @@ from refexmc.config.errors import ConfigError
 from refexmc.core import layout as L
 
 AXES = ("x", "y", "z")
+_MISSION_ROOTS = ("separation", "navigation", "local")  # paths of the mission file (else the vehicle's)
 INERTIA_COMPONENTS = ("xx", "yy", "zz", "xy", "xz", "yz")
 INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 INERTIA_ROWS, INERTIA_COLUMNS = (list(index) for index in zip(*INERTIA_INDEX, strict=True))
@@ -106,13 +107,18 @@ def _params():
             "wheel momentum I_w Omega at t = 0, per wheel, independent draws (the flight software is not told)",
             "wheel",
         ),
+        Parameter("rcs.feed.initial_pressure_pa", "Pa", "tank pressure at t = 0 (blow-down, regulated)", "scalar"),
+        Parameter("rcs.feed.temperature_k", "K", "tank and gas temperature (blow-down, regulated)", "scalar"),
+        Parameter("rcs.feed.throat_area_m2", "m^2", "nozzle throat area, every thruster (times its scale)", "scalar"),
+        Parameter("local.position_m", "m", "position at t = 0 (trajectory local)", "vector"),
+        Parameter("local.velocity_m_s", "m/s", "velocity at t = 0 (trajectory local)", "vector"),
     ]
     return {param.path: _with_schema_range(param) for param in p}
 
 
 def _schema_node(path):
     """The schema of a vehicle or mission key path (vector items for arrays), or None."""
-    node = schema.MISSION if path.split(".")[0] in ("separation", "navigation") else schema.VEHICLE
+    node = schema.MISSION if path.split(".")[0] in _MISSION_ROOTS else schema.VEHICLE
     for key in path.split("."):
         properties, per_key = node.get("properties", {}), node.get("additionalProperties")
         node = properties.get(key, per_key if isinstance(per_key, dict) else None)  # per-level mappings
@@ -204,6 +210,20 @@ def size(path, vehicle):
     return max(1, len(components(path, vehicle)))
 
 
+def uniforms_per_draw(spec, n_components):
+    """Uniforms one draw of ``spec`` (a checked distribution) consumes (refexmc.campaign.sampling)."""
+    dist = spec["dist"]
+    if dist == "constant":
+        return 0
+    if dist == "choice":
+        return n_components if spec["per_component"] else 1
+    if dist == "uniform_so3":
+        return 3
+    if dist == "inertia":
+        return 6
+    return n_components
+
+
 def set_failed(inputs, failed, detected=False):
     """Mark thrusters ``failed`` (1-based ids) failed and every other one working. ``detected``:
     the flight software knows them (failures.detected): they are marked known, which takes them
@@ -245,7 +265,7 @@ def nominal(path, vehicle, mission):
         return np.array([float(unit.get("initial_momentum_n_m_s", 0.0)) for unit in vehicle["wheels"]["units"]])
     if path == "separation.attitude_error_deg" and "attitude_euler_deg" in mission["separation"]:
         return np.degrees(derived.separation_rotation_vector(mission["separation"]))
-    root = mission if path.split(".")[0] in ("separation", "navigation") else vehicle
+    root = mission if path.split(".")[0] in _MISSION_ROOTS else vehicle
     value = root
     for key in path.split("."):
         value = value[key]
@@ -273,12 +293,15 @@ def _undeclared(path, vehicle, mission):
         return f"'{path}' needs an atmosphere; the mission has none"
     if path in ("mass_kg", "aerodynamics.drag_area_m2", "aerodynamics.mistrim_cm") and trajectory == "none":
         return f"'{path}' acts through the trajectory; vehicle {vehicle['name']} has none (trajectory: none)"
+    feed_model = vehicle.get("rcs", {}).get("feed", {}).get("model", "constant")
+    if path.startswith("rcs.thrust_n.") and feed_model == "blow_down":
+        return f"'{path}': vehicle {vehicle['name']} has a blow-down tank: its pressure gives the thrust"
     if path.startswith("rcs.") and "rcs" in vehicle and derived.flies_wheels(vehicle):
         return f"'{path}': vehicle {vehicle['name']} flies reaction wheels (actuation wheels); its thrusters never fire"
     try:
         nominal(path, vehicle, mission)
     except KeyError:
-        part = "mission" if path.split(".")[0] in ("separation", "navigation") else "vehicle"
+        part = "mission" if path.split(".")[0] in _MISSION_ROOTS else "vehicle"
         return f"'{path}': the {part} file does not declare it" + _declared_instead(
             path, mission if part == "mission" else vehicle
         )
@@ -316,6 +339,9 @@ _VEHICLE_SCALARS = {
     "com_offset_m": ("com_offset_m", 1.0),
     "aerodynamics.mistrim_cm": ("aero_mistrim_cm", 1.0),
     "main_engine.thrust_n": ("engine_thrust_n", 1.0),
+    "rcs.feed.initial_pressure_pa": ("feed_initial_pressure_pa", 1.0),
+    "rcs.feed.temperature_k": ("feed_temperature_k", 1.0),
+    "rcs.feed.throat_area_m2": ("feed_throat_area_m2", 1.0),
 }
 _MISSION_FIELDS = {
     "separation.altitude_m": ("separation_altitude_m", 1.0),
@@ -323,6 +349,8 @@ _MISSION_FIELDS = {
     "separation.flight_path_angle_deg": ("separation_flight_path_angle_rad", math.pi / 180.0),
     "separation.rates_deg_s": ("separation_rates_rad_s", math.pi / 180.0),
     "separation.attitude_error_deg": ("separation_attitude_rotvec_rad", math.pi / 180.0),
+    "local.position_m": ("local_position_m", 1.0),
+    "local.velocity_m_s": ("local_velocity_m_s", 1.0),
 }
 _NAV_FIELDS = {
     "navigation.attitude_bias_deg": ("attitude_bias_rad", math.pi / 180.0),
@@ -348,7 +376,10 @@ def apply(inputs, path, values, nominal_atmosphere, levels=("low", "high")):
     ``levels``: the vehicle's thrust-level names, in order (``derived.level_names``)."""
     values = np.asarray(values, dtype=float)
     if path.startswith("rcs.thrust_n."):
-        inputs.levels[list(levels).index(path.split(".")[2]), L.LV_THRUST] = values[0]
+        row = inputs.levels[list(levels).index(path.split(".")[2])]
+        # a regulated feed delivers the level's thrust through its set pressure (config.feed.set_pressure)
+        row[L.LV_REGULATOR_PRESSURE] *= values[0] / row[L.LV_THRUST]
+        row[L.LV_THRUST] = values[0]
     elif path in _VEHICLE_SCALARS:
         field, scale = _VEHICLE_SCALARS[path]
         _put(inputs.vehicle, L.VEHICLE, field, values * scale)

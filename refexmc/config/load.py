@@ -11,7 +11,8 @@ import jsonschema
 import numpy as np
 import yaml
 
-from refexmc.config import design_checks, published, requirements, schema
+from refexmc.config import design_checks, entry, published, requirements, schema
+from refexmc.config import feed as config_feed
 from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
 from refexmc.config.errors import ConfigError
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
@@ -253,6 +254,7 @@ def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
     message = inertia_problem(vehicle["inertia_kg_m2"])
     if message:
         fail(message, "inertia_kg_m2")
+    entry.check(vehicle, fail)  # issue 24: entry aerodynamics and surfaces
     found = design_checks.check_vehicle(vehicle, fail)
     if warnings is not None:
         warnings.extend(found)
@@ -296,6 +298,42 @@ def _check_rcs(vehicle, fail):
         allocation_table(vehicle)
     except KeyError as missing:
         fail(f"expected an entry for the axis command '{missing.args[0]}'", "flight_software", "allocation")
+    _check_feed(vehicle, fail)
+
+
+def _check_feed(vehicle, fail):
+    """rcs.feed: the keys its model takes; isp_s and propellant_kg given with the constant feed
+    only (a tank's are derived from it); no tank behind thrusters a wheel vehicle never fires."""
+    rcs = vehicle["rcs"]
+    feed = rcs.get("feed", {})
+    model = feed.get("model", "constant")
+    if model == "constant":
+        for key in feed:
+            if key != "model":
+                fail(f"'{key}' is a key of a blow_down or regulated feed; the feed is constant", "rcs", "feed", key)
+        for key in ("isp_s", "propellant_kg"):
+            if key not in rcs:
+                fail(f"'{key}' is required with the constant feed (rcs.feed.model)", "rcs")
+        return
+    if vehicle["flight_software"]["actuation"] == "wheels":
+        fail("a wheel vehicle's thrusters never fire: expected no rcs.feed with actuation wheels", "rcs", "feed")
+    for key in ("isp_s", "propellant_kg"):
+        if key in rcs:
+            fail(f"'{key}' is derived from the tank with feed {model} (002 eq. 1, 15); expected none", "rcs", key)
+    for key in schema.FEED_TANK_KEYS:
+        if key not in feed:
+            fail(f"'{key}' is required with feed {model}", "rcs", "feed")
+    if model == "regulated":
+        full = config_feed.design(feed)["initial_thrust_n"]
+        for level, thrust in rcs["thrust_n"].items():
+            if thrust >= full:
+                fail(
+                    f"a regulated level needs less thrust than the full tank gives (C_F A_t P0 = {full:.6g} N), "
+                    f"got {thrust:g}",
+                    "rcs",
+                    "thrust_n",
+                    level,
+                )
 
 
 def _check_wheels(vehicle, fail):
@@ -446,6 +484,18 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
     if vehicle["flight_software"]["controller"] == "pd" and "gains" not in vehicle["flight_software"]:
         fail_vehicle("controller pd needs given gains (flight_software.gains)", "flight_software", "controller")
     trajectory = vehicle.get("trajectory", "planar_drag")
+    if trajectory == "local":
+        _check_local(vehicle, mission, fail_mission, fail_vehicle)
+    else:
+        if "local" in mission:
+            fail_mission(
+                f"'local' needs a vehicle with the local trajectory; {vehicle['name']} has {trajectory}", "local"
+            )
+        for m, mode in enumerate(mission["modes"]):
+            if mode["kind"] in schema.LOCAL_KINDS:
+                fail_mission(f"kind {mode['kind']} needs the local trajectory", "modes", m, "kind")
+        if "translation" in vehicle["flight_software"]:
+            fail_vehicle("'translation' needs the local trajectory", "flight_software", "translation")
     if trajectory != "orbit":
         if "orbit" in mission:
             fail_mission(
@@ -484,6 +534,55 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
                         g,
                         predicate,
                     )
+
+
+def _check_local(vehicle, mission, fail_mission, fail_vehicle):
+    """A local vehicle and mission: a tank (rcs.feed), the pwpf_table actuation and a translation
+    law; the mission's local block; a fuel reserve the origin can be reached with (002 eq. 45-46)."""
+    from refexmc.config import pack as config_pack
+
+    fsw = vehicle["flight_software"]
+    if "rcs" not in vehicle or vehicle["rcs"].get("feed", {}).get("model", "constant") == "constant":
+        fail_vehicle("the local trajectory flies the thrust a tank gives: expected rcs.feed blow_down or regulated")
+    if fsw["actuation"] != "pwpf_table":
+        fail_vehicle("the local trajectory needs actuation pwpf_table", "flight_software", "actuation")
+    if "translation" not in fsw:
+        fail_vehicle("the local trajectory needs a translation law (flight_software.translation)", "flight_software")
+    law = fsw["translation"]
+    pd_keys = ("position_gain_s2", "velocity_gain_s", "pwm_period_s")
+    for key in pd_keys:
+        if law["law"] == "pd_pwm" and key not in law:
+            fail_vehicle(f"translation law pd_pwm needs '{key}'", "flight_software", "translation")
+        if law["law"] != "pd_pwm" and key in law:
+            fail_vehicle(f"'{key}' is a key of law pd_pwm", "flight_software", "translation", key)
+    if len(vehicle["rcs"]["thrusters"]) > 52:
+        fail_vehicle("the translation law's thruster masks hold at most 52 thrusters", "rcs", "thrusters")
+    if "local" not in mission:
+        fail_mission(f"vehicle {vehicle['name']} has the local trajectory: expected a 'local' block")
+    local = mission["local"]
+    p0 = vehicle["rcs"]["feed"]["initial_pressure_pa"]
+    reserve = local.get("reserve_pressure_pa", 0.0)
+    _, force, tau = config_pack.translation_design(vehicle)
+    accel = [f / vehicle["mass_kg"] for f in force]
+    for axis in range(3):
+        if accel[axis] == 0.0:
+            continue
+        # 002 eq. 45-46 on the scaled state: x3_0 - |x2_0| = k tau^2 (P0 - |v0| / (k tau))
+        reachable = p0 - abs(local["velocity_m_s"][axis]) / (accel[axis] * tau[axis])
+        if reachable <= 0.0:
+            fail_mission(
+                f"the initial speed along body {'xyz'[axis]} cannot be stopped by the tank (002 eq. 46: "
+                f"P0 - |v0|/(k tau) = {reachable:.6g} Pa)",
+                "local",
+                "velocity_m_s",
+            )
+        if reserve >= reachable:
+            fail_mission(
+                f"expected a fuel reserve inside 002 eq. 45, 0 <= reserve < P0 - |v0|/(k tau) = {reachable:.6g} Pa "
+                f"(body {'xyz'[axis]}), got {reserve:g}",
+                "local",
+                "reserve_pressure_pa",
+            )
 
 
 def _check_orbit(vehicle, mission, fail_mission, fail_vehicle):
@@ -680,6 +779,11 @@ def load_campaign(path, warnings=None):
     columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     published.check_published(campaign.get("published", []), columns, path, lines)
+    if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        from refexmc.config import sweep
+
+        campaign["sweep"] = data["sweep"]
+        sweep.check_sweep(campaign, path, lines, columns)
     enumerated = enumerated_failures(campaign)
     if enumerated is not None:
         n_units = n_thrusters if enumerated is THRUSTER_FAILURES else len(wheel_units)
@@ -696,6 +800,10 @@ def load_campaign(path, warnings=None):
         raise ConfigError("'runs' is required", file=path, line=1, path=("runs",))
     if warnings is not None:
         warnings.extend(found)
+    if campaign["sampling"] == "saltelli":  # the design's run count and what it cannot hold
+        from refexmc.campaign import saltelli
+
+        saltelli.check(campaign, path, lines)
     return campaign
 
 
@@ -708,6 +816,13 @@ def apply_overrides(campaign, runs=None, seed=None):
         if runs < 1:
             raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
         campaign["runs"] = runs
+        if campaign["sampling"] == "saltelli":  # the design's run count (the rest was checked at load)
+            from refexmc.campaign import saltelli
+
+            try:
+                saltelli.check(campaign)
+            except ConfigError as exc:
+                raise ConfigError(exc.message, path=("--runs",)) from None
     if seed is not None:
         if not 0 <= seed < 2**63:
             raise ConfigError(f"expected 0 <= seed < 2**63, got {seed}", path=("--seed",))

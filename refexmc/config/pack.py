@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from refexmc.config import deorbit, derived, schema
+from refexmc.config import feed as config_feed
 from refexmc.core import layout as L
 from refexmc.core import modes as core_modes
 from refexmc.core.inputs import RunInputs
@@ -23,7 +24,17 @@ def _put(array, fields, name, value):
 
 
 NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0, "drag_area_m2": 0.0, "mistrim_cm": [0.0] * 3}
-TRAJECTORY_MODELS = {"none": L.TRAJECTORY_NONE, "planar_drag": L.TRAJECTORY_PLANAR_DRAG, "orbit": L.TRAJECTORY_ORBIT}
+TRAJECTORY_MODELS = {
+    "none": L.TRAJECTORY_NONE,
+    "planar_drag": L.TRAJECTORY_PLANAR_DRAG,
+    "orbit": L.TRAJECTORY_ORBIT,
+    "local": L.TRAJECTORY_LOCAL,
+}
+TRANSLATION_LAWS = {
+    "time_optimal": L.TRANSLATION_TIME_OPTIMAL,
+    "bang_bang": L.TRANSLATION_BANG_BANG,
+    "pd_pwm": L.TRANSLATION_PD_PWM,
+}
 NO_ENGINE = {
     "thrust_n": 0.0,
     "isp_s": 1.0,
@@ -69,6 +80,7 @@ def pack_levels(vehicle, excluded_wheels=()):
         _put(row, L.LEVEL, "kd", kd)
         _put(row, L.LEVEL, "torque_max_n_m", derived.level_torque_max(vehicle, level, excluded_wheels))
         _put(row, L.LEVEL, "accel_max_rad_s2", derived.level_accel_max(vehicle, level, excluded_wheels))
+        _put(row, L.LEVEL, "regulator_pressure_pa", config_feed.set_pressure(vehicle, level))
     return out
 
 
@@ -120,8 +132,12 @@ def pack_vehicle(vehicle):
     _put(out, L.VEHICLE, "com_offset_m", vehicle["com_offset_m"])
     _put(out, L.VEHICLE, "mass_kg", vehicle["mass_kg"])
     _put(out, L.VEHICLE, "derating", derating)
-    _put(out, L.VEHICLE, "isp_s", rcs["isp_s"])
-    _put(out, L.VEHICLE, "propellant_kg", rcs["propellant_kg"])
+    feed = rcs.get("feed", {"model": "constant"})
+    if feed.get("model", "constant") == "constant":
+        _put(out, L.VEHICLE, "isp_s", rcs["isp_s"])
+        _put(out, L.VEHICLE, "propellant_kg", rcs["propellant_kg"])
+    else:
+        _pack_feed(out, feed)
     _put(out, L.VEHICLE, "aero_area_m2", aero["reference_area_m2"])
     _put(out, L.VEHICLE, "aero_length_m", aero["reference_length_m"])
     _put(out, L.VEHICLE, "aero_mistrim_cm", aero["mistrim_cm"])
@@ -133,6 +149,20 @@ def pack_vehicle(vehicle):
     _put(out, L.VEHICLE, "engine_direction", derived.engine_direction(engine, engine["misalignment_deg"]))
     _put(out, L.VEHICLE, "engine_position_m", engine["position_m"])
     return out
+
+
+def _pack_feed(out, feed):
+    """The tank and nozzle of a blow-down or regulated feed (core.feed); isp_s and propellant_kg
+    from them (002 eq. 1, 15)."""
+    design = config_feed.design(feed)
+    _put(out, L.VEHICLE, "isp_s", design["specific_impulse_s"])
+    _put(out, L.VEHICLE, "propellant_kg", design["gas_kg"])
+    _put(out, L.VEHICLE, "feed_model_id", config_feed.MODELS[feed["model"]])
+    for key in schema.FEED_TANK_KEYS:
+        _put(out, L.VEHICLE, "feed_" + key, feed[key])
+    _put(out, L.VEHICLE, "feed_ambient_pressure_pa", feed.get("ambient_pressure_pa", 0.0))
+    _put(out, L.VEHICLE, "feed_thrust_coefficient", design["thrust_coefficient"])
+    _put(out, L.VEHICLE, "feed_flow_factor", design["flow_factor"])
 
 
 def pack_thrusters(vehicle, failed=(), known=()):
@@ -201,7 +231,46 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "smc_gain_rad_s2", smc["gain_rad_s2"])
     _put(out, L.FSW, "smc_boundary_layer_rad_s", smc["boundary_layer_rad_s"])
     _put(out, L.FSW, "wheel_friction_compensation", 1.0 if fsw_cfg.get("wheel_friction_compensation") else 0.0)
+    if "translation" in fsw_cfg:
+        _pack_translation(out, vehicle)
     return out
+
+
+def translation_design(vehicle):
+    """Per body axis: the thruster bit masks pushing + and - (unit direction within 1e-6 of the
+    axis), and for the + set the law's constants (core.time_optimal.scale): force per pascal
+    n C_F A_t and blow-down time constant tau / n, n thrusters open (vacuum, nominal); the
+    acceleration per pascal at t = 0 is the force per pascal over mass_kg."""
+    design = config_feed.design(vehicle["rcs"]["feed"])
+    directions = derived.unit_directions(vehicle)
+    masks, accel, tau = [], [], []
+    for axis in range(3):
+        counts = []
+        for sense in (1.0, -1.0):
+            ids = [i for i, d in enumerate(directions) if abs(d[axis] - sense) < 1e-6]
+            masks.append(sum(1 << i for i in ids))
+            counts.append(len(ids))
+        n = counts[0]
+        accel.append(n * design["thrust_coefficient"] * vehicle["rcs"]["feed"]["throat_area_m2"])
+        tau.append(design["blow_down_time_constant_s"] / n if n else 0.0)
+    return masks, accel, tau
+
+
+def _pack_translation(out, vehicle):
+    masks, force, tau = translation_design(vehicle)
+    feed = vehicle["rcs"]["feed"]
+    gas_per_pa = feed["tank_volume_m3"] / (feed["gas_constant_j_kg_k"] * feed["temperature_k"])
+    _put(out, L.FSW, "translation_law_id", TRANSLATION_LAWS[vehicle["flight_software"]["translation"]["law"]])
+    _put(out, L.FSW, "translation_masks", masks)
+    _put(out, L.FSW, "translation_force_per_pa", force)
+    _put(out, L.FSW, "translation_tau_s", tau)
+    _put(out, L.FSW, "translation_dry_mass_kg", vehicle["mass_kg"] - feed["initial_pressure_pa"] * gas_per_pa)
+    _put(out, L.FSW, "translation_gas_per_pa", gas_per_pa)
+    law = vehicle["flight_software"]["translation"]
+    period = 1.0 / vehicle["flight_software"]["control_rate_hz"]
+    _put(out, L.FSW, "translation_pd_gains", [law.get("position_gain_s2", 0.0), law.get("velocity_gain_s", 0.0)])
+    _put(out, L.FSW, "translation_pwm_steps", max(1, round(law.get("pwm_period_s", period) / period)))
+    _put(out, L.FSW, "translation_deadband", [law.get("deadband_position_m", 0.0), law.get("deadband_speed_m_s", 0.0)])
 
 
 def pack_mission(mission, trajectory="planar_drag", plan=None):
@@ -241,6 +310,13 @@ def pack_mission(mission, trajectory="planar_drag", plan=None):
         values["entry_interface_altitude_m"] = mission["orbit"]["entry_interface_altitude_m"]
         values["burn_start_s"] = plan.ignition_s
         values["burn_duration_s"] = plan.burn_duration_s
+    local = mission.get("local")
+    if local is not None:
+        values["local_position_m"] = local["position_m"]
+        values["local_velocity_m_s"] = local["velocity_m_s"]
+        values["local_target_m"] = local["target_position_m"]
+        values["local_gravity_m_s2"] = local.get("gravity_m_s2", [0.0, 0.0, 0.0])
+        values["local_reserve_pressure_pa"] = local.get("reserve_pressure_pa", 0.0)
     for name, value in values.items():
         _put(out, L.MISSION, name, value)
     return out
@@ -295,6 +371,8 @@ def pack_modes(mission, levels=("low", "high"), burn_attitude=None):
         _put(row, L.MODE, "target_quaternion", quaternion)
         _put(row, L.MODE, "rate_rad_s", np.radians(mode.get("rate_deg_s", [0.0, 0.0, 0.0])))
         _put(row, L.MODE, "predicted_at_altitude_m", target.get("predicted_at_altitude_m", 0.0))
+        local_target = mode.get("target_position_m", mission.get("local", {}).get("target_position_m", [0.0] * 3))
+        _put(row, L.MODE, "local_target_m", local_target)
         _put(row, L.MODE, "exit_first_row", len(exit_rows))
         for group, predicates in enumerate(mode["exit"]):
             ranked = sorted(predicates, key=lambda name: schema.EXIT_PREDICATES[name][1])  # cheap first

@@ -199,6 +199,18 @@ WHEEL_COLUMNS = (
 )
 
 
+# runs of a vehicle with the local trajectory (002): where it ended against the target, the tank
+# pressure left and the translation law's command changes per body axis (the first opening counts)
+LOCAL_COLUMNS = (
+    "position_error_end_m",
+    "speed_end_m_s",
+    "tank_pressure_end_pa",
+    "switches_x",
+    "switches_y",
+    "switches_z",
+)
+
+
 def column_options(vehicle, mission):
     """What decides a campaign's optional runs columns: ``trajectory`` (``orbit``: ORBIT_COLUMNS),
     ``pointing`` (the mission has a pointing window: POINTING_COLUMNS), ``wheels`` (the vehicle
@@ -217,6 +229,8 @@ def run_value_columns(mode_names, trajectory="planar_drag", pointing=False, whee
     columns = ["fuel_remaining", "fuel_used_kg", "t_end_s", *mode_time_columns(mode_names), "theta_t_handover_deg"]
     if trajectory == "orbit":
         columns += ORBIT_COLUMNS
+    if trajectory == "local":
+        columns += LOCAL_COLUMNS
     if pointing:
         columns += POINTING_COLUMNS
     if wheels:

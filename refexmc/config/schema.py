@@ -188,11 +188,156 @@ WHEELS = obj(
     optional=("null_space_management",),
 )
 
+FEED = obj(
+    "cold-gas feed behind the valves (002 sec. 2-3; core.feed, docs/cold-gas.md): constant (thrust_n "
+    "until propellant_kg is used, at isp_s; the default), blow_down (nozzles on an isothermal tank: thrust "
+    "and flow proportional to its pressure, 002 eq. 13-20) or regulated (each level's thrust_n while the "
+    "tank is above the chamber pressure that gives it, derated with several valves open as the "
+    "pressure reducers are (000 sec. 2.1), then blow-down). Not constant: isp_s and propellant_kg are "
+    "derived from the tank and nozzle; blow_down: thrust_n is what the flight software assumes",
+    {
+        "model": string("feed model (default constant)", enum=["constant", "blow_down", "regulated"]),
+        "tank_volume_m3": number("tank volume V [m^3]", **POSITIVE),
+        "gas_constant_j_kg_k": number("specific gas constant R of the gas (nitrogen 296.8) [J/(kg K)]", **POSITIVE),
+        "heat_capacity_ratio": number("gamma = c_p / c_v of the gas (nitrogen 1.4) [-]", exclusive_minimum=1.0),
+        "temperature_k": number("tank and chamber temperature T, constant (002 sec. 2.1) [K]", **POSITIVE),
+        "initial_pressure_pa": number("tank pressure at t = 0 [Pa]", **POSITIVE),
+        "throat_area_m2": number("nozzle throat area A_t of each thruster (times its thrust scale) [m^2]", **POSITIVE),
+        "expansion_ratio": number("nozzle area ratio epsilon = A_e / A_t (002 eq. 6) [-]", minimum=1.0),
+        "ambient_pressure_pa": number("ambient pressure P_a of 002 eq. 15 (default 0: vacuum) [Pa]", minimum=0.0),
+    },
+    optional=(
+        "tank_volume_m3",
+        "gas_constant_j_kg_k",
+        "heat_capacity_ratio",
+        "temperature_k",
+        "initial_pressure_pa",
+        "throat_area_m2",
+        "expansion_ratio",
+        "ambient_pressure_pa",
+    ),
+)
+# rcs.feed keys a blow-down or regulated feed needs
+FEED_TANK_KEYS = (
+    "tank_volume_m3",
+    "gas_constant_j_kg_k",
+    "heat_capacity_ratio",
+    "temperature_k",
+    "initial_pressure_pa",
+    "throat_area_m2",
+    "expansion_ratio",
+)
+
 # flight_software keys of the thruster design: required with an rcs, refused without one
 RCS_DESIGN_KEYS = ("damping_ratio", "deadband_angle_deg", "thrusters_per_axis", "pwpf")
 # actuation -> the vehicle block it drives
 ACTUATION_HARDWARE = {"pwpf_table": "rcs", "lp_pwm": "rcs", "wheels": "wheels"}
 WHEELS_LEVEL = "wheels"  # the one level of a vehicle that flies reaction wheels (levels table row 0)
+
+# --- issue 24: entry aerodynamics and aerodynamic surfaces (003; config.entry, core.aerodynamics) ---
+ENTRY_ATMOSPHERES = ("ussa1976",)
+
+
+def coefficient_table(doc):
+    """A coefficient over (alpha, Mach): one row per alpha_deg, one column per mach."""
+    return {
+        "type": "array",
+        "description": doc + " [-]; rows: entry_aerodynamics.alpha_deg, columns: entry_aerodynamics.mach",
+        "items": {"type": "array", "description": "one row: a value per Mach", "items": number("value"), "minItems": 1},
+        "minItems": 1,
+    }
+
+
+# YAML key -> what it is; the core slot is config.entry.COEFFICIENT_SLOTS
+ENTRY_FORCE_AND_STATIC = {
+    "lift": "C_L lift coefficient (003 eq. 3)",
+    "drag": "C_D drag coefficient (003 eq. 3)",
+    "side_force_per_beta_rad": "C_Y_beta side force per rad of sideslip",
+    "roll_per_beta_rad": "C_l_beta rolling moment per rad of sideslip",
+    "pitch": "C_m pitching moment at zero flap deflection; trims at delta_trim = -C_m / C_m_delta_e (003 eq. 6)",
+    "yaw_per_beta_rad": "C_n_beta yawing moment per rad of sideslip",
+}
+ENTRY_FLAP_DERIVATIVES = {
+    "roll_per_aileron_rad": "C_l_delta_a per rad of aileron (003 eq. 6)",
+    "pitch_per_elevon_rad": "C_m_delta_e per rad of elevon (003 eq. 6)",
+    "yaw_per_aileron_rad": "C_n_delta_a per rad of aileron (003 eq. 6)",
+}
+ENTRY_RUDDER_DERIVATIVES = {
+    "roll_per_rudder_rad": "C_l_delta_r per rad of rudder (003 eq. 10a)",
+    "yaw_per_rudder_rad": "C_n_delta_r per rad of rudder (003 eq. 10c)",
+}
+ENTRY_AERODYNAMICS = obj(
+    "aerodynamic coefficient tables of the entry flight over (alpha, Mach), bilinear, held at the edges "
+    "(003 eq. 3, 6, 10); moments about the centre of mass with reference_length_m",
+    {
+        "reference_area_m2": number("reference area S [m^2]", **POSITIVE),
+        "reference_length_m": number("reference length L of all three moments (003 eq. 6) [m]", **POSITIVE),
+        "nose_radius_m": number("nose radius for the stagnation-point heat flux (Sutton-Graves) [m]", **POSITIVE),
+        "alpha_deg": {
+            "type": "array",
+            "description": "angle-of-attack axis, strictly increasing [deg]",
+            "items": number("alpha [deg]", minimum=-90.0, maximum=90.0),
+            "minItems": 1,
+        },
+        "mach": {
+            "type": "array",
+            "description": "Mach axis, strictly increasing [-]",
+            "items": number("Mach [-]", minimum=0.0),
+            "minItems": 1,
+        },
+        "coefficients": obj(
+            "coefficient tables; the control derivatives of the vehicle's surfaces are required, others refused",
+            {
+                key: coefficient_table(doc)
+                for key, doc in {**ENTRY_FORCE_AND_STATIC, **ENTRY_FLAP_DERIVATIVES, **ENTRY_RUDDER_DERIVATIVES}.items()
+            },
+            optional=(*ENTRY_FLAP_DERIVATIVES, *ENTRY_RUDDER_DERIVATIVES),
+        ),
+    },
+    optional=("nose_radius_m",),
+)
+SURFACES = obj(
+    "aerodynamic control surfaces (003): two body flaps, elevon = symmetric, aileron = differential "
+    "(eq. 7), and optionally two rudders",
+    {
+        "body_flaps": obj(
+            "the two body flaps, each within [min_deg, max_deg] (positive: trailing edge down)",
+            {
+                "min_deg": number("lowest deflection of each flap [deg]", minimum=-90.0, maximum=90.0),
+                "max_deg": number("highest deflection of each flap [deg]", minimum=-90.0, maximum=90.0),
+                "hinge_moment_max_n_m": number(
+                    "largest hinge moment a flap actuator holds (003 Table 1: 25881) [N m]", exclusive_minimum=0.0
+                ),
+                "hinge_area_arm_m3": number(
+                    "flap area times its centre of pressure's distance behind the hinge: the hinge moment is "
+                    "2 q S_f c sin^2(alpha + delta) (Newtonian), which bounds the deflection [m^3]",
+                    exclusive_minimum=0.0,
+                ),
+                "blocked": obj(
+                    "a flap blocked at a deflection (003 Hazard scenario): the other flap alone moves",
+                    {
+                        "flap": string("which flap is blocked", enum=["left", "right"]),
+                        "deflection_deg": number(
+                            "where it is blocked, within the flap limits [deg]", minimum=-90.0, maximum=90.0
+                        ),
+                    },
+                ),
+            },
+            optional=("blocked", "hinge_moment_max_n_m", "hinge_area_arm_m3"),
+        ),
+        "rudders": obj(
+            "the two fin-tip rudders, deflected together for yaw (003: usable below Mach 6, neutral above)",
+            {
+                "min_deg": number("lowest deflection [deg]", minimum=-90.0, maximum=90.0),
+                "max_deg": number("highest deflection [deg]", minimum=-90.0, maximum=90.0),
+                "usable_below_mach": number(
+                    "Mach below which the rudders move; neutral above (003: 6) [-]", minimum=0.0
+                ),
+            },
+        ),
+    },
+    optional=("rudders",),
+)
 
 VEHICLE = obj(
     "vehicle: mass properties, actuators (rcs, wheels or both) and flight-software design",
@@ -201,8 +346,9 @@ VEHICLE = obj(
         "trajectory": string(
             "trajectory model: planar_drag (point mass, gravity and drag; altitude and dynamic pressure), "
             "orbit (3D two-body orbit with a main engine, 004 sec. III; the mission's orbit block) "
-            "or none (attitude only); default planar_drag",
-            enum=["planar_drag", "orbit", "none"],
+            "local (position near a small body, uniform gravity, thrust through the attitude; the mission's "
+            "local block, translate modes, docs/cold-gas.md) or none (attitude only); default planar_drag",
+            enum=["planar_drag", "orbit", "none", "local"],
         ),
         "mass_kg": number("vehicle mass [kg]", **POSITIVE),
         "length_m": number("vehicle length (documentation) [m]", **POSITIVE),
@@ -268,7 +414,9 @@ VEHICLE = obj(
                     "minItems": 1,
                     "maxItems": 63,
                 },
+                "feed": FEED,
             },
+            optional=("isp_s", "propellant_kg", "feed"),
         ),
         "wheels": WHEELS,
         "flight_software": obj(
@@ -306,6 +454,34 @@ VEHICLE = obj(
                     "modulation in the control period), both with the rcs; wheels (motor torques -D (u + omega x "
                     "H_wheels) with the wheels' distribution D, 001 sec. 9.1, held over the control period)",
                     enum=["pwpf_table", "lp_pwm", "wheels"],
+                ),
+                "translation": obj(
+                    "translation law of translate modes (trajectory local; 002 sec. 4, core.time_optimal)",
+                    {
+                        "law": string(
+                            "time_optimal (002 eq. 41-44, bang-off-bang with the fuel reserve), bang_bang "
+                            "(sigma2 alone, 002 Fig. 8's comparison) or pd_pwm (a = -kp e - kd v per body axis, "
+                            "pulse-width modulated over whole control periods)",
+                            enum=["time_optimal", "bang_bang", "pd_pwm"],
+                        ),
+                        "deadband_position_m": number(
+                            "an axis within this position error and deadband_speed_m_s coasts (default 0) [m]",
+                            minimum=0.0,
+                        ),
+                        "deadband_speed_m_s": number(
+                            "an axis within this speed and deadband_position_m coasts (default 0) [m/s]", minimum=0.0
+                        ),
+                        "position_gain_s2": number("pd_pwm: kp [1/s^2]", **POSITIVE),
+                        "velocity_gain_s": number("pd_pwm: kd [1/s]", **POSITIVE),
+                        "pwm_period_s": number("pd_pwm: modulation period, whole control periods [s]", **POSITIVE),
+                    },
+                    optional=(
+                        "position_gain_s2",
+                        "velocity_gain_s",
+                        "pwm_period_s",
+                        "deadband_position_m",
+                        "deadband_speed_m_s",
+                    ),
                 ),
                 "wheel_friction_compensation": {
                     "type": "boolean",
@@ -356,10 +532,37 @@ VEHICLE = obj(
                     },
                 },
             },
-            optional=("gains", "allocation", "burn_guidance", "smc", "wheel_friction_compensation", *RCS_DESIGN_KEYS),
+            optional=(
+                "gains",
+                "allocation",
+                "burn_guidance",
+                "smc",
+                "wheel_friction_compensation",
+                "translation",
+                *RCS_DESIGN_KEYS,
+            ),
         ),
+        # issue 24 (003, X-38): the entry flight's air, aerodynamic tables and surfaces (config.entry)
+        "atmosphere": string(
+            "standard atmosphere of the entry flight: ussa1976 (U.S. Standard Atmosphere 1976, 0-150 km, "
+            "configs/atmospheres/ussa1976.csv)",
+            enum=list(ENTRY_ATMOSPHERES),
+        ),
+        "entry_aerodynamics": ENTRY_AERODYNAMICS,
+        "surfaces": SURFACES,
     },
-    optional=("trajectory", "length_m", "span_m", "aerodynamics", "main_engine", "rcs", "wheels"),
+    optional=(
+        "trajectory",
+        "length_m",
+        "span_m",
+        "aerodynamics",
+        "main_engine",
+        "rcs",
+        "wheels",
+        "atmosphere",
+        "entry_aerodynamics",
+        "surfaces",
+    ),
 )
 
 # --- the mode program (refexmc.core.modes): kinds, targets and exit predicates by name -------
@@ -410,7 +613,17 @@ MODE_KINDS = {
         "keys": ((), ()),
         "provides": ("profile", "rate_reference", "attitude_reference"),
     },
+    "translate": {
+        "doc": "trajectory local: to the mode's target_position_m (default the mission's "
+        "local.target_position_m) and stop, the valves driven by flight_software.translation (002 eq. 44 "
+        "per body axis); no attitude reference",
+        "targets": None,
+        "keys": ((), ("target_position_m",)),
+        "provides": ("position",),
+    },
 }
+# kinds of the local trajectory only
+LOCAL_KINDS = ("translate",)
 # targets computed from the trajectory (a vehicle without one cannot use them)
 TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
 # kinds and targets of the orbit trajectory only (the deorbit plan)
@@ -478,6 +691,8 @@ EXIT_PREDICATES = {
         7,
         "attitude_reference",
     ),
+    "position_error_below_m": (number("|position - local target| at most [m]", **POSITIVE), 8, "position"),
+    "speed_below_m_s": (number("|velocity| in the local frame at most [m/s]", **POSITIVE), 8, "position"),
 }
 EXIT_GROUP = {
     "type": "object",
@@ -508,6 +723,7 @@ MODE = obj(
         },
         "t1_design_s": number("shortest slew duration t1,dsgn (000 eq. 14) [s]", minimum=0.0),
         "rate_deg_s": vector("spin-up: final body rate [deg/s]"),
+        "target_position_m": vector("translate: where this mode goes and stops, local frame [m]"),
         "navigation_calibration": {
             "type": "boolean",
             "description": "the attitude bias decays while this mode runs (navigation.ssm_calibration_time_s)",
@@ -520,7 +736,15 @@ MODE = obj(
         },
         "timeout_s": number("the run fails when the mode lasts longer [s]", **POSITIVE),
     },
-    optional=("target", "thrust", "t1_design_s", "rate_deg_s", "navigation_calibration", "timeout_s"),
+    optional=(
+        "target",
+        "thrust",
+        "t1_design_s",
+        "rate_deg_s",
+        "navigation_calibration",
+        "timeout_s",
+        "target_position_m",
+    ),
 )
 
 
@@ -676,6 +900,21 @@ MISSION = obj(
         "pointing_statistics_from_s": number(
             "pointing RMS and largest error over t >= this (runs columns pointing_*_arcsec) [s]", minimum=0.0
         ),
+        "local": obj(
+            "trajectory local: the vehicle near a small body, local frame = the attitude's inertial frame "
+            "(core.local_flight)",
+            {
+                "position_m": vector("position at t = 0 [m]"),
+                "velocity_m_s": vector("velocity at t = 0 [m/s]"),
+                "target_position_m": vector("where translate modes go and stop [m]"),
+                "gravity_m_s2": vector("uniform gravity (default zero) [m/s^2]"),
+                "reserve_pressure_pa": number(
+                    "tank pressure to keep at arrival: x3_min of 002 eq. 42 (default 0), inside eq. 45 [Pa]",
+                    minimum=0.0,
+                ),
+            },
+            optional=("gravity_m_s2", "reserve_pressure_pa"),
+        ),
         "integrator": obj(
             "numerical integration",
             {
@@ -696,6 +935,7 @@ MISSION = obj(
         "orbit",
         "disturbances",
         "pointing_statistics_from_s",
+        "local",
     ),
 )
 
@@ -756,7 +996,10 @@ CAMPAIGN = obj(
         ),
         "seed": integer("campaign seed", minimum=0, maximum=2**63 - 1),
         "nominal_first": {"type": "boolean", "description": "run 0 is the undispersed nominal case"},
-        "sampling": string("sampling of the dispersions", enum=["random", "lhs", "sobol"]),
+        "sampling": string(
+            "sampling of the dispersions (saltelli: SALib's design for Sobol' indices, docs/studies.md)",
+            enum=["random", "lhs", "sobol", "saltelli"],
+        ),
         "dispersions": {
             "type": "object",
             "description": "parameter path -> distribution {dist: ..., parameters}; paths and "
@@ -818,6 +1061,61 @@ CAMPAIGN = obj(
                 },
             ),
         },
+        "sweep": obj(
+            "parameters varied over a grid, each point a full campaign (refexmc.config.sweep, docs/studies.md)",
+            {
+                "axes": {
+                    "type": "array",
+                    "minItems": 1,
+                    "maxItems": 2,
+                    "description": "one axis, or two for a grid",
+                    "items": obj(
+                        "one swept parameter",
+                        {
+                            "parameter": string(
+                                "a scalar parameter path of docs/campaigns.md sec. 2 [its unit]; with "
+                                "'dispersion', any dispersed path"
+                            ),
+                            "dispersion": string(
+                                "sweep this parameter of the path's distribution instead of the file value "
+                                "[the parameter's unit]",
+                                enum=[
+                                    "value",
+                                    "mean",
+                                    "sigma",
+                                    "low",
+                                    "high",
+                                    "median",
+                                    "moments_sigma_fraction",
+                                    "axes_sigma_deg",
+                                ],
+                            ),
+                            "values": {
+                                "type": "array",
+                                "minItems": 1,
+                                "items": number("a value of the parameter [its unit]"),
+                                "description": "the values (or range)",
+                            },
+                            "range": obj(
+                                "count evenly spaced values from start to stop",
+                                {
+                                    "start": number("first value [the parameter's unit]"),
+                                    "stop": number("last value [the parameter's unit]"),
+                                    "count": integer("number of values", minimum=2, maximum=1000),
+                                },
+                            ),
+                        },
+                        optional=("values", "range", "dispersion"),
+                    ),
+                },
+                "metrics": {
+                    "type": "array",
+                    "items": string("a runs column"),
+                    "description": "columns whose percentiles the report draws against the swept value",
+                },
+            },
+            optional=("metrics",),
+        ),
     },
     optional=(
         "runs",
@@ -830,5 +1128,6 @@ CAMPAIGN = obj(
         "output",
         "requirements",
         "published",
+        "sweep",
     ),
 )

@@ -34,7 +34,9 @@ from refexmc.core import (
     control,
     dynamics,
     environment,
+    feed,
     guidance,
+    local_flight,
     lp_allocation,
     modes,
     navigation,
@@ -68,6 +70,9 @@ from refexmc.core.layout import (
     FAIL_NONE,
     FAIL_PROPELLANT,
     FAIL_TIME_LIMIT,
+    FEED_BLOW_DOWN,
+    FEED_CONSTANT,
+    FEED_REGULATED,
     H_ALTITUDE,
     H_FUEL,
     H_MODE,
@@ -82,6 +87,7 @@ from refexmc.core.layout import (
     LV_ACCEL_MAX,
     LV_KD,
     LV_KP,
+    LV_REGULATOR_PRESSURE,
     LV_THRUST,
     M_BURN_DURATION,
     M_BURN_START,
@@ -126,9 +132,11 @@ from refexmc.core.layout import (
     S_WHEEL_MOMENTUM_PEAK,
     S_WHEEL_SATURATED_TIME,
     S_WHEEL_TORQUE_PEAK,
+    TRAJECTORY_LOCAL,
     TRAJECTORY_NONE,
     TRAJECTORY_ORBIT,
     TRAJECTORY_PLANAR_DRAG,
+    V_FEED_MODEL,
     V_INERTIA,
     V_MASS,
     V_PROPELLANT,
@@ -242,31 +250,35 @@ class Work(NamedTuple):
 
 
 _ACTUATIONS = (ACTUATION_PWPF_TABLE, ACTUATION_LP_PWM, ACTUATION_WHEELS)
-_TRAJECTORIES = (TRAJECTORY_NONE, TRAJECTORY_PLANAR_DRAG, TRAJECTORY_ORBIT)
-_kernels = {}  # (actuation, trajectory, wheels) -> the family's run_flight
+_TRAJECTORIES = (TRAJECTORY_NONE, TRAJECTORY_PLANAR_DRAG, TRAJECTORY_ORBIT, TRAJECTORY_LOCAL)
+_FEEDS = (FEED_CONSTANT, FEED_BLOW_DOWN, FEED_REGULATED)
+_kernels = {}  # (actuation, trajectory, wheels, feed) -> the family's run_flight
 
 
 def family(inputs):
     """The vehicle family of packed inputs: (actuation id, trajectory id, 1 with reaction wheels
-    else 0), the arguments of :func:`kernel`."""
+    else 0, feed id), the arguments of :func:`kernel`."""
     return (
         int(inputs.fsw[F_ACTUATION]),
         int(inputs.mission[M_TRAJECTORY_MODEL]),
         1 if inputs.wheels.shape[0] > 0 else 0,
+        int(inputs.vehicle[V_FEED_MODEL]),
     )
 
 
-def kernel(actuation, trajectory, wheels_flown):
+def kernel(actuation, trajectory, wheels_flown, feed_model=FEED_CONSTANT):
     """The flight kernel of one vehicle family, made once per process (disk-cached per family):
     ``run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history)``.
 
     ``actuation``: layout.ACTUATION_*; ``trajectory``: layout.TRAJECTORY_*; ``wheels_flown``:
-    1 when the vehicle has reaction wheels (``inputs.wheels`` has rows). :func:`family` derives
-    them from packed inputs.
+    1 when the vehicle has reaction wheels (``inputs.wheels`` has rows); ``feed_model``:
+    layout.FEED_* of the rcs (core.feed). :func:`family` derives them from packed inputs.
     """
-    key = (int(actuation), int(trajectory), int(wheels_flown))
-    if key[0] not in _ACTUATIONS or key[1] not in _TRAJECTORIES or key[2] not in (0, 1):
-        raise ValueError(f"no flight kernel for the family (actuation, trajectory, wheels) = {key}")
+    key = (int(actuation), int(trajectory), int(wheels_flown), int(feed_model))
+    if key[0] not in _ACTUATIONS or key[1] not in _TRAJECTORIES or key[2] not in (0, 1) or key[3] not in _FEEDS:
+        raise ValueError(f"no flight kernel for the family (actuation, trajectory, wheels, feed) = {key}")
+    if key[1] == TRAJECTORY_LOCAL and (key[3] == FEED_CONSTANT or key[0] != ACTUATION_PWPF_TABLE):
+        raise ValueError(f"the local trajectory flies a tank (rcs.feed) with actuation pwpf_table, not {key}")
     if key not in _kernels:
         _kernels[key] = _make_kernel(*key)
     return _kernels[key]
@@ -277,13 +289,14 @@ def kernels():
     return dict(_kernels)
 
 
-def _make_kernel(actuation, trajectory, wheels_flown):
+def _make_kernel(actuation, trajectory, wheels_flown, feed_model):
     """:func:`kernel`: a closure over the family's ids only (numba's disk cache keys a closure by
     its cell contents, so that each family's kernel is cached apart), compiled with
     ``refexmc._jit.jit``. Its tests of the ids are constants numba prunes before typing."""
     ACTUATION = actuation  # noqa: N806 - compile-time constants of the closure
     TRAJECTORY = trajectory  # noqa: N806
     WHEELS = wheels_flown  # noqa: N806
+    FEED = feed_model  # noqa: N806
 
     def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
         """Fly ``inputs`` (``core.inputs.RunInputs``) of this kernel's family; fill ``summary``,
@@ -363,7 +376,18 @@ def _make_kernel(actuation, trajectory, wheels_flown):
             fire = None
         else:
             fire = True
-        _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, work, fire, table, opt, wh, traj, orb)
+        if FEED == FEED_CONSTANT:  # core.feed is compiled for a blow-down or regulated tank only
+            tank = None
+        else:
+            tank = feed.tank()
+        if TRAJECTORY == TRAJECTORY_LOCAL:
+            loc = local_flight.work()
+        else:
+            loc = None
+        _fly(
+            inputs, nav_seed, history_every, summary, pulse_counts, history, work, fire, table, opt, wh, traj, orb,
+            tank, loc,
+        )  # fmt: skip
 
     return jit(run_flight)
 
@@ -438,7 +462,7 @@ def _start(
 
 
 @jit_noalloc(force_inline=True)
-def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sensed, status, t):
+def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sensed, status, t, loc):
     """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and
     rates. ``traj``: the planar trajectory's work (or None), ``orb`` the orbit's (or None)."""
     altitude, climb, qbar = 0.0, 0.0, 0.0
@@ -467,6 +491,8 @@ def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sense
     sensed.now[modes.NOW_CLIMB] = climb
     sensed.now[modes.NOW_QBAR] = qbar
     sensed.now[modes.NOW_TIME] = t
+    if loc is not None:
+        local_flight.navigate(mission, loc, sensed.now)
     navigation.measure(x, nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4)
 
 
@@ -551,13 +577,14 @@ def _advance_mode(program, exits, mission, vehicle, atmosphere, traj_state, sens
 @jit_noalloc(force_inline=True)
 def _actuate(
     fsw, levels, thrusters, sensed, guide, act, table, opt, masks, t, level, active, controlled, has_reference,
-    pulse_counts,
+    pulse_counts, translation,
 ):  # fmt: skip
     """Controller, actuation (pulse modulation + allocation), switching check and valve commands.
 
     ``active``: False when the mode is locked, the program done or the run failed. ``table``:
     the PWPF + allocation table's work (or None), ``opt`` the LP allocation's (or None); with
-    neither the wheels take ``act.torque_cmd`` (``wheels.drive``).
+    neither the wheels take ``act.torque_cmd`` (``wheels.drive``). ``translation`` >= 0: the
+    valves a translation law wants (core.local_flight.desired) instead of the table's.
     """
     actuation = int(fsw[F_ACTUATION])
     if has_reference:
@@ -593,6 +620,8 @@ def _actuate(
             desired = allocation.thruster_commands(
                 actuation, fsw, levels[level], act.torque_cmd, table.pwpf_state, table.row_masks, t, act.pulse
             )
+            if translation >= 0:
+                desired = translation
     if opt is not None:
         lp_allocation.pulse_width(fsw, levels, thrusters, act, opt, masks, t, level, active, pulse_counts)
     if table is None:  # lp_pwm, or the wheels take act.torque_cmd (wheels.drive)
@@ -645,15 +674,19 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
 
 @jit_noalloc(force_inline=True)
 def _integrate(
-    mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level
-):
+    mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level, tank,
+    loc,
+):  # fmt: skip
     """Integrate the attitude over one control period, segment by segment, ``thrust`` (N) being the
     level's nominal thrust, with the orbit (``orb`` not None) a further disturbance torque
     ``orb.torque`` (its gravity gradient and main engine), plus the mission's constant torque;
     with reaction wheels (``wh`` not None) the wheels' momenta too (core.wheels), the gravity
     gradient of 001 eq. 11 then evaluated at every RK4 stage (else held over the period).
     ``fire``: True when thrusters fire, None with actuation wheels (no thrust: one coasting
-    segment per period). Returns True when the propellant ran out."""
+    segment per period). ``tank``: the feed's work (core.feed), None with the constant feed,
+    whose thrust is ``thrust``. ``loc``: the local trajectory (core.local_flight) or None: its
+    position and velocity advance segment by segment with the thrusters' force.
+    Returns True when the propellant ran out."""
     n_thr = thrusters.shape[0]
     gg_coefficient = mission[M_GG_COEFFICIENT]
     # Segments up to this long are one RK4 step: their ceil(span / max_step - 1e-9) is 1 (the
@@ -684,14 +717,26 @@ def _integrate(
             else:  # coasting: the whole rest of the period is one thrust-free segment
                 t_next = t_end
             if active and fuel > 0.0:
-                impulse = rcs.segment_thrust(
-                    act.valve_state, thrusters, vehicle, act.arms, thrust, t_seg, t_next, tau0, tau1, valves_active
-                )
+                if tank is not None:  # thrust and gas follow the tank pressure (core.feed)
+                    pressure_start = tank.state[feed.TK_PRESSURE]
+                    impulse = feed.segment(
+                        act.valve_state, thrusters, vehicle, act.arms, tank, t_seg, t_next, tau0, tau1, valves_active
+                    )  # here: the gas used (kg)
+                    if loc is not None:
+                        local_flight.segment_force(
+                            act.valve_state, thrusters, tank, pressure_start, t_seg, t_next, valves_active, loc
+                        )
+                else:
+                    impulse = rcs.segment_thrust(
+                        act.valve_state, thrusters, vehicle, act.arms, thrust, t_seg, t_next, tau0, tau1, valves_active
+                    )
             else:
                 impulse = 0.0
                 for i in range(3):
                     tau0[i] = 0.0
                     tau1[i] = 0.0
+                if loc is not None:
+                    local_flight.no_force(loc)
         else:  # no thruster fires: one thrust-free segment
             t_next = t_end
             impulse = 0.0
@@ -719,7 +764,11 @@ def _integrate(
             else:
                 dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
             rk4_steps += 1
-        if fire is not None:  # without thrust: no propellant used
+        if loc is not None:
+            local_flight.advance(mission, vehicle, loc, tank, body.x[0:4], span_seg)
+        if tank is not None:  # the gas left is the tank's, P V / (R T) (002 eq. 1)
+            fuel = feed.gas(tank)
+        elif fire is not None:  # without thrust: no propellant used
             fuel -= rcs.propellant_for_impulse(vehicle, impulse)
             if fuel <= 0.0 and impulse > 0.0:
                 fuel = 0.0
@@ -732,14 +781,17 @@ def _integrate(
 
 
 @jit_noalloc
-def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fire, table, opt, wh, traj, orb):
+def _fly(
+    inputs, nav_seed, history_every, summary, pulse_counts, history, w, fire, table, opt, wh, traj, orb, tank, loc
+):  # fmt: skip
     """The run loop of a :func:`kernel`'s ``run_flight`` on the work arrays it allocated (no
     allocation, no reference counting: see ``refexmc._jit.jit_noalloc``). Each step gets the
     arrays it uses only: every further array argument costs compile time (numba types each one).
 
     ``fire`` (True where thrusters fire, None with actuation wheels), ``table``
     (PWPF + allocation table), ``opt`` (LP allocation), ``wh`` (reaction wheels), ``traj``
-    (planar trajectory), ``orb`` (orbit trajectory): the family's work, None for the others.
+    (planar trajectory), ``orb`` (orbit trajectory), ``tank`` (blow-down or regulated feed),
+    ``loc`` (local trajectory): the family's work, None for the others.
     Every step of a family runs under ``if <its work> is not None``, which numba prunes before
     typing where the argument is None: one compiled loop per family."""
     body, traj_state, sensed, guide, act, status, masks = (
@@ -767,6 +819,12 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
     dt = fsw[F_CONTROL_PERIOD]
     max_step = mission[M_MAX_STEP]
     propellant0 = vehicle[V_PROPELLANT]
+    if tank is not None:  # the gas in the tank, P0 V / (R T) of the dispersed tank (002 eq. 1)
+        feed.start(vehicle, tank)
+        propellant0 = feed.gas(tank)
+        status[ST_FUEL] = propellant0
+        if loc is not None:
+            local_flight.start(mission, inputs.modes, loc, tank)
     pointing_from = mission[M_POINTING_FROM]
     pointing = act.rotvec  # free between history rows (_record fills it when it writes one)
     theta_handover = math.nan
@@ -775,7 +833,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
     t = 0.0
     while True:
         t = step * dt
-        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj_state, traj, orb, sensed, status, t)
+        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj_state, traj, orb, sensed, status, t, loc)
         controlled, has_reference = _advance_mode(
             program, exits, mission, vehicle, atmosphere, traj_state, sensed, guide, status, summary, t
         )
@@ -808,6 +866,11 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
                 orbit_flight.steer(
                     inputs.nominal, fsw, inputs.nav, vehicle, body.x, orb, guide, sensed.rng_state, status, t, firing
                 )
+        translation = -1
+        if loc is not None:
+            local_flight.target(program[flown], loc)
+            if active and kind == modes.KIND_TRANSLATE:
+                translation = local_flight.desired(fsw, mission, loc, tank, sensed.q_meas)
         _actuate(
             fsw,
             inputs.levels,
@@ -824,6 +887,7 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
             controlled,
             has_reference,
             pulse_counts,
+            translation,
         )
         if wh is not None:
             compensate = fsw[F_WHEEL_FRICTION_COMPENSATION] != 0.0
@@ -853,11 +917,14 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
 
         qbar = sensed.now[modes.NOW_QBAR]
         thrust = inputs.levels[level, LV_THRUST]
+        if tank is not None:  # a regulated feed holds the level's set pressure (core.feed)
+            tank.state[feed.TK_REGULATOR] = inputs.levels[level, LV_REGULATOR_PRESSURE]
         if orb is not None:
             orbit_flight.engine_period(mission, vehicle, body.inertia, body.x, orb, status, t, dt, burn_mode)
         exhausted = _integrate(
-            mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level
-        )
+            mission, vehicle, thrusters, thrust, max_step, dt, body, act, fire, wh, orb, status, masks, qbar, t, level,
+            tank, loc,
+        )  # fmt: skip
         if wh is not None:
             peak = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
             status[ST_WHEEL_MOMENTUM_PEAK] = max(status[ST_WHEEL_MOMENTUM_PEAK], peak)
@@ -909,6 +976,8 @@ def _fly(inputs, nav_seed, history_every, summary, pulse_counts, history, w, fir
         summary[S_WHEEL_TORQUE_PEAK] = status[ST_WHEEL_TORQUE_PEAK]
         summary[S_WHEEL_SATURATED_TIME] = status[ST_WHEEL_SATURATED]
         summary[S_MOMENTUM_RESIDUAL] = wheels.momentum_residual(body.x, wh)
+    if loc is not None:
+        local_flight.finish(mission, loc, tank, summary)
     if orb is not None:
         summary[S_ENGINE_PROPELLANT_USED] = vehicle[V_MASS] - orb.state[6]
         if status[ST_POINTING_COUNT] > 0.0:

@@ -41,6 +41,18 @@ V_ENGINE_ISP = VEHICLE.add("engine_isp_s")
 V_ENGINE_PROPELLANT = VEHICLE.add("engine_propellant_kg")
 V_ENGINE_DIRECTION = VEHICLE.add("engine_direction", 3)  # true force direction, body axes (misaligned)
 V_ENGINE_POSITION = VEHICLE.add("engine_position_m", 3)  # nominal body frame
+# cold-gas feed of the rcs (rcs.feed, core.feed, 002 sec. 2-3); unused with the constant feed
+V_FEED_MODEL = VEHICLE.add("feed_model_id")  # FEED_*: selects the flight kernel (flight.family)
+V_FEED_TANK_VOLUME = VEHICLE.add("feed_tank_volume_m3")
+V_FEED_GAS_CONSTANT = VEHICLE.add("feed_gas_constant_j_kg_k")  # specific gas constant R
+V_FEED_HEAT_CAPACITY_RATIO = VEHICLE.add("feed_heat_capacity_ratio")  # gamma (in C_F and Gamma below)
+V_FEED_TEMPERATURE = VEHICLE.add("feed_temperature_k")  # isothermal tank (002 sec. 2.1)
+V_FEED_INITIAL_PRESSURE = VEHICLE.add("feed_initial_pressure_pa")
+V_FEED_THROAT_AREA = VEHICLE.add("feed_throat_area_m2")  # per thruster (times its thrust scale)
+V_FEED_EXPANSION_RATIO = VEHICLE.add("feed_expansion_ratio")  # epsilon = A_e / A_t
+V_FEED_AMBIENT_PRESSURE = VEHICLE.add("feed_ambient_pressure_pa")
+V_FEED_THRUST_COEFFICIENT = VEHICLE.add("feed_thrust_coefficient")  # vacuum C_F, 002 eq. 15 (config.feed)
+V_FEED_FLOW_FACTOR = VEHICLE.add("feed_flow_factor")  # Gamma of 002 eq. 10 (config.feed)
 VEHICLE_SIZE = VEHICLE.size
 DERATING_MAX_VALVES = 8
 
@@ -77,6 +89,9 @@ LV_KP = LEVEL.add("kp", 3)  # flight software: 000 eq. 38 or given
 LV_KD = LEVEL.add("kd", 3)  # 000 eq. 34 or given
 LV_TORQUE_MAX = LEVEL.add("torque_max_n_m", 3)  # PWPF full scale tau_max (000 eq. 41)
 LV_ACCEL_MAX = LEVEL.add("accel_max_rad_s2", 3)  # omega_dot_max (000 eq. 1)
+# feed regulated: the chamber pressure the regulator holds at this level, thrust_n / (C_F A_t) (core.feed);
+# inf otherwise (blow-down: the tank's pressure)
+LV_REGULATOR_PRESSURE = LEVEL.add("regulator_pressure_pa")
 LEVEL_SIZE = LEVEL.size
 
 # --- reaction wheels: one row per wheel (001 sec. 4, 8; core.wheels) -------------------------
@@ -124,7 +139,22 @@ F_SMC_SLOPE = FSW.add("smc_slope_s", 3)  # 001 eq. 12: Lambda, sliding-surface s
 F_SMC_GAIN = FSW.add("smc_gain_rad_s2", 3)  # G (rad/s^2)
 F_SMC_LAYER = FSW.add("smc_boundary_layer_rad_s", 3)  # epsilon of sat(sigma, epsilon) (rad/s)
 F_WHEEL_FRICTION_COMPENSATION = FSW.add("wheel_friction_compensation")  # 1: motor commands add the design friction
+# translation law of translate modes (trajectory local; core.local_flight, core.time_optimal)
+F_TRANSLATION_LAW = FSW.add("translation_law_id")  # TRANSLATION_*
+F_TRANSLATION_MASKS = FSW.add("translation_masks", 6)  # thruster bit masks pushing +x, -x, +y, -y, +z, -z
+F_TRANSLATION_FORCE_PER_PA = FSW.add("translation_force_per_pa", 3)  # n C_F A_t per body axis (N/Pa)
+F_TRANSLATION_DRY_MASS = FSW.add("translation_dry_mass_kg")  # mass_kg - P0 V/(R T): mass = this + P V/(R T)
+F_TRANSLATION_GAS_PER_PA = FSW.add("translation_gas_per_pa")  # V / (R T) (kg/Pa)
+F_TRANSLATION_PD_GAINS = FSW.add("translation_pd_gains", 2)  # pd_pwm: a = -kp e - kd v, kp (1/s^2), kd (1/s)
+F_TRANSLATION_PWM_STEPS = FSW.add("translation_pwm_steps")  # pd_pwm: control periods per modulation period
+F_TRANSLATION_DEADBAND = FSW.add("translation_deadband", 2)  # |e| (m) and |v| (m/s) per axis within which u = 0
+F_TRANSLATION_TAU = FSW.add("translation_tau_s", 3)  # blow-down time constant with the axis's n thrusters open
 FSW_SIZE = FSW.size
+
+TRANSLATION_NONE = 0
+TRANSLATION_TIME_OPTIMAL = 1  # 002 eq. 44
+TRANSLATION_BANG_BANG = 2  # -sign(sigma2), 002 Fig. 8's comparison
+TRANSLATION_PD_PWM = 3  # PD on position and velocity, pulse-width modulated over whole control periods
 
 CONTROLLER_PD_FEEDBACK_LINEARISATION = 0  # 000 eq. 30, 35
 CONTROLLER_PD = 1  # 004 eq. 1: torque gains, no feedforward
@@ -160,11 +190,21 @@ M_GG_COEFFICIENT = MISSION.add("gravity_gradient_coefficient_s2")  # 001 eq. 11:
 M_GG_DIRECTION = MISSION.add("gravity_gradient_direction", 3)  # unit, inertial: the line to the attracting bodies
 M_CONSTANT_TORQUE = MISSION.add("constant_torque_n_m", 3)  # 001 eq. 10: u_const, body axes
 M_POINTING_FROM = MISSION.add("pointing_statistics_from_s")  # pointing RMS/max over t >= this; inf: none
+M_LOCAL_POSITION = MISSION.add("local_position_m", 3)  # trajectory local: at t = 0, local frame
+M_LOCAL_VELOCITY = MISSION.add("local_velocity_m_s", 3)
+M_LOCAL_TARGET = MISSION.add("local_target_m", 3)  # where translate modes go and stop
+M_LOCAL_GRAVITY = MISSION.add("local_gravity_m_s2", 3)  # uniform
+M_LOCAL_RESERVE = MISSION.add("local_reserve_pressure_pa")  # the tank pressure to keep: x3_min of 002 eq. 42
 MISSION_SIZE = MISSION.size
+
+FEED_CONSTANT = 0  # thrust_n until the propellant is gone (core.rcs.segment_thrust)
+FEED_BLOW_DOWN = 1  # nozzles on the tank: thrust and flow follow its pressure (002 eq. 13-20; core.feed)
+FEED_REGULATED = 2  # constant chamber pressure above the regulator's set pressure, then blow-down
 
 TRAJECTORY_NONE = 0  # attitude only: no altitude, no dynamic pressure, no aerodynamic torque
 TRAJECTORY_PLANAR_DRAG = 1  # point mass in the x-z plane, spherical gravity and drag (core.environment)
 TRAJECTORY_ORBIT = 2  # point mass in 3D, two-body gravity and a main engine (core.orbit, 004 sec. III)
+TRAJECTORY_LOCAL = 3  # position near a small body, uniform gravity, thrust through the attitude (core.local_flight)
 
 # --- mode program: one row per mode, flown in order (refexmc.core.modes) ---------------------
 MODE = Fields()
@@ -180,6 +220,7 @@ MD_RATE = MODE.add("rate_rad_s", 3)  # spin-up body rate
 MD_PREDICT_ALTITUDE = MODE.add("predicted_at_altitude_m")  # entry target: velocity predicted there
 MD_EXIT_FIRST = MODE.add("exit_first_row")  # the mode's rows of the exit table
 MD_EXIT_ROWS = MODE.add("exit_rows")
+MD_LOCAL_TARGET = MODE.add("local_target_m", 3)  # translate: its target (default the mission's local target)
 MODE_SIZE = MODE.size
 
 # --- exit conditions: one row per predicate; a mode ends when every predicate of one of its
@@ -254,6 +295,10 @@ S_WHEEL_MOMENTUM_END = SUMMARY.add("wheel_momentum_end_n_m_s")  # largest |I_w O
 S_WHEEL_TORQUE_PEAK = SUMMARY.add("wheel_torque_demand_peak_n_m")  # largest motor torque asked for, before limits
 S_WHEEL_SATURATED_TIME = SUMMARY.add("wheel_saturated_s")  # time some wheel was held at a torque or momentum limit
 S_MOMENTUM_RESIDUAL = SUMMARY.add("angular_momentum_residual")  # |L(T) - L(0) - external impulse| / |L|, inertial
+S_LOCAL_POSITION_ERROR = SUMMARY.add("position_error_end_m")  # trajectory local: |position - target| at the end
+S_LOCAL_SPEED = SUMMARY.add("speed_end_m_s")
+S_TANK_PRESSURE_END = SUMMARY.add("tank_pressure_end_pa")
+S_SWITCHES = SUMMARY.add("switches", 3)  # translation command changes per body axis (the first opening counts)
 S_PER_MODE = SUMMARY.size  # summary[S_PER_MODE + m]: time in mode m; + n_modes + m: its t1
 
 

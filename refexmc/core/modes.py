@@ -40,6 +40,7 @@ KIND_SPIN_UP = 3  # quartic spin-up about a body rate vector from the last targe
 KIND_HOLD = 4  # the target attitude at zero rate
 KIND_TRACK = 5  # a target that moves, recomputed every control period
 KIND_BURN = 6  # main engine on from the planned ignition to cut-off, steered by core.deorbit
+KIND_TRANSLATE = 7  # trajectory local: no attitude reference; the translation law drives the valves
 KINDS = {
     "locked": KIND_LOCKED,
     "rate_damping": KIND_RATE_DAMPING,
@@ -48,6 +49,7 @@ KINDS = {
     "hold": KIND_HOLD,
     "track": KIND_TRACK,
     "burn": KIND_BURN,
+    "translate": KIND_TRANSLATE,
 }
 
 # --- targets -------------------------------------------------------------------------------
@@ -76,6 +78,8 @@ PREDICATE_ALTITUDE_BELOW = 5  # navigated altitude < value
 PREDICATE_DESCENDING = 6  # navigated climb rate < 0
 PREDICATE_QBAR_ABOVE = 7  # dynamic pressure >= value
 PREDICATE_MISSION_TIME = 8  # time since t = 0 >= value
+PREDICATE_POSITION_ERROR_BELOW = 9  # trajectory local: |position - target| <= value
+PREDICATE_SPEED_BELOW = 10  # trajectory local: |velocity| <= value
 PREDICATES = {
     "time_in_mode_s": PREDICATE_TIME_IN_MODE,
     "guidance_finished": PREDICATE_GUIDANCE_FINISHED,
@@ -86,6 +90,8 @@ PREDICATES = {
     "descending": PREDICATE_DESCENDING,
     "dynamic_pressure_above_pa": PREDICATE_QBAR_ABOVE,
     "mission_time_s": PREDICATE_MISSION_TIME,
+    "position_error_below_m": PREDICATE_POSITION_ERROR_BELOW,
+    "speed_below_m_s": PREDICATE_SPEED_BELOW,
 }
 
 # what the flight software knows this control period, as the predicates read it (``now`` array)
@@ -94,7 +100,9 @@ NOW_ALTITUDE = 1
 NOW_CLIMB = 2
 NOW_QBAR = 3
 NOW_TIME = 4
-NOW_SIZE = 5
+NOW_POSITION_ERROR = 5  # trajectory local (core.local_flight.navigate); else 0
+NOW_SPEED = 6
+NOW_SIZE = 7
 
 
 @jit_noalloc
@@ -217,6 +225,10 @@ def predicate_holds(predicate, value, now, t1, rate_meas, rate_ref, q_meas, q_ta
         return now[NOW_QBAR] >= value
     if predicate == PREDICATE_MISSION_TIME:
         return now[NOW_TIME] >= value
+    if predicate == PREDICATE_POSITION_ERROR_BELOW:
+        return now[NOW_POSITION_ERROR] <= value
+    if predicate == PREDICATE_SPEED_BELOW:
+        return now[NOW_SPEED] <= value
     return False
 
 

@@ -21,16 +21,13 @@ before anything is written. The metric grammar is in
 import json
 from pathlib import Path
 
+import numpy as np
+
 from refexmc.campaign.storage import write_text_atomic
-from refexmc.report import data
+from refexmc.report import data, studies
 from refexmc.report import summary as summary_module
 from refexmc.report import text as text_module
-from refexmc.report.requirements import evaluate, overall_verdict, parse_requirement
-
-SENSITIVITY_LABELS = {
-    "fuel_used_kg": "propellant used (fuel_used_kg)",
-    "theta_t_handover_deg": "angle error at hand-over (theta_t_handover_deg)",
-}
+from refexmc.report.requirements import CAMPAIGN_METRICS, evaluate, overall_verdict, parse_requirement, split_metric
 
 
 def load_requirements(campaign, require=()):
@@ -49,12 +46,20 @@ def load_requirements(campaign, require=()):
 
 def make_report(out, require=(), html=True):
     """Build the report of campaign output ``out``; see the module docstring."""
+    sweep = studies.sweep_record(out)
+    if sweep is not None:  # a sweep: each point's report, and the curve over the points
+        return studies.sweep_report(out, sweep, make_report, require=require, html=html)
     campaign = data.load(out)
     requirements = load_requirements(campaign, require)
-    summary = summary_module.build(campaign)
-    verdicts = [evaluate(r, campaign, summary["metrics"]) for r in requirements]
+    verdicts = [evaluate(r, campaign, summary_module.campaign_metrics(campaign)) for r in requirements]
+    summary = summary_module.build(campaign, verdicts)
     summary["requirements"] = verdicts
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
+    if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
+        summary["until_decided"] = studies.stopping(campaign)
+    sobol_indices = studies.sobol_section(campaign)  # sampling saltelli: Sobol' indices
+    if sobol_indices is not None:
+        summary["sobol"] = sobol_indices
     report_dir = Path(out) / "report"
     report_dir.mkdir(parents=True, exist_ok=True)
     files = []
@@ -69,13 +74,17 @@ def make_report(out, require=(), html=True):
             files.append(path)
         from refexmc.report import html as html_module
 
-        page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures], SENSITIVITY_LABELS)
+        page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures])
+        page = studies.insert_section(page, studies.stopping_html(summary), "<h2>Requirements</h2>")
+        page = studies.insert_section(page, studies.sobol_html(summary), "</body>")
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)
     write_text_atomic(json.dumps(clean, indent=2, allow_nan=False) + "\n", report_dir / "summary.json")
     files.append(report_dir / "summary.json")
-    text = text_module.format_summary(summary, report_dir)
+    text = (
+        text_module.format_summary(summary, report_dir) + studies.stopping_text(summary) + studies.sobol_text(summary)
+    )
     return {
         "summary": clean,
         "requirements": clean["requirements"],
@@ -88,12 +97,63 @@ def make_report(out, require=(), html=True):
 
 
 def fuel_thresholds(summary):
-    """(value, label) of the lower limits that requirements put on propellant remaining."""
-    out = []
-    for r in summary["requirements"]:
-        if r["metric"].startswith("fuel_remaining.") and r["op"] in (">=", ">"):
-            out.append((r["value"], r["requirement"]))
-    return out
+    """(value, label) of the limits that requirements put on propellant remaining."""
+    return [
+        (r["value"], r["requirement"]) for r in summary["requirements"] if r["metric"].startswith("fuel_remaining.")
+    ]
+
+
+def bounds_of(column, summary, scale=1.0):
+    """(value, label) of each requirement bound on ``column``, in the column's unit."""
+    return [
+        (scale * r["value"], f"required: {r['requirement']}")
+        for r in summary["requirements"]
+        if r["metric"] not in CAMPAIGN_METRICS and split_metric(r["metric"])[0] == column
+    ]
+
+
+ARCSEC_PER_DEG = 3600.0
+SCATTER_INPUTS = 3
+MAX_SCATTER_POINTS = 5000  # more points only blacken the panel and cost memory at 100,000 runs
+SCATTER_WORST = 50
+
+
+def scatter_runs(values, tail, limit=MAX_SCATTER_POINTS, worst=SCATTER_WORST):
+    """Indices of the runs a scatter panel draws: all of them up to ``limit``; beyond, ``limit``
+    evenly spaced ones and the ``worst`` at the metric's bad end(s) (``tail``), in run order."""
+    n = len(values)
+    if n <= limit:
+        return np.arange(n)
+    picked = [np.linspace(0, n - 1, limit).round().astype(np.int64)]
+    order = np.argsort(np.where(np.isfinite(values), values, np.nan), kind="stable")
+    finite = order[np.isfinite(values[order])]
+    if tail in ("upper", "both"):
+        picked.append(finite[-worst:])
+    if tail in ("lower", "both"):
+        picked.append(finite[:worst])
+    return np.unique(np.concatenate(picked))
+
+
+def _modes_caption(campaign, summary, histories, left_out, unit):
+    refex = summary["campaign"].get("refex")
+    rate = campaign.history_rate_hz
+    caption = (
+        f"Total angle error θ_t to the mode's final attitude and norm of the measured rate |ω_m| [{unit}, {unit}/s], "
+        "every run aligned at the start of each mode (from the runs table's time per mode). Gray bands: min-max "
+        "and 1-99 % of the flown runs at each time since mode start, line: median; black: the nominal run 0. "
+        f"Envelopes from per-bin histograms of {histories['rows']} history samples (80 bins per decade; axes "
+        "from the data's range)."
+    )
+    for quantity, modes in left_out.items():
+        if modes:
+            listed = ", ".join(f"{name} ({per_run:.1f} per run)" for name, per_run in modes.items())
+            caption += (
+                f" Left out of the {'angle' if quantity == 'theta_t_deg' else 'rate'} row for too few samples "
+                f"(history every {1 / rate:.4g} s): {listed}."
+            )
+    if refex:
+        caption += " ReFEx: 000 Fig. 11 analogue."
+    return caption
 
 
 def render_figures(campaign, summary):
@@ -101,31 +161,75 @@ def render_figures(campaign, summary):
     from refexmc.report import aggregate, figures
 
     result = []
+    plan = summary["outputs"]
+    refex = summary["campaign"].get("refex")
+    nominal_row = summary.get("nominal") or {}
+    successful = campaign.successful
+    panels, too_few = [], []
+    for column in plan["requirement_columns"]:
+        values = successful[column].to_numpy(dtype=float)
+        values = values[np.isfinite(values)]
+        if len(values) < 2:
+            too_few.append(column)
+            continue
+        panels.append(
+            {
+                "column": column,
+                "unit": plan["units"].get(column, ""),
+                "values": values,
+                "nominal": nominal_row.get(column),
+                "bounds": bounds_of(column, summary),
+            }
+        )
+    if panels or too_few:
+        caption = (
+            "Distribution of each requirement's metric over the successful flights (failed flights and errored "
+            "runs have no value; they count as failing the requirement). Dashed red: the requirement's bound in "
+            "the metric's own unit (marked at the edge when it lies far from the data); black: the nominal run 0."
+        )
+        if too_few:
+            caption += f" Too few samples to draw (fewer than 2 successful flights with a value): {', '.join(too_few)}."
+        if panels:
+            result.append(
+                ("The requirements' metrics", caption, figures.metric_distributions_figure(panels), "metrics")
+            )
+    summary["metric_figures"] = {p["column"]: "metrics" for p in panels}
+    summary["metric_figures_too_few"] = too_few
     histories = aggregate.aggregate_histories(campaign)
-    nominal = "nominal (run 0, black)" if campaign.nominal_run_id is not None else "no nominal run"
-    modes_png = figures.modes_figure(histories) if histories is not None else None
-    if modes_png is not None:
+    if histories is not None:
+        shown, left_out = aggregate.modes_with_samples(histories, len(campaign.ok))
+        arcsec = any(plan["units"].get(c) == "arcsec" for c in plan["requirement_columns"])
+        unit, scale = ("arcsec", ARCSEC_PER_DEG) if arcsec else ("deg", 1.0)
+        lines = []
+        if arcsec:
+            seen = set()
+            for r in summary["requirements"]:
+                column = split_metric(r["metric"])[0] if r["metric"] not in CAMPAIGN_METRICS else ""
+                if plan["units"].get(column) == "arcsec" and r["value"] not in seen:
+                    seen.add(r["value"])
+                    lines.append((r["value"], f"{r['value']:g}″ required ({r['requirement']})"))
+        png_bytes = figures.modes_figure(histories, shown, unit=unit, unit_scale=scale, lines=lines)
+        if png_bytes is not None:
+            title = "Angle and rate errors per mode" + (" (000 Fig. 11 analogue)" if refex else "")
+            result.append((title, _modes_caption(campaign, summary, histories, left_out, unit), png_bytes, "modes"))
+        summary["mode_panels"] = {
+            "shown": {q: [histories["mode_names"][m] for m in modes] for q, modes in shown.items()},
+            "left_out": left_out,
+        }
+    used = campaign.ok["fuel_used_kg"].to_numpy(dtype=float) if "fuel_used_kg" in campaign.ok else np.zeros(0)
+    fuel = campaign.ok["fuel_remaining"].to_numpy(dtype=float) if "fuel_remaining" in campaign.ok else np.zeros(0)
+    if np.isfinite(fuel).sum() >= 2 and (np.nan_to_num(used) > 0).any():
+        start = "separation" if refex else "the start of the flight"
         result.append(
             (
-                "Angle and rate errors per mode (000 Fig. 11 analogue)",
-                "Total angle error θ_t to the mode's final attitude and norm of the measured rate |ω_m|, every "
-                "run aligned at the start of each mode (from the runs table's time per mode). Gray bands: min-max "
-                f"and 1-99 % of the ok runs at each time since mode start, line: median; {nominal}. Envelopes are "
-                f"read from per-bin histograms of {histories['rows']} history samples (80 bins per decade).",
-                modes_png,
-                "modes",
+                "Propellant remaining" + (" (000 Fig. 9 and 12 analogue)" if refex else ""),
+                f"Left: propellant remaining over time since {start} (bands min-max and 1-99 % of the runs still "
+                "flying, median line; black: the nominal run 0). Right: distribution at the end of each run. Dashed "
+                "red: propellant requirements.",
+                figures.propellant_figure(campaign, histories, fuel_thresholds(summary), f"time since {start} [s]"),
+                "propellant",
             )
         )
-    result.append(
-        (
-            "Propellant remaining (000 Fig. 9 and 12 analogue)",
-            "Left: propellant remaining over time since separation (bands min-max and 1-99 % of the runs still "
-            f"flying, median line; {nominal}). Right: distribution at the end of each run. Dashed red: "
-            "propellant requirements.",
-            figures.propellant_figure(campaign, histories, fuel_thresholds(summary)),
-            "propellant",
-        )
-    )
     sets = summary["failure_sets"]
     if sets:
         result.append(
@@ -139,11 +243,10 @@ def render_figures(campaign, summary):
         )
         thrusters = campaign.thruster_count
         if thrusters and all(s["size"] <= 2 for s in sets) and sum(s["size"] > 0 for s in sets) >= 2:
-            vehicle = (campaign.resolved.get("vehicle") or {}).get("name")
-            show_paper = vehicle == "refex" and thrusters == 8
+            show_paper = refex and thrusters == 8
             result.append(
                 (
-                    "Thruster failure matrix (000 Table 4 analogue)",
+                    "Thruster failure matrix" + (" (000 Table 4 analogue)" if show_paper else ""),
                     "Single failures on the diagonal, pairs off it (symmetric): success and minimum propellant "
                     "remaining." + (" Framed cells: compensable according to 000 Table 4." if show_paper else ""),
                     figures.failure_matrix_figure(sets, thrusters, show_paper),
@@ -151,23 +254,60 @@ def render_figures(campaign, summary):
                 )
             )
     section = summary["sensitivity"]
-    if section and any(section.get(k) for k in SENSITIVITY_LABELS):
+    targets = [t for t in (section or {}).get("figure_targets", ()) if (section or {}).get(t)]
+    if targets:
         result.append(
             (
-                "Sensitivity (Spearman rank correlation)",
-                "Dispersed parameters with the largest |Spearman ρ| against propellant used and against the "
-                "angle error at hand-over. Gray band: |ρ| not significantly different from 0 at the 5 % level.",
-                figures.sensitivity_figure(section, SENSITIVITY_LABELS),
+                "What drives the failing and closest-to-failing requirements",
+                "Dispersed inputs with the largest |Spearman ρ| against each requirement metric that fails or is "
+                "closest to failing (bars), with the partial rank correlation (PRCC, diamonds) where the campaign "
+                "has more runs than inputs + 2. Gray band: |ρ| not significantly different from 0 at the 5 % level.",
+                figures.sensitivity_figure(section, targets, plan["labels"]),
                 "sensitivity",
             )
         )
-    if summary["convergence"] and len(summary["convergence"]["n"]) >= 2:
+        ok = campaign.ok
+        scatter = []
+        for row, target in enumerate(targets):
+            y = ok[target].to_numpy(dtype=float)
+            shown = scatter_runs(y, plan["tails"].get(target, "upper"))
+            for entry in section[target][:SCATTER_INPUTS]:
+                scatter.append(
+                    {
+                        "row": row,
+                        "x": ok[entry["parameter"]].to_numpy(dtype=float)[shown],
+                        "y": y[shown],
+                        "x_label": entry["parameter"],
+                        "y_label": target + (f" [{plan['units'][target]}]" if plan["units"].get(target) else ""),
+                        "bounds": bounds_of(target, summary),
+                        "rho": entry["rho"],
+                    }
+                )
+        result.append(
+            (
+                "Top inputs against the requirement metrics",
+                f"Each flown run's value of the {SCATTER_INPUTS} inputs with the largest |Spearman ρ| against the "
+                "metric (ρ over every flown run); dashed red: the requirement's bound."
+                + (
+                    f" Of the {len(ok)} flown runs, {MAX_SCATTER_POINTS} evenly spaced in run-id order and the "
+                    f"{SCATTER_WORST} worst of each metric are drawn."
+                    if len(ok) > MAX_SCATTER_POINTS
+                    else ""
+                ),
+                figures.scatter_figure(scatter),
+                "scatter",
+            )
+        )
+    convergence = summary["convergence"]
+    if convergence and len(convergence["n"]) >= 2:
+        column = convergence.get("column")
         result.append(
             (
                 "Convergence with the number of runs",
-                "Statistics over the first n ok runs (run-id order). A statistic that still moves at the right edge "
-                "needs more runs.",
-                figures.convergence_figure(summary["convergence"]),
+                "Statistics over the first n flown runs (run-id order): the success rate and"
+                + (f" {column} (over the successful flights among them)" if column else " nothing else")
+                + ". A statistic that still moves at the right edge needs more runs.",
+                figures.convergence_figure(convergence, unit=plan["units"].get(column, "") if column else ""),
                 "convergence",
             )
         )

@@ -63,6 +63,40 @@ def log_edges(low, high, per_decade=80):
     return np.geomspace(low, high, int(round(math.log10(high / low) * per_decade)) + 1)
 
 
+MAX_DECADES = 8  # log axes span at most this many decades below the largest value
+DEFAULT_RANGES = {"theta_t_deg": (1e-4, 1e3), "omega_m_deg_s": (1e-5, 1e3)}
+
+
+def history_range(campaign, column):
+    """Decade-rounded (low, high) of a history column's positive values, read from the Parquet
+    row-group statistics (no data read): the log axes and their bins follow the data, so a
+    fine-pointing mission's arcsec errors are not cut at a floor made for degrees. At most
+    ``MAX_DECADES`` decades; ``DEFAULT_RANGES`` when the parts carry no statistics."""
+    import pyarrow.parquet as pq
+
+    low, high = math.inf, -math.inf
+    for part in campaign.history_parts:
+        metadata = pq.ParquetFile(part).metadata
+        names = [metadata.schema.column(i).name for i in range(metadata.num_columns)]
+        if column not in names:
+            continue
+        index = names.index(column)
+        for group in range(metadata.num_row_groups):
+            statistics = metadata.row_group(group).column(index).statistics
+            if statistics is None or not statistics.has_min_max:
+                return DEFAULT_RANGES[column]
+            low, high = (
+                min(low, abs(float(statistics.min)) if float(statistics.min) > 0 else 0.0),
+                max(high, abs(float(statistics.max)), abs(float(statistics.min))),
+            )
+    if not math.isfinite(high) or high <= 0.0:
+        return DEFAULT_RANGES[column]
+    top = 10.0 ** math.ceil(math.log10(high))
+    floor = max(low, high * 10.0**-MAX_DECADES) if low > 0 else high * 10.0**-MAX_DECADES
+    bottom = 10.0 ** math.floor(math.log10(floor))
+    return bottom, max(top, bottom * 10)
+
+
 def mode_starts(runs, mode_time_columns):
     """[run, mode] start time of each mode [s] from the runs table's time per mode (modes are sequential)."""
     times = runs[mode_time_columns].to_numpy(dtype=float)
@@ -95,8 +129,12 @@ def aggregate_histories(campaign):
     mode_bins = int(longest_mode / mode_dt) + 2
     fuel_dt = max(sample_dt, t_end / MAX_TIME_BINS)
     fuel_bins = int(t_end / fuel_dt) + 2
-    angle = BinnedQuantiles(len(modes), mode_bins, mode_dt, log_edges(1e-4, 1e3), log=True)
-    rate = BinnedQuantiles(len(modes), mode_bins, mode_dt, log_edges(1e-5, 1e3), log=True)
+    angle = BinnedQuantiles(
+        len(modes), mode_bins, mode_dt, log_edges(*history_range(campaign, "theta_t_deg")), log=True
+    )
+    rate = BinnedQuantiles(
+        len(modes), mode_bins, mode_dt, log_edges(*history_range(campaign, "omega_m_deg_s")), log=True
+    )
     fuel = BinnedQuantiles(1, fuel_bins, fuel_dt, np.linspace(0.0, 1.0, 1001))
     valve_samples = np.zeros(len(modes), dtype=np.int64)
     nominal_id = campaign.nominal_run_id
@@ -150,6 +188,23 @@ def aggregate_histories(campaign):
         "nominal": nominal,
         "rows": rows,
     }
+
+
+MIN_SAMPLES_PER_RUN = 3  # a mode panel needs this many history samples per run on average
+
+
+def modes_with_samples(aggregate, runs):
+    """{quantity: [mode index]} of the modes with at least ``MIN_SAMPLES_PER_RUN`` samples of the
+    quantity per run, and {quantity: {mode name: samples per run}} of those left out with some."""
+    shown, left_out = {}, {}
+    for quantity, (binned, _) in aggregate["modes"].items():
+        per_run = binned.sample_counts().sum(axis=1) / max(runs, 1)
+        shown[quantity] = [int(m) for m in np.flatnonzero(per_run >= MIN_SAMPLES_PER_RUN)]
+        left_out[quantity] = {
+            aggregate["mode_names"][m]: float(per_run[m])
+            for m in np.flatnonzero((per_run > 0) & (per_run < MIN_SAMPLES_PER_RUN))
+        }
+    return shown, left_out
 
 
 def plotted_modes(aggregate):

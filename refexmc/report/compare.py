@@ -8,15 +8,18 @@ significant (two-sided, 5 %) **and** worse than the baseline by more than its to
 numerical noise (another numba or numpy version, a reordered sum) never fails CI while a real
 degradation does. Errored runs are excluded from every statistic except ``error_rate``, and counted.
 
-Metrics (``METRICS``; current minus baseline):
+Metrics (current minus baseline): the success and error rates, then the mission's own metrics
+(``mission_metrics``): the runs columns its requirements judge, then its other outputs
+(``outputs.plan``), each worse in the direction of its tail in ``report/tails.py``:
 
-- ``success_rate`` (of the ok runs) and ``error_rate`` (of all runs): difference of the two rates
-  with the Newcombe hybrid score interval (Newcombe 1998, method 10: Wilson intervals of each rate
-  combined; good coverage down to a few runs and at rates of 0 or 1, where the Wald interval
-  degenerates). Significant when the 95 % interval excludes 0. The p column shows Fisher's exact
-  test for reference. Tolerance 0: any significant drop of the success rate (or rise of the error
-  rate) is a regression.
-- Run-table columns (``fuel_remaining``, ``theta_t_handover_deg``, ``pulses_total``, ``t_end_s``):
+- ``success_rate`` (over all runs, an errored run unsuccessful, as the report counts it) and
+  ``error_rate`` (of all runs): difference of the two rates with the Newcombe hybrid score
+  interval (Newcombe 1998, method 10: Wilson intervals of each rate combined; good coverage down
+  to a few runs and at rates of 0 or 1, where the Wald interval degenerates). Significant when the
+  95 % interval excludes 0. The p column shows Fisher's exact test for reference. Tolerance 0: any
+  significant drop of the success rate (or rise of the error rate) is a regression.
+- Run-table columns (``fuel_remaining``, ``theta_t_handover_deg``, ``pulses_total``, ``t_end_s``,
+  and every other metric of the mission):
   - **paired**, when both campaigns flew the same dispersed inputs (``pairing``: same run ids,
     seeds, failed thrusters and values of every dispersed parameter both have): the median of the
     per-run differences with its distribution-free 95 % interval (sign-test order statistics,
@@ -43,9 +46,11 @@ gating), chosen against the smoke campaign, which uses 40-50 % of its propellant
   (smoke: 229 s, 0.7 s across the dispersions); a shift either way is a change that phase's
   analysis has not seen, so both directions count as a regression.
 
-A ``--tolerance`` for another numeric column of the runs table (``fuel_used_kg``, ``t_sam_s``,
-``pulses_3``, ...) adds that column to the comparison (``COLUMN_BETTER`` says which direction is
-worse; ``either`` for columns without one).
+A requirement column without a default tolerance regresses when it loses more than
+``REQUIREMENT_MARGIN_SHARE`` (10 %) of the baseline's margin, median to the nearest bound; any other
+output is shown with tolerance inf (never a regression) unless ``--tolerance`` names it. A
+``--tolerance`` for another numeric column of the runs table (``pulses_3``, ...) adds that column
+to the comparison (its tail says which direction is worse; ``either`` for columns without one).
 """
 
 import difflib
@@ -56,7 +61,8 @@ import numpy as np
 from scipy import stats as sps
 
 from refexmc.config.errors import ConfigError
-from refexmc.report import data, stats
+from refexmc.config.requirements import parse_requirement
+from refexmc.report import data, outputs, stats, tails
 from refexmc.report.stats import ks_p, median_interval, newcombe_interval, welch_interval, wilcoxon_p
 from refexmc.report.text import number
 
@@ -87,12 +93,69 @@ METRICS = {
     )
 }
 COLUMN_BETTER = {"fuel_used_kg": "lower", "modes_completed": "higher"}  # extra columns; default "either"
+BETTER_BY_TAIL = {"upper": "lower", "lower": "higher", "both": "either"}  # report/tails.py's worse tail
+# a requirement metric without a default tolerance regresses when it loses more than this share of
+# the baseline's margin to the requirement (median to bound): small against the margin the
+# requirement leaves, large against run-to-run noise, which moves the median by far less
+REQUIREMENT_MARGIN_SHARE = 0.1
 
 
 def _column_better(column):
     if column.startswith("pulses_"):
         return "lower"
-    return COLUMN_BETTER.get(column, "either")
+    tail = tails.worse_tail(column)
+    return COLUMN_BETTER.get(column, BETTER_BY_TAIL[tail] if tail else "either")
+
+
+def _requirements(campaign):
+    """The campaign's requirements as the dicts ``outputs`` reads (metric, op, value, requirement);
+    a malformed one is left out here (``refexmc report`` says what is wrong with it)."""
+    columns = list(campaign.runs.columns)
+    result = []
+    for text in campaign.resolved.get("requirements") or []:
+        try:
+            r = parse_requirement(text, columns, "campaign")
+        except ConfigError:
+            continue
+        result.append({"metric": r.metric, "op": r.op, "value": r.value, "requirement": r.text})
+    return result
+
+
+def requirement_tolerance(column, requirements, baseline):
+    """``REQUIREMENT_MARGIN_SHARE`` of the smallest margin between the baseline's median of
+    ``column`` (successful flights) and a bound of its requirements; inf when not computable."""
+    values = baseline.successful[column].to_numpy(dtype=float)
+    values = values[np.isfinite(values)]
+    if not len(values):
+        return math.inf
+    median = float(np.median(values))
+    margins = [abs(r["value"] - median) for r in outputs.requirements_of(column, requirements) if r["op"] != "=="]
+    margins = [m for m in margins if m > 0.0]
+    return REQUIREMENT_MARGIN_SHARE * min(margins) if margins else math.inf
+
+
+def mission_metrics(baseline, current):
+    """MetricSpecs of the mission's own metrics both runs tables have: the requirements' columns
+    (both campaigns'), then the other outputs (``outputs.plan``) that vary in either campaign.
+    Defaults: ``METRICS`` where it names the column; a requirement column
+    ``requirement_tolerance``; any other output inf (shown, never a regression by default)."""
+    requirements = _requirements(current) + [r for r in _requirements(baseline) if r not in _requirements(current)]
+    plans = [outputs.plan(campaign, requirements) for campaign in (baseline, current)]
+    both = set(baseline.runs.columns) & set(current.runs.columns)
+    judged = [c for c in outputs.requirement_columns(requirements) if c in both]
+    others = []
+    for plan in plans:
+        others += [c for c in plan["other_columns"] if c in both and c not in judged and c not in others]
+    specs = {}
+    for column in [*judged, *others]:
+        if column in METRICS:
+            specs[column] = METRICS[column]
+            continue
+        tail = plans[1]["tails"].get(column) or plans[0]["tails"].get(column) or "both"
+        better = BETTER_BY_TAIL[tail]
+        tolerance = requirement_tolerance(column, requirements, baseline) if column in judged else math.inf
+        specs[column] = MetricSpec(column, "distribution", better, tolerance, 4)
+    return specs
 
 
 @dataclass
@@ -320,6 +383,7 @@ def parse_tolerances(texts, baseline, current):
     """
     columns = [c for c in _numeric_columns(baseline) if c in set(_numeric_columns(current))]
     known = list(METRICS) + [c for c in columns if c not in METRICS]
+    mission = mission_metrics(baseline, current) if texts else {}
     specs = {}
     for text in texts:
         where = {"path": ("--tolerance",)}
@@ -335,6 +399,8 @@ def parse_tolerances(texts, baseline, current):
             raise ConfigError(f"expected a tolerance >= 0 (or inf), got '{value_text}' in '{text}'", **where)
         if metric in METRICS:
             base = METRICS[metric]
+        elif metric in mission:
+            base = mission[metric]
         elif metric in columns:
             base = MetricSpec(metric, "distribution", _column_better(metric), value)
         else:
@@ -370,13 +436,14 @@ def compare(baseline_out, current_out, tolerances=()):
     baseline = data.load(baseline_out)
     current = data.load(current_out)
     overrides = parse_tolerances(tolerances, baseline, current)
-    specs = {**METRICS, **overrides}
+    rates = {name: METRICS[name] for name in ("success_rate", "error_rate")}
+    specs = {**rates, **mission_metrics(baseline, current), **overrides}
     pairs = pairing(baseline, current)
     b, c = _describe(baseline), _describe(current)
     results = []
     for spec in specs.values():
-        if spec.name == "success_rate":
-            results.append(compare_proportion(spec, b["success"], b["ok"], c["success"], c["ok"], spec.tolerance))
+        if spec.name == "success_rate":  # over all runs, an errored run unsuccessful: as the report
+            results.append(compare_proportion(spec, b["success"], b["runs"], c["success"], c["runs"], spec.tolerance))
         elif spec.name == "error_rate":
             results.append(compare_proportion(spec, b["errored"], b["runs"], c["errored"], c["runs"], spec.tolerance))
         elif spec.name in baseline.runs and spec.name in current.runs:
@@ -438,7 +505,7 @@ def _p(value):
 
 def _tolerance(m):
     if math.isinf(m.tolerance):
-        return "inf"
+        return "inf (not gated)"
     worse = {"higher": "drop", "lower": "rise", "either": "either way"}[m.better]
     return f"{number(m.tolerance)} ({worse})"
 

@@ -1,10 +1,12 @@
 """The report's figures as PNG bytes (matplotlib's Agg renderer; no pyplot, no global state).
 
-- ``modes``: 000 Fig. 11 analogue, theta_t and |omega_m| per mode with runs aligned at mode start;
-- ``propellant``: 000 Fig. 9/12 analogue, propellant remaining over time and at the end;
+- ``metric_distributions``: a histogram per requirement metric with its bounds;
+- ``modes``: theta_t and |omega_m| per mode with runs aligned at mode start (000 Fig. 11 for ReFEx);
+- ``propellant``: propellant remaining over time and at the end (000 Fig. 9/12 for ReFEx);
 - ``failure_sets`` / ``failure_matrix``: success and propellant per failed-thruster set, and the
   thruster-pair matrix of a failure sweep (000 Table 4 analogue);
-- ``sensitivity``: Spearman rank correlations of the dispersed parameters (tornado chart);
+- ``sensitivity``: Spearman and partial rank correlations of the dispersed parameters (tornado chart),
+  and ``scatter``: the top inputs against each failing or closest-to-failing requirement metric;
 - ``convergence``: key statistics against the number of runs.
 """
 
@@ -14,8 +16,8 @@ import math
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullLocator
 
-from refexmc.report.aggregate import plotted_modes
 from refexmc.report.summary import PAPER_COMPENSABLE
 
 DPI = 100
@@ -23,6 +25,7 @@ BAND_COLORS = ("#d9d9d9", "#a6a6a6")  # min-max, 1-99 %
 MEDIAN_COLOR = "#595959"
 NOMINAL_COLOR = "black"
 TORNADO_BARS = 12
+RELATIVE_SPREAD_FOR_REFERENCE = 1e3  # |value| / spread above which a histogram is drawn about a reference
 MAX_FAILURE_SETS = 60
 
 
@@ -47,91 +50,186 @@ def _envelope(ax, x, q, label_runs=True):
     ax.plot(x, q[:, 2], color=MEDIAN_COLOR, lw=0.8, label="median" if label_runs else None)
 
 
-def modes_figure(aggregate, nominal_label="nominal"):
-    """000 Fig. 11 analogue: per controlled mode (``plotted_modes``), runs aligned at the mode's start.
+ROW_LABELS = {"theta_t_deg": "total angle error θ_t", "omega_m_deg_s": "measured rate |ω_m|"}
 
-    None when no mode has a sample.
-    """
-    modes = plotted_modes(aggregate)
-    if not modes:
+
+def modes_figure(aggregate, modes_by_quantity, nominal_label="nominal (run 0)", unit="deg", unit_scale=1.0, lines=()):
+    """Angle and rate errors per mode, runs aligned at each mode's start: one row per quantity with a
+    panel for each mode in ``modes_by_quantity[quantity]`` (modes with enough samples of it), log
+    axes from the data. ``unit``/``unit_scale``: deg (1) or arcsec (3600); ``lines``: (value in
+    ``unit``, label) drawn on the angle row (requirements in that unit). None when no panel has data."""
+    rows = [q for q in ("theta_t_deg", "omega_m_deg_s") if modes_by_quantity.get(q)]
+    if not rows:
         return None
     names = aggregate["mode_names"]
     durations = np.asarray(aggregate["mode_durations"], dtype=float)
-    widths = [max(durations[m], 0.08 * durations.max(), 1e-3) for m in modes]
-    figure = Figure(figsize=(13, 6.5), layout="constrained")
-    grid = figure.add_gridspec(2, len(modes), width_ratios=widths)
     nominal = aggregate["nominal"]
-    rows = (("theta_t_deg", "total angle error θ_t [deg]"), ("omega_m_deg_s", "measured rate |ω_m| [deg/s]"))
-    for r, (quantity, ylabel) in enumerate(rows):
+    figure = Figure(figsize=(13, 3.4 * len(rows) + 0.4), layout="constrained")
+    subfigures = np.atleast_1d(figure.subfigures(len(rows), 1))
+    for subfigure, quantity in zip(subfigures, rows, strict=True):
+        modes = modes_by_quantity[quantity]
         binned, q = aggregate["modes"][quantity]
+        q = q * unit_scale
         x = (np.arange(binned.time_bins) + 0.5) * binned.dt
+        widths = [max(durations[m], 0.12 * durations[modes].max(), 1e-3) for m in modes]
+        grid = subfigure.add_gridspec(1, len(modes), width_ratios=widths)
         first = None
+        floor = binned.edges[0] * unit_scale
+        top = np.nanmax(q[modes][:, :, 4]) if np.isfinite(q[modes][:, :, 4]).any() else floor * 10
         for c, m in enumerate(modes):
-            ax = figure.add_subplot(grid[r, c], sharey=first)
+            ax = subfigure.add_subplot(grid[0, c], sharey=first)
             first = first or ax
             _envelope(ax, x, q[m], label_runs=(c == 0))
             if nominal is not None:
-                mine = nominal["mode"] == m
+                mine = (nominal["mode"] == m) & np.isfinite(nominal[quantity])
                 ax.plot(
                     nominal["tau"][mine],
-                    nominal[quantity][mine],
+                    unit_scale * nominal[quantity][mine],
                     color=NOMINAL_COLOR,
                     lw=1.0,
+                    marker="." if mine.sum() < 20 else None,
                     label=nominal_label if c == 0 else None,
                 )
+            if quantity == "theta_t_deg":
+                for value, text in lines:
+                    ax.axhline(value, color="tab:red", ls="--", lw=1, label=text if c == 0 else None)
             ax.set_yscale("log")
+            ax.yaxis.set_minor_locator(NullLocator())  # minor log ticks on a dozen panels: most of the figure's time
+            ax.set_ylim(
+                floor, max(top, *(v for v, _ in lines), floor * 10) * 1.5 if quantity == "theta_t_deg" else top * 1.5
+            )
             ax.set_xlim(0, max(durations[m], binned.dt))
             ax.grid(True, which="major", lw=0.3)
-            if r == 0:
-                ax.set_title(names[m])
-            if r == 1:
-                ax.set_xlabel("s since mode start", fontsize=8)
+            ax.set_title(names[m], fontsize=9)
             if c == 0:
-                ax.set_ylabel(ylabel)
-                if r == 0 and ax.get_legend_handles_labels()[0]:
+                rate = "/s" if quantity == "omega_m_deg_s" else ""
+                ax.set_ylabel(f"{ROW_LABELS[quantity]} [{unit}{rate}]", fontsize=8)
+                if ax.get_legend_handles_labels()[0]:
                     ax.legend(fontsize=7, loc="lower left")
             else:
                 ax.tick_params(labelleft=False)
             ax.tick_params(labelsize=7)
+        subfigure.supxlabel("time since the start of each mode [s]", fontsize=8)
     return png(figure)
 
 
-def propellant_figure(campaign, aggregate, thresholds=()):
-    """000 Fig. 9/12 analogue: propellant remaining over time (envelope, nominal) and at the end."""
+def _bounds_on_axis(ax, lows, highs, bounds, vertical=True, reach=3.0):
+    """Draw each (value, label) bound as a dashed red line when it lies within ``reach`` data spans
+    of the data; one further off the scale gets a legend entry with its value and direction
+    instead of squeezing the data into a corner."""
+    span = max(highs - lows, abs(highs) * 1e-9, 1e-300)
+    for value, text in bounds:
+        if lows - reach * span <= value <= highs + reach * span:
+            if vertical:
+                ax.axvline(value, color="tab:red", ls="--", lw=1.2, label=text)
+            else:
+                ax.axhline(value, color="tab:red", ls="--", lw=1.2, label=text)
+        else:
+            if vertical:
+                arrow = "right" if value > highs else "left"
+            else:
+                arrow = "above" if value > highs else "below"
+            ax.plot([], [], color="tab:red", ls=":", lw=1.2, label=f"{text} (off scale, {arrow})")
+
+
+def _data_limits(values):
+    low, high = float(np.min(values)), float(np.max(values))
+    if high == low:
+        pad = abs(low) * 1e-3 or 0.5
+        return low - pad, high + pad
+    return low, high
+
+
+def metric_distributions_figure(panels):
+    """Histogram per requirement metric over the successful flights, its bounds in the metric's own
+    unit and the nominal run. ``panels``: dicts with column, unit, values, nominal (or None), bounds
+    [(value, label)]. Ranges from the data; a bound far from the data is marked at the edge."""
+    columns = min(3, len(panels))
+    rows = -(-len(panels) // columns)
+    figure = Figure(figsize=(4.3 * columns + 0.4, 3.1 * rows + 0.3), layout="constrained")
+    axes = np.atleast_1d(figure.subplots(rows, columns)).ravel()
+    for ax, panel in zip(axes, panels, strict=False):
+        values = np.asarray(panel["values"], dtype=float)
+        low, high = _data_limits(values)
+        # values far from 0 against their spread (an entry angle of -5.0000026 +- 1e-6 deg) are drawn
+        # as the difference to a round reference, which the axis label names
+        reference = 0.0
+        if high > low and abs(high) / (high - low) > RELATIVE_SPREAD_FOR_REFERENCE:
+            reference = float(f"{np.median(values):.{int(math.ceil(math.log10(abs(high) / (high - low))))}g}")
+        values, low, high = values - reference, low - reference, high - reference
+        ax.hist(
+            values,
+            bins=min(60, max(8, int(math.sqrt(len(values))))),
+            range=(low, high),
+            color=BAND_COLORS[1],
+            edgecolor="white",
+            lw=0.3,
+            label=f"{len(values)} successful flights",
+        )
+        if panel.get("nominal") is not None and math.isfinite(panel["nominal"]):
+            ax.axvline(panel["nominal"] - reference, color=NOMINAL_COLOR, lw=1.2, label="nominal (run 0)")
+        _bounds_on_axis(ax, low, high, [(value - reference, text) for value, text in panel["bounds"]])
+        unit = f" [{panel['unit']}]" if panel["unit"] else ""
+        name = panel["column"] if reference == 0.0 else f"{panel['column']} − ({reference:g})"
+        ax.ticklabel_format(axis="x", useOffset=False)
+        ax.set_xlabel(f"{name}{unit}", fontsize=8)
+        ax.set_ylabel("runs", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize=6.5)
+    for ax in axes[len(panels) :]:
+        figure.delaxes(ax)
+    return png(figure)
+
+
+def propellant_figure(campaign, aggregate, thresholds=(), time_label="time since the start of the flight [s]"):
+    """Propellant remaining over time (envelope of the runs still flying, nominal) and at the end;
+    ranges from the data, a requirement off the data's scale marked at the edge."""
     ok = campaign.ok
+    fuel = 100 * ok["fuel_remaining"].to_numpy(dtype=float)
+    fuel = fuel[np.isfinite(fuel)]
+    with_history = aggregate is not None and np.isfinite(aggregate["propellant"][1][0][:, 2]).any()
     figure = Figure(figsize=(12, 4.2), layout="constrained")
-    axes = figure.subplots(1, 2, width_ratios=[2, 1]) if aggregate is not None else [None, figure.subplots()]
+    axes = figure.subplots(1, 2, width_ratios=[2, 1]) if with_history else [None, figure.subplots()]
     nominal_id = campaign.nominal_run_id
-    if aggregate is not None:
+    bounds = [(100 * value, text) for value, text in thresholds]
+    if with_history:
         ax = axes[0]
         binned, q = aggregate["propellant"]
         x = (np.arange(binned.time_bins) + 0.5) * binned.dt
         _envelope(ax, x, 100 * q[0])
         nominal = aggregate["nominal"]
         if nominal is not None:
-            ax.plot(nominal["t_s"], 100 * nominal["fuel_remaining"], color=NOMINAL_COLOR, lw=1.0, label="nominal")
-        for value, text in thresholds:
-            ax.axhline(100 * value, color="tab:red", ls="--", lw=1, label=text)
-        ax.set_xlabel("time since separation [s]")
+            ax.plot(
+                nominal["t_s"], 100 * nominal["fuel_remaining"], color=NOMINAL_COLOR, lw=1.0, label="nominal (run 0)"
+            )
+        low = float(np.nanmin(100 * q[0][:, 0]))
+        _bounds_on_axis(ax, low, 100.0, bounds, vertical=False)
+        ax.set_xlabel(time_label)
         ax.set_ylabel("propellant remaining [%]")
-        ax.set_ylim(0, 100)
+        ax.set_ylim(max(0.0, low - 0.05 * (100 - low)), 100.5)
         ax.grid(True, lw=0.3)
         ax.legend(fontsize=8, loc="lower left")
     ax = axes[1]
-    fuel = 100 * ok["fuel_remaining"].to_numpy(dtype=float)
-    fuel = fuel[np.isfinite(fuel)]
-    if len(fuel):
-        ax.hist(fuel, bins=min(60, max(10, int(math.sqrt(len(fuel))))), color=BAND_COLORS[1], edgecolor="white", lw=0.3)
+    low, high = _data_limits(fuel)
+    ax.hist(
+        fuel,
+        bins=min(60, max(10, int(math.sqrt(len(fuel))))),
+        range=(low, high),
+        color=BAND_COLORS[1],
+        edgecolor="white",
+        lw=0.3,
+        label=f"{len(fuel)} flown runs",
+    )
     if nominal_id is not None:
         value = float(ok.loc[ok["run_id"] == nominal_id, "fuel_remaining"].iloc[0])
-        ax.axvline(100 * value, color=NOMINAL_COLOR, lw=1.2, label=f"nominal {100 * value:.1f} %")
-    for value, text in thresholds:
-        ax.axvline(100 * value, color="tab:red", ls="--", lw=1, label=text)
+        if math.isfinite(value):
+            ax.axvline(100 * value, color=NOMINAL_COLOR, lw=1.2, label=f"nominal {100 * value:.1f} %")
+    _bounds_on_axis(ax, low, high, bounds)
     ax.set_xlabel("propellant remaining at the end [%]")
     ax.set_ylabel("runs")
     ax.grid(True, lw=0.3)
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=8)
+    ax.legend(fontsize=8)
     return png(figure)
 
 
@@ -206,35 +304,70 @@ def _square(row, column):
     return Rectangle((column - 0.5, row - 0.5), 1, 1, fill=False, edgecolor="black", lw=2)
 
 
-def sensitivity_figure(section, labels):
-    """Tornado charts: the parameters with the largest |Spearman rho| for each output."""
-    outputs = [o for o in labels if section.get(o)]
-    figure = Figure(figsize=(6.5 * len(outputs), 0.32 * TORNADO_BARS + 1.6), layout="constrained")
-    axes = np.atleast_1d(figure.subplots(1, len(outputs)))
+def sensitivity_figure(section, targets, labels=None):
+    """Tornado charts per target output: Spearman ρ (bars) and PRCC (diamonds) of the inputs with the
+    largest |ρ|; the band of |ρ| not significant at 5 %."""
+    labels = labels or {}
+    figure = Figure(figsize=(6.2 * len(targets), 0.32 * TORNADO_BARS + 1.8), layout="constrained")
+    axes = np.atleast_1d(figure.subplots(1, len(targets)))
     critical = section.get("critical_abs_rho_95")
-    for ax, output in zip(axes, outputs, strict=True):
+    for ax, output in zip(axes, targets, strict=True):
         rows = section[output][:TORNADO_BARS][::-1]
         rho = np.array([r["rho"] for r in rows])
         y = np.arange(len(rows))
-        ax.barh(y, rho, color=["tab:red" if v > 0 else "tab:blue" for v in rho])
+        ax.barh(y, rho, color=["tab:red" if v > 0 else "tab:blue" for v in rho], label="Spearman ρ")
+        prcc = np.array([np.nan if r.get("prcc") is None else r["prcc"] for r in rows])
+        if np.isfinite(prcc).any():
+            ax.plot(prcc, y, "D", color="black", ms=4, label="PRCC")
         ax.set_yticks(y, [r["parameter"][2:] for r in rows], fontsize=7)
         if critical is not None and math.isfinite(critical):
             ax.axvspan(
                 -critical, critical, color="#eeeeee", zorder=0, label=f"|ρ| < {critical:.2f}: not significant (5 %)"
             )
-            ax.legend(fontsize=7, loc="lower right")
         ax.axvline(0, color="black", lw=0.6)
         ax.set_xlim(-1, 1)
-        ax.set_xlabel(f"Spearman ρ with {labels[output]}", fontsize=8)
+        ax.set_xlabel(f"rank correlation with {output}", fontsize=8)
+        ax.set_title(labels.get(output, output), fontsize=8, wrap=True)
         ax.grid(True, axis="x", lw=0.3)
+        ax.legend(fontsize=7, loc="lower right")
     return png(figure)
 
 
-def convergence_figure(section):
-    """Success rate with its 95 % interval, and propellant statistics, against the number of runs."""
+def scatter_figure(panels):
+    """Inputs against a metric: ``panels`` dicts with x (input values), y (metric), x_label, y_label,
+    bounds [(value, label)] on the metric, rho. One row per metric, up to three inputs each."""
+    rows = sorted({p["row"] for p in panels})
+    columns = max(sum(p["row"] == r for p in panels) for r in rows)
+    figure = Figure(figsize=(4.3 * columns + 0.4, 3.0 * len(rows) + 0.3), layout="constrained")
+    axes = np.atleast_2d(figure.subplots(len(rows), columns, squeeze=False))
+    used = set()
+    for r, row in enumerate(rows):
+        for c, panel in enumerate(p for p in panels if p["row"] == row):
+            ax = axes[r, c]
+            used.add((r, c))
+            ax.plot(panel["x"], panel["y"], ".", color="tab:blue", ms=3, label=f"ok runs, ρ = {panel['rho']:+.2f}")
+            y = np.asarray(panel["y"], dtype=float)
+            y = y[np.isfinite(y)]
+            _bounds_on_axis(ax, float(y.min()), float(y.max()), panel["bounds"], vertical=False)
+            ax.set_xlabel(panel["x_label"], fontsize=7)
+            ax.set_ylabel(panel["y_label"], fontsize=7)
+            ax.tick_params(labelsize=7)
+            ax.grid(True, lw=0.3)
+            ax.legend(fontsize=6.5)
+    for r in range(len(rows)):
+        for c in range(columns):
+            if (r, c) not in used:
+                figure.delaxes(axes[r, c])
+    return png(figure)
+
+
+def convergence_figure(section, unit_scale=1.0, unit=""):
+    """Success rate with its 95 % interval, and the statistics of one metric, against the number of runs."""
     n = np.asarray(section["n"])
-    figure = Figure(figsize=(12, 4), layout="constrained")
-    left, right = figure.subplots(1, 2)
+    statistics = section.get("statistics") or {}
+    figure = Figure(figsize=(12 if statistics else 6.5, 4), layout="constrained")
+    axes = np.atleast_1d(figure.subplots(1, 2 if statistics else 1))
+    left = axes[0]
     left.fill_between(
         n,
         100 * np.asarray(section["success_ci95_low"]),
@@ -244,20 +377,16 @@ def convergence_figure(section):
     )
     left.plot(n, 100 * np.asarray(section["success_rate"]), color="black", label="success rate")
     left.set_ylabel("success [%]")
-    names = {
-        "fuel_remaining.mean": "mean",
-        "fuel_remaining.p1": "1st percentile",
-        "fuel_remaining.mean_minus_3sd": "mean - 3 sd",
-        "fuel_remaining.tol_lower": "tolerance bound (99.865 %/95 %)",
-        "fuel_remaining.min": "min",
-    }
-    for key, label in names.items():
-        values = np.asarray(section[key], dtype=float)
-        right.plot(n, 100 * values, label=label)
-    right.set_ylabel("propellant remaining [%]")
-    for ax in (left, right):
+    if statistics:
+        right = axes[1]
+        for entry in statistics.values():
+            values = unit_scale * np.asarray(entry["values"], dtype=float)
+            right.plot(n, values, label=entry["label"])
+        right.set_ylabel(f"{section['column']}" + (f" [{unit}]" if unit else ""))
+    for ax in axes:
         ax.set_xscale("log")
+        ax.xaxis.set_minor_locator(NullLocator())
         ax.set_xlabel("runs")
-        ax.grid(True, which="both", lw=0.3)
+        ax.grid(True, which="major", lw=0.3)
         ax.legend(fontsize=8)
     return png(figure)

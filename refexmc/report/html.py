@@ -2,16 +2,18 @@
 
 import base64
 import html
-import math
 
-from refexmc.report.requirements import requirement_label
-from refexmc.report.text import TABLE_STATS, TAIL_TITLES, number, percent
+from refexmc.report.requirements import requirement_label, split_metric
+from refexmc.report.text import TABLE_STATS, TAIL_TITLES, constant_line, number, percent, pulse_table, row_digits
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; }
 h1 { margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #ccc; margin-top: 1.6em; }
-table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; }
-th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
+table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; max-width: 100%; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; overflow-wrap: anywhere; }
+th { font-weight: 600; overflow-wrap: normal; }
+.wide { max-width: 100%; overflow-x: auto; }
+td.fail, span.fail { background: #f6d0d0; }
 th:first-child, td:first-child { text-align: left; }
 td.text { text-align: left; }
 .pass { background: #d8f0d8; } .fail { background: #f6d0d0; } .none { background: #eeeeee; }
@@ -29,13 +31,23 @@ def e(value):
     return html.escape(str(value), quote=True)
 
 
-def table(headers, rows, classes=None):
-    """An HTML table; ``rows`` of already-escaped cell strings."""
-    out = ["<table><tr>" + "".join(f"<th>{e(h)}</th>" for h in headers) + "</tr>"]
+def breakable(text):
+    """Escaped text that may wrap after ``_`` and ``.`` (long column names in table headers)."""
+    return e(text).replace("_", "_<wbr>").replace(".", ".<wbr>")
+
+
+def table(headers, rows, classes=None, cell_classes=None):
+    """An HTML table in a box that scrolls sideways rather than widen the page; ``rows`` of
+    already-escaped cell strings; ``classes`` per row, ``cell_classes`` per cell (or None)."""
+    out = ['<div class="wide"><table><tr>' + "".join(f"<th>{breakable(h)}</th>" for h in headers) + "</tr>"]
     for k, row in enumerate(rows):
         cls = f' class="{classes[k]}"' if classes and classes[k] else ""
-        out.append(f"<tr{cls}>" + "".join(f"<td>{cell}</td>" for cell in row) + "</tr>")
-    out.append("</table>")
+        cells = []
+        for j, cell in enumerate(row):
+            cell_class = cell_classes[k][j] if cell_classes and cell_classes[k] and cell_classes[k][j] else ""
+            cells.append(f'<td class="{cell_class}">{cell}</td>' if cell_class else f"<td>{cell}</td>")
+        out.append(f"<tr{cls}>" + "".join(cells) + "</tr>")
+    out.append("</table></div>")
     return "\n".join(out)
 
 
@@ -69,28 +81,94 @@ def requirements_section(summary):
     return table(["verdict", "requirement", "actual", "runs covered", "note", "source"], rows, classes)
 
 
-def statistics_section(summary):
-    """One table per worse tail; each row says which runs it covers and how its tolerance bound was computed."""
+def _column_verdicts(summary):
+    """{column: passed} over the requirements on each runs column (all of them met)."""
+    result = {}
+    for column in (summary.get("outputs") or {}).get("requirement_columns", ()):
+        judged = [r for r in summary["requirements"] if split_metric(r["metric"])[0] == column]
+        result[column] = all(r["passed"] for r in judged)
+    return result
+
+
+def _statistics_tables(summary, columns, verdicts=None):
+    """One table per worse tail; what the rows cover and how tol99/95 was computed once per table
+    (per row only where rows differ)."""
     parts = []
+    labels = (summary.get("outputs") or {}).get("labels", {})
+    units = (summary.get("outputs") or {}).get("units", {})
     for tail, entries in TABLE_STATS.items():
-        rows = []
-        for column, values in summary["columns"].items():
-            if values["tail"] != tail:
-                continue
-            cells = [number(values[key]) for key, _ in entries]
-            rows.append(
-                [
-                    f"<code>{e(column)}</code>",
-                    e(values["covers"]),
-                    *cells,
-                    number(values["std"]),
-                    e(values["tolerance_99_95_method"]),
-                ]
-            )
-        if rows:
-            headers = ["column", "runs covered", *(h for _, h in entries), "std", "tol99/95 method"]
-            parts.append(f"<h3>{e(TAIL_TITLES[tail])}</h3>" + table(headers, rows))
+        chosen = [c for c in columns if summary["columns"].get(c, {}).get("tail") == tail]
+        if not chosen:
+            continue
+        covers = {summary["columns"][c]["covers"] for c in chosen}
+        methods = {summary["columns"][c]["tolerance_99_95_method"] for c in chosen}
+        rows, classes = [], []
+        for column in chosen:
+            values = summary["columns"][column]
+            unit = f" [{units[column]}]" if units.get(column) else ""
+            row = [
+                f"<code>{e(column)}</code>{e(unit)}<br><small>{e(labels.get(column, ''))}</small>",
+                str(values["n"]),
+                *(number(values[key], row_digits(values)) for key, _ in entries),
+            ]
+            if len(covers) > 1:
+                row.insert(1, e(values["covers"]))
+            if len(methods) > 1:
+                row.append(e(values["tolerance_99_95_method"]))
+            rows.append(row)
+            classes.append(None if verdicts is None else ("pass" if verdicts.get(column) else "fail"))
+        headers = ["column", "n", *(h for _, h in entries)]
+        if len(covers) > 1:
+            headers.insert(1, "runs covered")
+        if len(methods) > 1:
+            headers.append("tol99/95 method")
+        note = []
+        if len(covers) == 1:
+            note.append(f"over {covers.pop()}")
+        if len(methods) == 1 and tail != "both":
+            note.append(f"tol99/95: {methods.pop()}")
+        parts.append(
+            f"<h3>{e(TAIL_TITLES[tail])}</h3>"
+            + (f"<p>{e('; '.join(note))}.</p>" if note else "")
+            + table(headers, rows, classes)
+        )
     return "\n".join(parts)
+
+
+def statistics_section(summary):
+    """The other outputs' tables, the constant outputs in one line and the pulse counts in one table."""
+    plan = summary.get("outputs") or {}
+    parts = [_statistics_tables(summary, [c for c in plan.get("other_columns", ()) if c in summary["columns"]])]
+    constants = constant_line(summary)
+    if constants:
+        parts.append(f"<p>The same in every successful flight: {e(constants)}.</p>")
+    thrusters, pulse_rows = pulse_table(summary)
+    if thrusters:
+        rows = [[e(h), *(number(v) for v in values)] for h, values in pulse_rows]
+        parts.append("<h3>Valve pulses per thruster</h3>" + table(["thruster", *thrusters], rows))
+    if plan.get("not_produced"):
+        parts.append(
+            f"<p>Columns without a value in any flown run (not produced by this mission): "
+            f"{e(', '.join(plan['not_produced']))}.</p>"
+        )
+    return "\n".join(parts)
+
+
+def inputs_section(inputs):
+    rows = []
+    for row in inputs["rows"]:
+        drawn = "; ".join(
+            (f"{d['component']}: " if d["component"] else "") + f"{number(d['min'])} … {number(d['max'])}"
+            for d in row["drawn"]
+        )
+        rows.append(
+            [f"<code>{e(row['parameter'])}</code>", e(row["distribution"]), e(row["parameters"]), e(drawn or "-")]
+        )
+    if not rows:
+        return "<p>No dispersed parameter: every run flies the same inputs.</p>"
+    return f"<p>Drawn range: min … max over the {e(inputs['covers'])}.</p>" + table(
+        ["parameter", "distribution", "parameters", "drawn range"], rows
+    )
 
 
 def failure_reasons_section(reasons):
@@ -106,13 +184,31 @@ def failure_reasons_section(reasons):
 
 
 def wheel_failure_sets_section(wheel_sets):
+    """One row per failed-wheel set, coloured by the requirements judged on its runs; a statistic
+    that fails its requirement is marked in its cell."""
     names = wheel_sets["statistics"]
-    rows = []
+    required = wheel_sets.get("requirements", {})
+    rows, classes, cells = [], [], []
     for s in wheel_sets["sets"]:
         label = f"[{s['failed_wheels']}]" if s["failed_wheels"] else "none"
+        verdicts = s.get("verdicts", {})
         rows.append([e(label), str(s["runs"]), f"{s['successes']}/{s['runs']}", *(number(s[n]) for n in names)])
-    classes = ["pass" if s["successes"] == s["runs"] else "fail" for s in wheel_sets["sets"]]
-    return table(["failed wheels", "runs", "success", *names], rows, classes)
+        cells.append(
+            [
+                None,
+                None,
+                None if s["successes"] == s["runs"] else "fail",
+                *("fail" if verdicts.get(n) is False else None for n in names),
+            ]
+        )
+        classes.append("pass" if s.get("passed", s["successes"] == s["runs"]) else "fail")
+    headers = [
+        "failed wheels",
+        "runs",
+        "success",
+        *(f"{n} (required {required[n].split(n, 1)[1].strip()})" if n in required else n for n in names),
+    ]
+    return table(headers, rows, classes, cells)
 
 
 def failure_sets_section(sets):
@@ -161,7 +257,7 @@ def published_section(entries):
     return "\n".join(parts)
 
 
-def worst_section(worst):
+def worst_section(worst, show_thrusters=True, show_wheels=False):
     parts = []
     for key, section in worst.items():
         if not section["runs"]:
@@ -170,50 +266,59 @@ def worst_section(worst):
             continue
         count = f" ({section['count']} in all)" if "count" in section else ""
         parts.append(f"<h3>{e(section['meaning'])}{e(count)}</h3>")
+        column = section.get("column")
         rows = []
         for run in section["runs"]:
-            value = number(run[key], 6) if key in run else ""
-            rows.append(
-                [
-                    str(run["run_id"]),
-                    value,
-                    e(run["failure_reason"] or ""),
-                    e(run["failed_thrusters"] or ""),
-                    f"<code>{e(run['command'])}</code>",
-                ]
-            )
-        parts.append(
-            table(
-                ["run", key if key in section["runs"][0] else "", "failure reason", "failed thrusters", "re-fly it"],
-                rows,
-            )
-        )
+            row = [str(run["run_id"])]
+            if column:
+                row.append(number(run[column], 6))
+            row.append(e(run["failure_reason"] or ""))
+            if show_thrusters:
+                row.append(e(run.get("failed_thrusters") or ""))
+            if show_wheels:
+                row.append(e(run.get("failed_wheels") or ""))
+            row.append(f"<code>{e(run['command'])}</code>")
+            rows.append(row)
+        headers = ["run", *([column] if column else []), "failure reason"]
+        headers += ["failed thrusters"] * show_thrusters + ["failed wheels"] * show_wheels + ["re-fly it"]
+        parts.append(table(headers, rows))
     return "\n".join(parts)
 
 
-def sensitivity_section(section, labels):
+def sensitivity_section(section, labels=None):
     parts = [
-        f"<p>{e(section['method'])}, N = {section['runs']}; |ρ| above "
+        f"<p>{e(section['method'])}, N = {section['runs']}, {section.get('parameters', '')} inputs that vary; "
+        "|ρ| above "
         f"{number(section['critical_abs_rho_95'], 3)} differs from 0 at the 5 % level (per parameter; with many "
-        "parameters some cross it by chance).</p>"
+        f"parameters some cross it by chance). {e(section.get('prcc_note', ''))}.</p>"
     ]
-    for output, label in labels.items():
+    for output in section.get("targets", labels or ()):
         rows = [
-            [f"<code>{e(r['parameter'])}</code>", f"{r['rho']:+.3f}", number(r["p_value"], 3)]
+            [
+                f"<code>{e(r['parameter'])}</code>",
+                f"{r['rho']:+.3f}",
+                number(r["p_value"], 3),
+                "-" if r.get("prcc") is None else f"{r['prcc']:+.3f}",
+                number(r.get("prcc_p_value"), 3),
+            ]
             for r in section.get(output, [])[:10]
         ]
         if rows:
-            parts.append(f"<h3>{e(label)}</h3>" + table(["parameter", "Spearman ρ", "p-value"], rows))
+            label = (labels or {}).get(output, output)
+            parts.append(
+                f"<h3>{e(label)}</h3>" + table(["parameter", "Spearman ρ", "p-value", "PRCC", "PRCC p-value"], rows)
+            )
     return "\n".join(parts)
 
 
-def page(summary, figures, sensitivity_labels):
+def page(summary, figures, sensitivity_labels=None):
     """The whole HTML page. ``figures``: list of (title, caption, png bytes)."""
     c = summary["campaign"]
     counts = summary["counts"]
     success = summary["success"]
     reqs = summary["requirements"]
     verdict = summary["verdict"]
+    plan = summary.get("outputs") or {}
     met = f"{sum(r['passed'] for r in reqs)} of {len(reqs)} requirements met"
     if verdict in ("INCOMPLETE", "ERRORED"):
         verdict_text, verdict_class = f"{verdict}: {met} on the stored runs; no overall verdict", verdict.lower()
@@ -226,7 +331,7 @@ def page(summary, figures, sensitivity_labels):
         f"<h1>Campaign {e(c['name'])}</h1>",
         f"<p>{counts['runs']} runs ({counts['success_count']} successful, {counts['failure_count']} failed, "
         f"{counts['error_count']} errored), seed {e(c['seed'])}, "
-        f"sampling {e(c['sampling'])}, failures {e(c['failures'])}; output <code>{e(c['out'])}</code>; "
+        f"sampling {e(c['sampling'])}, failures: {e(c['failures'])}; output <code>{e(c['out'])}</code>; "
         f"refexmc {e(c['refexmc'])}.</p>",
         f'<p class="verdict {verdict_class}">{e(verdict_text)}</p>',
     ]
@@ -248,13 +353,19 @@ def page(summary, figures, sensitivity_labels):
         body.append(f"<p>{e(success['statement'])}.</p>")
     body += ["<h2>Failure reasons</h2>", failure_reasons_section(summary["failure_reasons"])]
     notes = summary["statistics_notes"]
+    judged = [c for c in plan.get("requirement_columns", ()) if c in summary["columns"]]
+    if judged:
+        body += [
+            "<h2>The requirements' metrics over the successful flights</h2>",
+            "<p>Row colour: the verdict of the column's requirements (over all runs).</p>",
+            _statistics_tables(summary, judged, _column_verdicts(summary)),
+        ]
     body += [
-        "<h2>Statistics over the successful flights</h2>",
+        "<h2>Other outputs over the successful flights</h2>",
         f"<p>Over the {e(notes['population'])}. Each column shows the tail where it is worse: {e(notes['tails'])}.</p>",
         statistics_section(summary),
         f"<p>Percentiles: {e(notes['percentiles'])}. <code>tol99/95</code>: {e(notes['tolerance_99_95'])}. "
-        f"<code>mean±3sd</code>: {e(notes['mean_3sd'])}. Time in each mode: <code>t_&lt;mode&gt;_s</code>; "
-        "hand-over angle error over the flights that reached hand-over.</p>",
+        f"<code>mean±3sd</code>: {e(notes['mean_3sd'])}. Time in each mode: <code>t_&lt;mode&gt;_s</code>.</p>",
     ]
     if summary.get("published"):
         body += [
@@ -263,6 +374,8 @@ def page(summary, figures, sensitivity_labels):
             "beside the same statistic of these runs.</p>",
             published_section(summary["published"]),
         ]
+    if summary.get("inputs"):
+        body += ["<h2>Dispersed inputs</h2>", inputs_section(summary["inputs"])]
     for title, caption, png_bytes in figures:
         body += [
             f"<h2>{e(title)}</h2>",
@@ -270,7 +383,12 @@ def page(summary, figures, sensitivity_labels):
         ]
     if summary.get("wheel_failure_sets"):
         kind = "detected: redistributed over the others" if summary["wheel_failure_sets"]["detected"] else "undetected"
-        body += [f"<h2>Failed wheels ({e(kind)})</h2>", wheel_failure_sets_section(summary["wheel_failure_sets"])]
+        body += [
+            f"<h2>Failed wheels ({e(kind)})</h2>",
+            "<p>Per set of failed wheels: each requirement's statistic over the set's runs (failed flights "
+            "counting as failing); a red cell fails its requirement, a red row has one.</p>",
+            wheel_failure_sets_section(summary["wheel_failure_sets"]),
+        ]
     if summary["failure_sets"]:
         kind = "detected: left out of the allocation" if summary["campaign"].get("failures_detected") else "undetected"
         body += [f"<h2>Failure sets ({e(kind)})</h2>", failure_sets_section(summary["failure_sets"])]
@@ -282,15 +400,14 @@ def page(summary, figures, sensitivity_labels):
                 f"{table4['compared']} single and double failure sets agree; differ: {e(differ)}.</p>"
             )
     if summary["sensitivity"]:
-        body += ["<h2>Sensitivity</h2>", sensitivity_section(summary["sensitivity"], sensitivity_labels)]
-    body += ["<h2>Worst cases</h2>", worst_section(summary["worst_cases"])]
+        body += ["<h2>Sensitivity</h2>", sensitivity_section(summary["sensitivity"], plan.get("labels"))]
+    kinds = {k["kind"] for k in c.get("failure_kinds", ())}
+    body += ["<h2>Worst cases</h2>", worst_section(summary["worst_cases"], "thruster" in kinds, "wheel" in kinds)]
     nominal = summary.get("nominal")
     if nominal:
-        body.append(
-            f"<p>Nominal run {nominal['run_id']}: propellant remaining "
-            f"{number(nominal.get('fuel_remaining', math.nan))}, "
-            f"hand-over angle error {number(nominal.get('theta_t_handover_deg', math.nan))} deg.</p>"
-        )
+        shown = [col for col in plan.get("requirement_columns", ()) if col in nominal][:6]
+        values = ", ".join(f"{col} {number(nominal[col])}" for col in shown)
+        body.append(f"<p>Nominal run {nominal['run_id']}" + (f": {e(values)}" if values else "") + ".</p>")
         against = nominal.get("propellant_used_vs_dispersed")
         if against:
             body.append(

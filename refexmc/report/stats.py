@@ -46,6 +46,20 @@ TAIL_STATS = {
         "p1_lower95",
         "p0.135_lower95",
     ),
+    "both": (  # an output without a bad end (an entry state): both ends
+        "count",
+        "median",
+        "mean",
+        "std",
+        "p0.135",
+        "p1",
+        "min",
+        "p99",
+        "p99.865",
+        "max",
+        "mean_minus_3sd",
+        "mean_plus_3sd",
+    ),
 }
 
 
@@ -210,6 +224,12 @@ def describe(values, tail, confidence=CONFIDENCE):
     """The statistics of one column for its worse ``tail`` ("upper" or "lower"): a dict (NaN where
     not computable), with ``tolerance_99_95`` and ``tolerance_99_95_method`` from :func:`tolerance_bound`."""
     result = {name: column_stat(values, name, confidence) for name in TAIL_STATS[tail]}
+    if tail == "both":
+        lower, method = tolerance_bound(values, "lower", TOLERANCE_COVERAGE, confidence)
+        upper, _ = tolerance_bound(values, "upper", TOLERANCE_COVERAGE, confidence)
+        result.update(tolerance_99_95=math.nan, tolerance_99_95_lower=lower, tolerance_99_95_upper=upper)
+        result["tolerance_99_95_method"] = method
+        return result
     bound, method = tolerance_bound(values, tail, TOLERANCE_COVERAGE, confidence)
     result["tolerance_99_95"] = bound
     result["tolerance_99_95_method"] = method
@@ -295,6 +315,106 @@ def spearman(x, y):
         return rho, 0.0
     t = rho * math.sqrt((n - 2) / ((1.0 - rho) * (1.0 + rho)))
     return rho, float(2.0 * sps.t.sf(abs(t), n - 2))
+
+
+GRAM_CHUNK_ROWS = 16384  # rows per block of the rank products: small float64 blocks, exact integer sums
+
+
+def doubled_centred_ranks(values):
+    """2 rank - (n + 1) of each value (average ranks of ties): integers (so int32 storage is exact and
+    half the memory of float64) whose mean is 0; correlations of them are those of the ranks."""
+    values = np.asarray(values, dtype=float)
+    return np.rint(2.0 * sps.rankdata(values) - (len(values) + 1)).astype(np.int32)
+
+
+def rank_gram(ranks, output_ranks):
+    """Gram matrix [k + 1, k + 1] of the columns of ``ranks`` [n, k] and ``output_ranks`` (doubled
+    centred ranks), summed in float64 blocks of ``GRAM_CHUNK_ROWS`` rows (exact: integer products,
+    sums below 2^53 up to 10^5 runs). einsum, not BLAS: OpenBLAS's first call starts a thread
+    pool, seconds on a busy machine."""
+    n, k = ranks.shape
+    gram = np.zeros((k + 1, k + 1))
+    block = np.empty((min(n, GRAM_CHUNK_ROWS), k + 1))
+    for start in range(0, n, GRAM_CHUNK_ROWS):
+        rows = min(GRAM_CHUNK_ROWS, n - start)
+        block[:rows, :k] = ranks[start : start + rows]
+        block[:rows, k] = output_ranks[start : start + rows]
+        gram += np.einsum("ij,ik->jk", block[:rows], block[:rows])
+    return gram
+
+
+def _rank_correlation_p(rho, dof):
+    """Two-sided p-value of rank correlations ``rho`` with ``dof`` degrees of freedom (t approximation)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = rho * np.sqrt(dof / ((1.0 - rho) * (1.0 + rho)))
+        return np.where(np.abs(rho) == 1.0, 0.0, 2.0 * sps.t.sf(np.abs(t), dof))
+
+
+def spearman_from_gram(gram, n):
+    """Spearman rho and p (as ``spearman``) of each input with the output from ``rank_gram``; NaN for
+    a constant input."""
+    k = gram.shape[0] - 1
+    squares = np.diag(gram)[:k]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.clip(gram[:k, k] / np.sqrt(squares * gram[k, k]), -1.0, 1.0)
+    rho[squares == 0] = np.nan
+    return rho, _rank_correlation_p(rho, n - 2)
+
+
+def prcc_from_gram(gram, n):
+    """Partial rank correlation (``partial_rank_correlation``) of each input from ``rank_gram``: NaN
+    when n < k + 3, an input is constant or the inputs are linearly dependent."""
+    k = gram.shape[0] - 1
+    rho, p = np.full(k, np.nan), np.full(k, np.nan)
+    scale = np.sqrt(np.diag(gram))
+    if k == 0 or n < k + 3 or not (scale > 0).all():
+        return rho, p
+    correlation = gram / np.outer(scale, scale)
+    if not np.isfinite(correlation).all() or np.linalg.cond(correlation) > 1e12:
+        return rho, p
+    precision = np.linalg.inv(correlation)
+    rho = np.clip(-precision[:k, k] / np.sqrt(np.diag(precision)[:k] * precision[k, k]), -1.0, 1.0)
+    return rho, _rank_correlation_p(rho, n - 2 - (k - 1))
+
+
+def _ranked_inputs(inputs):
+    ranks = np.empty(inputs.shape, dtype=np.int32)
+    for j in range(inputs.shape[1]):
+        ranks[:, j] = doubled_centred_ranks(inputs[:, j])
+    return ranks
+
+
+def spearman_columns(inputs, output):
+    """``spearman`` of each column of ``inputs`` [n, k] with ``output``: (rho, p) arrays. The inputs
+    are ranked once for all columns when every value is finite (the usual case), else column by column."""
+    inputs = np.asarray(inputs, dtype=float)
+    output = np.asarray(output, dtype=float)
+    k = inputs.shape[1]
+    n = len(output)
+    if not (np.isfinite(inputs).all() and np.isfinite(output).all()) or n < 3 or np.ptp(output) == 0:
+        pairs = [spearman(inputs[:, j], output) for j in range(k)]
+        return np.array([r for r, _ in pairs], dtype=float), np.array([q for _, q in pairs], dtype=float)
+    return spearman_from_gram(rank_gram(_ranked_inputs(inputs), doubled_centred_ranks(output)), n)
+
+
+def partial_rank_correlation(inputs, output):
+    """Partial rank correlation (PRCC) of each input column with the output, and its p-value.
+
+    Ranks of every input and of the output; the PRCC of input j is the correlation of the parts of
+    rank(x_j) and rank(y) that the other inputs' ranks do not explain linearly (Marino et al. 2008,
+    J. Theor. Biol. 254, eq. 2), computed as -P_jy / sqrt(P_jj P_yy) with P the inverse of the rank
+    correlation matrix. p-value: t = r sqrt(dof / (1 - r^2)), dof = n - 2 - (k - 1) for k inputs.
+    ``inputs``: array [n, k] of inputs that vary; rows with a non-finite value are dropped.
+    Returns two arrays of k values, NaN where not computable (n < k + 3, or inputs linearly dependent).
+    """
+    inputs = np.asarray(inputs, dtype=float)
+    output = np.asarray(output, dtype=float)
+    keep = np.isfinite(inputs).all(axis=1) & np.isfinite(output)
+    inputs, output = inputs[keep], output[keep]
+    n, k = inputs.shape
+    if k == 0 or n < k + 3 or np.ptp(output) == 0:
+        return np.full(k, np.nan), np.full(k, np.nan)
+    return prcc_from_gram(rank_gram(_ranked_inputs(inputs), doubled_centred_ranks(output)), n)
 
 
 def spearman_critical(n, confidence=CONFIDENCE):

@@ -5,35 +5,14 @@ import shlex
 
 import numpy as np
 
-from refexmc.report import data, published, stats, tails
+from refexmc.report import data, outputs, published, stats
+from refexmc.report import requirements as requirements_module
 from refexmc.report.requirements import campaign_metric_covers
 
-KEY_COLUMNS = (  # those a runs table has, in this order
-    "fuel_remaining",
-    "fuel_used_kg",
-    "theta_t_handover_deg",
-    "burn_pointing_max_deg",
-    "burn_pointing_rms_deg",
-    "engine_propellant_used_kg",
-    "pointing_max_arcsec",
-    "pointing_rms_x_arcsec",
-    "pointing_rms_y_arcsec",
-    "pointing_rms_z_arcsec",
-    "pointing_end_x_arcsec",
-    "pointing_end_y_arcsec",
-    "pointing_end_z_arcsec",
-    "wheel_momentum_peak_n_m_s",
-    "wheel_momentum_end_n_m_s",
-    "wheel_torque_demand_peak_n_m",
-    "wheel_saturated_s",
-    "angular_momentum_residual",
-    "t_end_s",
-    "pulses_total",
-)
+KEY_COLUMNS = outputs.DISPLAY_ORDER
 SENSITIVITY_OUTPUTS = ("fuel_used_kg", "theta_t_handover_deg")
-WORST_CASES = (  # (column, what its worst end means); the end is the column's worse tail (tails.py)
+WORST_CASES = (  # (column, what its worst end means) of outputs without a requirement, when they vary
     ("fuel_remaining", "least propellant remaining"),
-    ("theta_t_handover_deg", "largest total angle error at hand-over"),
     ("t_end_s", "longest flight"),
 )
 WORST_COUNT = 5
@@ -104,29 +83,31 @@ def success_section(campaign, level):
     return section
 
 
-def statistics_columns(campaign):
-    """The runs columns of the statistics tables, in display order: those with a declared tail; a
-    key column no run has a value in is one the mission does not produce (a hand-over angle without
-    a hand-over, a propellant fraction without propellant) and is left out."""
-    runs = campaign.runs
-    columns = [c for c in KEY_COLUMNS if c in runs and np.isfinite(runs[c].to_numpy(dtype=float)).any()]
-    columns += [c for c in campaign.mode_time_columns if c in runs]
-    columns += [c for c in runs.columns if c.startswith("pulses_") and c[7:].isdigit()]
-    return [c for c in columns if tails.worse_tail(c) is not None]
+def statistics_columns(campaign, plan=None):
+    """The runs columns of the statistics tables, in display order (``outputs.plan``): the
+    requirements' metrics, the other outputs, the constant ones, the per-thruster pulse counts."""
+    plan = plan or outputs.plan(campaign, [])
+    return [
+        *plan["requirement_columns"],
+        *plan["other_columns"],
+        *plan["constant_columns"],
+        *plan["pulse_columns"],
+    ]
 
 
-def column_sections(campaign):
+def column_sections(campaign, plan=None):
     """Statistics of each output column over the successful flights, for the column's worse tail.
 
     Each entry also says which runs it covers (``covers``, ``n``) and its ``tail``.
     """
+    plan = plan or outputs.plan(campaign, [])
     successful = campaign.successful
     n_runs = len(campaign.runs)
     left_out = n_runs - len(successful)
     result = {}
-    for column in statistics_columns(campaign):
+    for column in statistics_columns(campaign, plan):
         values = successful[column].to_numpy(dtype=float)
-        tail = tails.worse_tail(column)
+        tail = plan["tails"][column]
         section = stats.describe(values, tail)
         n = int(section["count"])
         covers = f"{n} successful flight{'s' if n != 1 else ''}"
@@ -218,35 +199,62 @@ def failure_sets(campaign):
     return rows
 
 
-WHEEL_SET_COLUMNS = (  # (runs column, statistic) per failed-wheel set; those the table has
+WHEEL_SET_COLUMNS = (  # (runs column, statistic) per failed-wheel set, after the requirements'; those the table has
     ("pointing_rms_x_arcsec", "median"),
-    ("pointing_rms_x_arcsec", "p99"),
-    ("pointing_rms_y_arcsec", "p99"),
-    ("pointing_rms_z_arcsec", "p99"),
-    ("pointing_max_arcsec", "p99"),
     ("wheel_momentum_peak_n_m_s", "max"),
     ("wheel_saturated_s", "median"),
 )
+MAX_SET_STATISTICS = 8  # columns of the failed-wheel table beyond runs and success: it must fit the page
 
 
-def wheel_failure_sets(campaign):
-    """Per failed-wheel set (``failed_wheels``; "" = none): runs, successes and the pointing and
-    wheel statistics over its flown runs, so the penalty of a failure reads against the runs
-    without one; None when the sets do not vary."""
+def wheel_failure_sets(campaign, verdicts=()):
+    """Per failed-wheel set (``failed_wheels``; "" = none): runs, successes and, for each requirement
+    on a runs column, its statistic over the set's runs (failed flights counting as failing, as the
+    requirement does over the campaign) with its verdict; then a few wheel statistics. So the
+    penalty of a failure reads against the runs without one. None when the sets do not vary."""
     ok = campaign.ok
     if "failed_wheels" not in ok or ok["failed_wheels"].nunique() < 2:
         return None
-    columns = [(c, s) for c, s in WHEEL_SET_COLUMNS if c in ok]
+    judged = []
+    for v in verdicts:
+        column, stat = requirements_module.split_metric(v["metric"])
+        if stat is not None and column in ok and not column.startswith("p.") and v["metric"] not in judged:
+            judged.append(v)
+    judged = judged[:MAX_SET_STATISTICS]
+    shown = {v["metric"] for v in judged}
+    extra = [(c, s) for c, s in WHEEL_SET_COLUMNS if c in ok and f"{c}.{s}" not in shown]
+    extra = extra[: max(0, MAX_SET_STATISTICS - len(judged))]
     rows = []
     for key, group in ok.groupby("failed_wheels", sort=True):
         n = len(group)
-        k = int(group["success"].astype(bool).sum())
-        row = {"failed_wheels": key, "runs": n, "successes": k, "success_rate_ci95": list(stats.clopper_pearson(k, n))}
-        for column, stat in columns:
+        success = group["success"].astype(bool).to_numpy()
+        k = int(success.sum())
+        row = {
+            "failed_wheels": key,
+            "runs": n,
+            "successes": k,
+            "success_rate_ci95": list(stats.clopper_pearson(k, n)),
+            "verdicts": {},
+        }
+        for v in judged:
+            column, stat = requirements_module.split_metric(v["metric"])
+            side = requirements_module.FAILING_SIDE[v["op"]]
+            value = stats.column_stat_with_failing(group[column].to_numpy(dtype=float)[success], n - k, stat, side)
+            row[v["metric"]] = value
+            row["verdicts"][v["metric"]] = bool(
+                math.isfinite(value) and requirements_module.OPERATORS[v["op"]](value, v["value"])
+            )
+        for column, stat in extra:
             row[f"{column}.{stat}"] = stats.column_stat(group[column].to_numpy(dtype=float), stat)
+        row["passed"] = k == n and all(row["verdicts"].values())
         rows.append(row)
     detected = bool((campaign.resolved.get("wheel_failures") or {}).get("detected", False))
-    return {"detected": detected, "statistics": [f"{c}.{s}" for c, s in columns], "sets": rows}
+    return {
+        "detected": detected,
+        "statistics": [v["metric"] for v in judged] + [f"{c}.{s}" for c, s in extra],
+        "requirements": {v["metric"]: v["requirement"] for v in judged},
+        "sets": rows,
+    }
 
 
 def paper_table4_agreement(campaign, sets):
@@ -270,45 +278,140 @@ def paper_table4_agreement(campaign, sets):
     return {"compared": compared, "agree": compared - len(disagree), "disagree": disagree}
 
 
-def sensitivity(campaign):
-    """Spearman rank correlation of every varying ``p.`` column with each output, by |rho|."""
+SENSITIVITY_FALLBACK = ("fuel_used_kg", "theta_t_handover_deg")  # without requirements on a runs column
+SENSITIVITY_FIGURE_TARGETS = 4
+SENSITIVITY_LISTED = 10
+
+
+def varying_parameters(campaign):
+    """``p.`` columns that vary over the ok runs (a constant input drives nothing)."""
+    ok = campaign.ok
+    return [c for c in campaign.parameter_columns if np.ptp(np.nan_to_num(ok[c].to_numpy(dtype=float))) > 0]
+
+
+def sensitivity_targets(plan, verdicts):
+    """The outputs whose drivers the report shows: the requirement metrics from failing to
+    closest-to-failing (``outputs.margins``); without any, the propellant used and the end angle."""
+    ranked = [c for c, _ in outputs.margins(verdicts) if c in plan["requirement_columns"]]
+    if ranked:
+        return ranked
+    return [c for c in SENSITIVITY_FALLBACK if c in plan["other_columns"]]
+
+
+def sensitivity(campaign, plan=None, verdicts=()):
+    """Spearman rank correlation and partial rank correlation (PRCC) of every varying ``p.`` column
+    with each target output (``sensitivity_targets``), rows by |Spearman rho|.
+
+    ``targets`` lists the outputs in order (failing first); ``figure_targets`` those the figures
+    show: the failing ones and the closest-to-failing passing one.
+    """
+    plan = plan or outputs.plan(campaign, verdicts)
     ok = campaign.ok
     n = len(ok)
-    result = {"method": "Spearman rank correlation over the ok runs", "runs": n}
-    result["critical_abs_rho_95"] = stats.spearman_critical(n)
-    for output in SENSITIVITY_OUTPUTS:
-        if output not in ok:
-            continue
+    parameters = varying_parameters(campaign)
+    targets = sensitivity_targets(plan, verdicts)
+    failing = {c for c, margin in outputs.margins(verdicts) if margin < 0}
+    figure_targets = [c for c in targets if c in failing]
+    figure_targets += [c for c in targets if c not in failing][:1]
+    result = {
+        "method": "Spearman rank correlation and partial rank correlation (PRCC) over the ok runs",
+        "runs": n,
+        "parameters": len(parameters),
+        "targets": targets,
+        "figure_targets": figure_targets[:SENSITIVITY_FIGURE_TARGETS],
+        "critical_abs_rho_95": stats.spearman_critical(n),
+        "prcc_note": (
+            "PRCC: the rank correlation left when the other inputs' ranks are regressed out; "
+            f"needs more runs than inputs + 2 ({len(parameters)} inputs vary)"
+        ),
+    }
+    # the inputs are ranked once, column by column into one int32 matrix (at 100,000 runs and 50
+    # inputs 20 MB); a target without a value in some run is ranked over the runs with one
+    finite_inputs = np.ones(n, dtype=bool)
+    for column in parameters:
+        finite_inputs &= np.isfinite(ok[column].to_numpy(dtype=float))
+
+    def ranked(keep):
+        """Doubled centred ranks (int32) of every input over the runs ``keep``, column by column."""
+        ranks = np.empty((int(keep.sum()), len(parameters)), dtype=np.int32)
+        for j, column in enumerate(parameters):
+            ranks[:, j] = stats.doubled_centred_ranks(ok[column].to_numpy(dtype=float)[keep])
+        return ranks
+
+    ranks = ranked(finite_inputs) if finite_inputs.all() else None
+    for output in targets:
         y = ok[output].to_numpy(dtype=float)
+        keep = finite_inputs & np.isfinite(y)
+        count = int(keep.sum())
+        if count < 3 or np.ptp(y[keep]) == 0:
+            result[output] = []
+            continue
+        here = ranks if ranks is not None and keep.all() else ranked(keep)
+        gram = stats.rank_gram(here, stats.doubled_centred_ranks(y[keep]))
+        rhos, ps = stats.spearman_from_gram(gram, count)
+        prcc, prcc_p = stats.prcc_from_gram(gram, count)
         rows = []
-        for column in campaign.parameter_columns:
-            x = ok[column].to_numpy(dtype=float)
-            rho, p = stats.spearman(x, y)
+        for j, column in enumerate(parameters):
+            rho, p = float(rhos[j]), float(ps[j])
             if math.isfinite(rho):
-                rows.append({"parameter": column, "rho": rho, "p_value": p})
+                rows.append(
+                    {
+                        "parameter": column,
+                        "rho": rho,
+                        "p_value": p,
+                        "prcc": float(prcc[j]) if math.isfinite(prcc[j]) else None,
+                        "prcc_p_value": float(prcc_p[j]) if math.isfinite(prcc_p[j]) else None,
+                    }
+                )
         rows.sort(key=lambda r: -abs(r["rho"]))
         result[output] = rows
     return result
 
 
-def convergence(campaign):
-    """Running statistics over the first n ok runs (in run-id order) at log-spaced n."""
+CONVERGENCE_STATS = {  # per tail: (statistic, legend)
+    "upper": (
+        ("mean", "mean"),
+        ("p99", "99th percentile"),
+        ("tolerance_99_95", "tolerance bound (99 %/95 %)"),
+        ("max", "max"),
+    ),
+    "lower": (
+        ("mean", "mean"),
+        ("p1", "1st percentile"),
+        ("tolerance_99_95", "tolerance bound (99 %/95 %)"),
+        ("min", "min"),
+    ),
+    "both": (("mean", "mean"), ("min", "min"), ("max", "max")),
+}
+
+
+def convergence(campaign, column=None, tail="lower"):
+    """Running statistics over the first n ok runs (in run-id order) at log-spaced n: the success
+    rate with its interval and, when ``column`` is given, that column's statistics of its ``tail``
+    (over the successful flights among the first n runs)."""
     ok = campaign.ok
     success = ok["success"].astype(bool).to_numpy()
-    fuel = ok["fuel_remaining"].to_numpy(dtype=float)
     points = stats.convergence_points(len(ok))
     out = {"n": points.tolist(), "success_rate": [], "success_ci95_low": [], "success_ci95_high": []}
-    fuel_stats = ("mean", "p1", "mean_minus_3sd", "tol_lower", "min")
-    for name in fuel_stats:
-        out[f"fuel_remaining.{name}"] = []
+    out["column"], out["tail"], out["statistics"] = column, tail, {}
+    values = ok[column].to_numpy(dtype=float) if column is not None else None
+    for name, label in CONVERGENCE_STATS[tail] if column is not None else ():
+        out["statistics"][name] = {"label": label, "values": []}
     for n in points:
         k = int(success[:n].sum())
         low, high = stats.clopper_pearson(k, int(n))
         out["success_rate"].append(k / n)
         out["success_ci95_low"].append(low)
         out["success_ci95_high"].append(high)
-        for name in fuel_stats:
-            out[f"fuel_remaining.{name}"].append(stats.column_stat(fuel[:n], name))
+        if values is None:
+            continue
+        first = values[:n][success[:n]]
+        for name, entry in out["statistics"].items():
+            if name == "tolerance_99_95":
+                value = stats.tolerance_bound(first, tail)[0]
+            else:
+                value = stats.column_stat(first, name)
+            entry["values"].append(value)
     return out
 
 
@@ -321,27 +424,61 @@ def _run_entry(campaign, row, column=None):
         "run_id": int(row["run_id"]),
         "success": bool(row["success"]),
         "failure_reason": row.get("failure_reason"),
-        "failed_thrusters": row.get("failed_thrusters", ""),
+        "failed_thrusters": row.get("failed_thrusters", "") or "",
+        "failed_wheels": row.get("failed_wheels", "") or "",
         "command": rerun_command(campaign.out, row["run_id"]),
     }
     if column is not None:
+        entry["column"] = column
         entry[column] = float(row[column])
     return entry
 
 
-def worst_cases(campaign, count=WORST_COUNT):
+def _worst(campaign, column, side, count):
     ok = campaign.ok
+    values = ok[column].astype(float)
+    values = values[np.isfinite(values.to_numpy())]
+    index = (values.nsmallest(count) if side == "low" else values.nlargest(count)).index
+    return [_run_entry(campaign, row, column) for row in ok.loc[index].to_dict("records")]
+
+
+def worst_cases(campaign, plan=None, verdicts=(), count=WORST_COUNT):
+    """The runs at the failing end of each requirement metric (both ends of a two-sided one), then
+    of the other outputs with a bad end (``WORST_CASES``) that vary, then the unsuccessful and
+    errored runs. Keys: the column, or ``<column>:lowest`` / ``<column>:highest`` for a column with
+    requirements on both ends; each entry has ``column``, ``side`` (low/high), ``meaning``, ``runs``."""
+    plan = plan or outputs.plan(campaign, verdicts)
     result = {}
+    for column in plan["requirement_columns"]:
+        reqs = outputs.requirements_of(column, verdicts)
+        sides = []
+        for v in reqs:
+            for side in {"<=": ("high",), "<": ("high",), ">=": ("low",), ">": ("low",), "==": ("low", "high")}[
+                v["op"]
+            ]:
+                if side not in sides:
+                    sides.append(side)
+        texts = ", ".join(v["requirement"] for v in reqs)
+        for side in sides:
+            key = column if len(sides) == 1 else f"{column}:{'lowest' if side == 'low' else 'highest'}"
+            word = "smallest" if side == "low" else "largest"
+            result[key] = {
+                "column": column,
+                "side": side,
+                "meaning": f"{word} {column} ({texts}; among the flown runs, status ok)",
+                "runs": _worst(campaign, column, side, count),
+            }
     for column, meaning in WORST_CASES:
-        if column not in ok:
+        if column in result or column not in plan["other_columns"]:
             continue
-        finite = ok[np.isfinite(ok[column].to_numpy(dtype=float))]
-        low = tails.worse_tail(column) == "lower"
-        picked = finite.nsmallest(count, column) if low else finite.nlargest(count, column)
+        side = "low" if plan["tails"][column] == "lower" else "high"
         result[column] = {
+            "column": column,
+            "side": side,
             "meaning": f"{meaning} (among the flown runs, status ok)",
-            "runs": [_run_entry(campaign, row, column) for row in picked.to_dict("records")],
+            "runs": _worst(campaign, column, side, count),
         }
+    ok = campaign.ok
     failed = ok[~ok["success"].astype(bool)]
     result["unsuccessful"] = {
         "meaning": f"flown runs (status ok) that did not succeed (first {LISTED_RUNS})",
@@ -363,7 +500,8 @@ def against_nominal(campaign, nominal_row, column="fuel_used_kg"):
     """How many flown dispersed runs used more propellant than the nominal run (000 sec. 6.2: "most")."""
     if nominal_row is None or column not in campaign.ok:
         return None
-    dispersed = campaign.ok[campaign.ok["run_id"] != nominal_row["run_id"]][column].dropna()
+    ok = campaign.ok
+    dispersed = ok[column][(ok["run_id"] != nominal_row["run_id"]).to_numpy()].dropna()  # the column, not a table copy
     if dispersed.empty or not (dispersed > 0.0).any() and nominal_row[column] == 0.0:  # no propellant used
         return None
     more = int((dispersed > nominal_row[column]).sum())
@@ -376,8 +514,88 @@ def against_nominal(campaign, nominal_row, column="fuel_used_kg"):
     }
 
 
-def build(campaign):
-    """Every number of the report except the requirement verdicts and the overall verdict."""
+def failures_section(campaign):
+    """What the campaign failed, as the runs table has it: per kind (thruster, wheel) the campaign's
+    mode, whether the flight software knew, and how many runs had a failure of that kind."""
+    runs = campaign.runs
+    kinds = []
+    for key, column, what in (
+        ("failures", "failed_thrusters", "thruster"),
+        ("wheel_failures", "failed_wheels", "wheel"),
+    ):
+        spec = campaign.resolved.get(key) or {}
+        mode = spec.get("mode", "none")
+        with_failure = 0
+        if column in runs:
+            with_failure = int((runs[column].fillna("").astype(str).str.len() > 0).sum())
+        if mode == "none" and not with_failure:
+            continue
+        detected = bool(spec.get("detected", False))
+        kinds.append(
+            {
+                "kind": what,
+                "mode": mode,
+                "detected": detected,
+                "runs_with_failure": with_failure,
+                "runs": len(runs),
+                "text": f"{what}s {mode}, {'detected' if detected else 'undetected'} "
+                f"({with_failure} of {len(runs)} runs with a failed {what})",
+            }
+        )
+    return kinds
+
+
+def _compact(value):
+    """A dispersion's parameter as short text: numbers with 4 significant digits, lists in brackets."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_compact(v) for v in value) + "]"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def inputs_section(campaign):
+    """Every dispersed parameter: its distribution and parameters (campaign file) and the range
+    drawn (min and max over the dispersed runs, the nominal run 0 left out), per component."""
+    runs = campaign.runs
+    dispersed = np.ones(len(runs), dtype=bool)
+    if campaign.nominal_run_id is not None and len(runs) > 1:
+        dispersed = runs["run_id"].to_numpy() != campaign.nominal_run_id
+    rows = []
+    for key, spec in (campaign.resolved.get("dispersions") or {}).items():
+        spec = spec if isinstance(spec, dict) else {"value": spec}
+        prefix = f"p.{key}"
+        columns = [c for c in campaign.parameter_columns if c == prefix or c.startswith(prefix + ".")]
+        drawn = []
+        for column in columns:
+            values = runs[column].to_numpy(dtype=float)[dispersed]
+            values = values[np.isfinite(values)]
+            drawn.append(
+                {
+                    "component": column[len(prefix) + 1 :],
+                    "column": column,
+                    "min": float(values.min()) if len(values) else math.nan,
+                    "max": float(values.max()) if len(values) else math.nan,
+                }
+            )
+        rows.append(
+            {
+                "parameter": key,
+                "distribution": spec.get("dist", ""),
+                "parameters": ", ".join(f"{k} {_compact(v)}" for k, v in spec.items() if k != "dist"),
+                "drawn": drawn,
+            }
+        )
+    count = int(dispersed.sum())
+    return {
+        "covers": f"{count} dispersed runs" + (" (the nominal run 0 left out)" if count < len(runs) else ""),
+        "rows": rows,
+    }
+
+
+def build(campaign, verdicts=()):
+    """Every number of the report except the overall verdict; ``verdicts``: the requirement
+    verdicts (``requirements.evaluate``), which decide the metrics the report is built around."""
     level = campaign_metrics(campaign)
     n_ok = int(level["ok_count"])
     notes = []
@@ -387,6 +605,14 @@ def build(campaign):
         notes.append("run 0 is the undispersed nominal case; it counts as a run in every statistic")
     nominal_row = campaign.ok[campaign.ok["run_id"] == nominal].iloc[0] if nominal is not None else None
     sets = failure_sets(campaign)
+    plan = outputs.plan(campaign, verdicts)
+    failures = failures_section(campaign)
+    targets = sensitivity_targets(plan, verdicts)
+    convergence_column = (
+        targets[0]
+        if targets
+        else next((c for c in ("fuel_remaining", *plan["other_columns"]) if c in plan["other_columns"]), None)
+    )
     summary = {
         "campaign": {
             "name": campaign.name,
@@ -395,10 +621,12 @@ def build(campaign):
             "seed": campaign.resolved.get("seed"),
             "sampling": campaign.resolved.get("sampling"),
             "nominal_first": campaign.resolved.get("nominal_first", True),
-            "failures": (campaign.resolved.get("failures") or {}).get("mode", "none"),
+            "failures": "; ".join(f["text"] for f in failures) or "none",
+            "failure_kinds": failures,
             "failures_detected": bool((campaign.resolved.get("failures") or {}).get("detected", False)),
             "manifest_status": campaign.manifest.get("status"),
             "refexmc": campaign.manifest.get("refexmc"),
+            "refex": outputs.is_refex(campaign),
         },
         "completeness": data.completeness(campaign),
         "counts": {
@@ -406,23 +634,27 @@ def build(campaign):
         },
         "metrics": level,
         "success": success_section(campaign, level),
-        "columns": column_sections(campaign),
+        "outputs": plan,
+        "columns": column_sections(campaign, plan),
         "statistics_notes": statistics_notes(campaign),
         "failure_reasons": failure_reasons(campaign),
+        "inputs": inputs_section(campaign),
         "nominal": None
         if nominal_row is None
         else {
             "run_id": int(nominal),
             "success": bool(nominal_row["success"]),
-            **{c: float(nominal_row[c]) for c in KEY_COLUMNS if c in nominal_row},
+            **{c: float(nominal_row[c]) for c in statistics_columns(campaign, plan) if c in nominal_row},
             "propellant_used_vs_dispersed": against_nominal(campaign, nominal_row),
         },
         "failure_sets": sets,
         "failure_sets_vs_000_table4": paper_table4_agreement(campaign, sets),
-        "wheel_failure_sets": wheel_failure_sets(campaign),
-        "sensitivity": sensitivity(campaign) if campaign.parameter_columns and n_ok >= 3 else None,
-        "convergence": convergence(campaign) if n_ok >= 2 else None,
-        "worst_cases": worst_cases(campaign),
+        "wheel_failure_sets": wheel_failure_sets(campaign, verdicts),
+        "sensitivity": sensitivity(campaign, plan, verdicts) if campaign.parameter_columns and n_ok >= 3 else None,
+        "convergence": convergence(campaign, convergence_column, plan["tails"].get(convergence_column, "lower"))
+        if n_ok >= 2
+        else None,
+        "worst_cases": worst_cases(campaign, plan, verdicts),
         "published": published.sections(campaign, published.load_published(campaign)),
         "modes": list(campaign.modes),
         "notes": notes,

@@ -4,7 +4,6 @@ import math
 
 from refexmc.report.data import mode_time_column
 from refexmc.report.requirements import requirement_label
-from refexmc.report.summary import KEY_COLUMNS
 
 # the statistics tables: (stat key, header) per worse tail (refexmc.report.tails)
 TABLE_STATS = {
@@ -26,9 +25,22 @@ TABLE_STATS = {
         ("mean_minus_3sd", "mean-3sd"),
         ("tolerance_99_95", "tol99/95"),
     ),
+    "both": (
+        ("median", "p50"),
+        ("mean", "mean"),
+        ("std", "std"),
+        ("min", "min"),
+        ("p0.135", "p0.135"),
+        ("p99.865", "p99.865"),
+        ("max", "max"),
+    ),
 }
-TAIL_TITLES = {"upper": "larger is worse (upper tail)", "lower": "smaller is worse (lower tail)"}
-TABLE_COLUMNS = KEY_COLUMNS  # those the summary has are shown, in this order
+TAIL_TITLES = {
+    "upper": "larger is worse (upper tail)",
+    "lower": "smaller is worse (lower tail)",
+    "both": "both ends matter (two-sided)",
+}
+PULSE_STATS = (("median", "p50"), ("p99", "p99"), ("max", "max"))
 
 
 def wheel_failure_lines(wheel_sets):
@@ -45,6 +57,21 @@ def wheel_failure_lines(wheel_sets):
     return lines
 
 
+MAX_DIGITS = 10
+
+
+def row_digits(values, digits=4):
+    """Significant digits that show a row's spread: 4, or 3 digits of the standard deviation when the
+    values are large against it (SPORE's entry flight-path angle: -5.0000043 with sd 1.4e-6)."""
+    sd, centre = values.get("std"), values.get("median")
+    if sd is None or centre is None or not (math.isfinite(sd) and math.isfinite(centre)) or sd <= 0:
+        return digits
+    ratio = max(abs(centre), sd) / sd
+    if not math.isfinite(ratio):
+        return MAX_DIGITS
+    return int(min(MAX_DIGITS, max(digits, math.ceil(math.log10(ratio)) + 3)))
+
+
 def number(value, digits=4):
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
@@ -55,27 +82,59 @@ def percent(value):
     return "-" if value is None or not math.isfinite(value) else f"{100 * value:.4g} %"
 
 
-def statistics_lines(summary, columns=TABLE_COLUMNS):
-    """The terminal statistics tables: one per worse tail, each row with the runs it covers."""
+def table_columns(summary):
+    """The columns with a statistics row: the requirements' metrics, then the other outputs that vary."""
+    plan = summary.get("outputs") or {}
+    listed = [*plan.get("requirement_columns", ()), *plan.get("other_columns", ())]
+    return [c for c in listed if c in summary["columns"]]
+
+
+def constant_line(summary):
+    """The outputs with one value in every successful flight, in one line ('' when none)."""
+    constants = (summary.get("outputs") or {}).get("constant_columns") or {}
+    return ", ".join(f"{column} = {number(value, 6)}" for column, value in constants.items())
+
+
+def pulse_table(summary):
+    """Per-thruster pulse counts folded into one table: [(stat header, [value per thruster])]."""
+    columns = [c for c in (summary.get("outputs") or {}).get("pulse_columns", ()) if c in summary["columns"]]
+    return [c[7:] for c in columns], [(h, [summary["columns"][c][k] for c in columns]) for k, h in PULSE_STATS]
+
+
+def statistics_lines(summary, columns=None):
+    """The terminal statistics tables: one per worse tail (requirements' metrics first), what the rows
+    cover once, the constant outputs in one line and the pulse counts per thruster in one table."""
+    columns = table_columns(summary) if columns is None else columns
     lines = []
-    width = max(len(c) for c in columns) + 2
+    width = max((len(c) for c in columns), default=0) + 2
     for tail, entries in TABLE_STATS.items():
         rows = [c for c in columns if summary["columns"].get(c, {}).get("tail") == tail]
         if not rows:
             continue
         lines.append(f"{TAIL_TITLES[tail]}:")
-        lines.append("".ljust(width) + "n".rjust(6) + "".join(h.rjust(10) for _, h in entries))
+        cell = max(10, *(row_digits(summary["columns"][c]) + 7 for c in rows))
+        lines.append("".ljust(width) + "n".rjust(6) + "".join(h.rjust(cell) for _, h in entries))
         for column in rows:
             values = summary["columns"][column]
-            cells = "".join(number(values[key]).rjust(10) for key, _ in entries)
+            digits = row_digits(values)
+            cells = "".join(number(values[key], digits).rjust(cell) for key, _ in entries)
             lines.append(column.ljust(width) + str(values["n"]).rjust(6) + cells)
     covers = {summary["columns"][c]["covers"] for c in columns if c in summary["columns"]}
     for text in sorted(covers):
         lines.append(f"  over {text}")
-    lines.append(
-        "  tol99/95: one-sided tolerance bound, 99 % of successful flights on its good side with 95 % confidence "
-        "(order statistic from n = 299, else normal mean +- k sd)"
-    )
+    if columns:
+        lines.append(
+            "  tol99/95: one-sided tolerance bound, 99 % of successful flights on its good side with 95 % "
+            "confidence (order statistic from n = 299, else normal mean +- k sd)"
+        )
+    constants = constant_line(summary)
+    if constants:
+        lines.append(f"the same in every successful flight: {constants}")
+    thrusters, pulse_rows = pulse_table(summary)
+    if thrusters:
+        lines.append("valve pulses per thruster " + " ".join(t.rjust(6) for t in thrusters))
+        for header, values in pulse_rows:
+            lines.append(f"  {header.ljust(23)} " + " ".join(number(v).rjust(6) for v in values))
     return lines
 
 
@@ -129,6 +188,8 @@ def format_summary(summary, report_dir=None):
         f"{counts['failure_count']} failed, {counts['error_count']} errored"
         + (f" -> {report_dir}" if report_dir else "")
     )
+    if summary["campaign"].get("failures", "none") != "none":
+        lines.append(f"failures: {summary['campaign']['failures']}")
     lines += [f"note: {note}" for note in summary["notes"]]
     low, high = success["ci95"]
     lines.append(
@@ -167,17 +228,13 @@ def format_summary(summary, report_dir=None):
             f"dispersed runs using more propellant than the nominal run: {against['more_than_nominal']} of "
             f"{against['of']} ({percent(against['share'])})"
         )
-    worst = summary["worst_cases"].get("fuel_remaining", {}).get("runs")
-    if worst:
-        run = worst[0]
-        lines.append(f"least propellant: run {run['run_id']} ({number(run['fuel_remaining'])}): {run['command']}")
-    worst = summary["worst_cases"].get("theta_t_handover_deg", {}).get("runs")
-    if worst:
-        run = worst[0]
-        lines.append(
-            f"largest hand-over angle error: run {run['run_id']} ({number(run['theta_t_handover_deg'])} deg): "
-            f"{run['command']}"
-        )
+    for key, section in summary["worst_cases"].items():
+        if key in ("unsuccessful", "errored") or not section["runs"]:
+            continue
+        run = section["runs"][0]
+        column = section["column"]
+        word = "smallest" if section["side"] == "low" else "largest"
+        lines.append(f"{word} {column}: run {run['run_id']} ({number(run[column])}): {run['command']}")
     lines += published_lines(summary)
     reasons = failure_reason_lines(summary)
     if reasons:

@@ -1,0 +1,296 @@
+"""The entry flight's aerodynamics and surfaces from the vehicle file (issue 24, 003).
+
+:func:`check` holds what the schema cannot express (called by ``load.check_vehicle``): sorted
+axes, tables of the axes' shape, the control derivatives of exactly the surfaces the vehicle has,
+surfaces only with an atmosphere and tables, a blocked flap within its limits.
+:func:`model` packs the arrays ``core.entry.EntryModel`` flies.
+"""
+
+import math
+
+import numpy as np
+
+from refexmc.config import schema
+
+# The core (numba) is imported only where arrays are packed: validating a file stays numba-free.
+
+
+def coefficient_slots():
+    """Vehicle-file key -> core.aerodynamics slot."""
+    from refexmc.core import aerodynamics as aero
+
+    return {
+        "lift": aero.AC_LIFT,
+        "drag": aero.AC_DRAG,
+        "side_force_per_beta_rad": aero.AC_SIDE_BETA,
+        "roll_per_beta_rad": aero.AC_ROLL_BETA,
+        "pitch": aero.AC_PITCH,
+        "yaw_per_beta_rad": aero.AC_YAW_BETA,
+        "roll_per_aileron_rad": aero.AC_ROLL_AILERON,
+        "pitch_per_elevon_rad": aero.AC_PITCH_ELEVON,
+        "yaw_per_aileron_rad": aero.AC_YAW_AILERON,
+        "roll_per_rudder_rad": aero.AC_ROLL_RUDDER,
+        "yaw_per_rudder_rad": aero.AC_YAW_RUDDER,
+    }
+
+
+def _strictly_increasing(values):
+    return all(b > a for a, b in zip(values, values[1:], strict=False))
+
+
+def check(vehicle, fail):
+    """ConfigError (through ``fail(message, *path)``) for an entry description the flight cannot use."""
+    tables = vehicle.get("entry_aerodynamics")
+    surfaces = vehicle.get("surfaces")
+    if tables is not None:
+        for axis in ("alpha_deg", "mach"):
+            values = tables[axis]
+            if not _strictly_increasing(values):
+                k = next(i for i in range(1, len(values)) if values[i] <= values[i - 1])
+                fail(
+                    f"expected a strictly increasing axis, got {values[k - 1]!r} then {values[k]!r}",
+                    "entry_aerodynamics",
+                    axis,
+                    k,
+                )
+        rows, columns = len(tables["alpha_deg"]), len(tables["mach"])
+        for key, table in tables["coefficients"].items():
+            if len(table) != rows:
+                fail(
+                    f"expected {rows} rows (one per alpha_deg), got {len(table)}",
+                    "entry_aerodynamics",
+                    "coefficients",
+                    key,
+                )
+            for i, row in enumerate(table):
+                if len(row) != columns:
+                    fail(
+                        f"expected {columns} values (one per mach), got {len(row)}",
+                        "entry_aerodynamics",
+                        "coefficients",
+                        key,
+                        i,
+                    )
+    if surfaces is None:
+        if tables is not None:
+            for key in (*schema.ENTRY_FLAP_DERIVATIVES, *schema.ENTRY_RUDDER_DERIVATIVES):
+                if key in tables["coefficients"]:
+                    fail(
+                        f"'{key}' is a control derivative; the vehicle has no surfaces",
+                        "entry_aerodynamics",
+                        "coefficients",
+                        key,
+                    )
+        return
+    if "atmosphere" not in vehicle:
+        fail("aerodynamic surfaces need an atmosphere (the vehicle's 'atmosphere')", "surfaces")
+    if tables is None:
+        fail("aerodynamic surfaces need the vehicle's 'entry_aerodynamics' tables", "surfaces")
+    coefficients = tables["coefficients"]
+    for key in schema.ENTRY_FLAP_DERIVATIVES:
+        if key not in coefficients:
+            fail(f"'{key}' is required: the body flaps' control derivative", "entry_aerodynamics", "coefficients")
+    for key in schema.ENTRY_RUDDER_DERIVATIVES:
+        if "rudders" in surfaces and key not in coefficients:
+            fail(f"'{key}' is required: the rudders' control derivative", "entry_aerodynamics", "coefficients")
+        if "rudders" not in surfaces and key in coefficients:
+            fail(
+                f"'{key}' is a rudder derivative; the vehicle has no rudders (surfaces.rudders)",
+                "entry_aerodynamics",
+                "coefficients",
+                key,
+            )
+    for name in ("body_flaps", "rudders"):
+        limits = surfaces.get(name)
+        if limits is not None and limits["min_deg"] >= limits["max_deg"]:
+            fail(
+                f"expected min_deg < max_deg, got {limits['min_deg']} and {limits['max_deg']}",
+                "surfaces",
+                name,
+                "max_deg",
+            )
+    flaps = surfaces["body_flaps"]
+    if ("hinge_moment_max_n_m" in flaps) != ("hinge_area_arm_m3" in flaps):
+        fail("expected both hinge_moment_max_n_m and hinge_area_arm_m3, or neither", "surfaces", "body_flaps")
+    if "blocked" in flaps:
+        deflection = flaps["blocked"]["deflection_deg"]
+        if not flaps["min_deg"] <= deflection <= flaps["max_deg"]:
+            fail(
+                f"expected a blocked deflection within the flap limits [{flaps['min_deg']}, "
+                f"{flaps['max_deg']}] deg, got {deflection}",
+                "surfaces",
+                "body_flaps",
+                "blocked",
+                "deflection_deg",
+            )
+
+
+def coefficient_array(tables):
+    """``(AERO_COEFFICIENTS, n_alpha, n_mach)`` float64; slots the file leaves out are zero."""
+    slots = coefficient_slots()
+    out = np.zeros((len(slots), len(tables["alpha_deg"]), len(tables["mach"])))
+    for key, table in tables["coefficients"].items():
+        out[slots[key]] = np.asarray(table, dtype=float)
+    return out
+
+
+def model(vehicle, radius_m, mu_m3_s2, rotation_rad_s):
+    """The ``core.entry.EntryModel`` of ``vehicle`` over a sphere of ``radius_m`` turning at
+    ``rotation_rad_s`` with gravitational parameter ``mu_m3_s2``."""
+    from refexmc.config.atmosphere import standard_table
+    from refexmc.core.entry import EntryModel
+
+    atmospheres = {"ussa1976": standard_table}
+    tables = vehicle["entry_aerodynamics"]
+    return EntryModel(
+        np.array([radius_m, mu_m3_s2, rotation_rad_s], dtype=float),
+        atmospheres[vehicle["atmosphere"]](),
+        np.array([math.radians(a) for a in tables["alpha_deg"]]),
+        np.array(tables["mach"], dtype=float),
+        coefficient_array(tables),
+        np.array([tables["reference_area_m2"], tables["reference_length_m"]], dtype=float),
+    )
+
+
+STANDARD_GRAVITY = 9.80665  # m/s^2, for the specific impulse
+
+
+def propellant_weights(vehicle):
+    """w_i = b_th K_i of 003 eq. 5 (kg/s per N m about body axis i): b_th = 1 / (Isp g0) and K_i
+    the least total thrust per N m of moment about axis i that the vehicle's thrusters can give
+    (the LP allocation of core.lp_allocation, thrust unbounded), so that the blended allocation
+    weighs each axis by what the thrusters really spend on it."""
+    from refexmc.config.derived import torque_arms
+    from refexmc.core import lp_allocation
+
+    arms = np.ascontiguousarray(torque_arms(vehicle).T)
+    n = arms.shape[1]
+    u_max = np.full(n, 1e12)
+    work = np.zeros(lp_allocation.scratch_shape(n))
+    basis = np.zeros(3, dtype=np.int64)
+    in_basis = np.zeros(lp_allocation.work_columns(n), dtype=np.bool_)
+    u = np.zeros(n)
+    weights = np.zeros(3)
+    for axis in range(3):
+        unit = np.zeros(3)
+        unit[axis] = 1.0
+        if lp_allocation.allocate(arms, u_max, unit, u, work, basis, in_basis) < 1.0:
+            raise ValueError(f"the thrusters cannot give a moment about body axis {'xyz'[axis]}")
+        weights[axis] = u.sum() / (vehicle["rcs"]["isp_s"] * STANDARD_GRAVITY)
+    return weights
+
+
+def entry_vehicle(
+    vehicle,
+    alpha_schedule,
+    bank_schedule,
+    *,
+    blocked=None,
+    planet=(6_371_000.0, 3.986004418e14, 7.2921159e-5),
+    control_rate_hz=None,
+    flap_rate_deg_s=20.0,
+    rudder_rate_deg_s=20.0,
+    surface_time_constant_s=0.1,
+    angle_gain=(1.0, 1.0, 1.0),
+    rate_gain=4.0,
+    integral_gain=0.2,
+    integral_limit_rad_s=(2.0, 0.5, 0.5),
+    align_gain=0.05,
+    align_limit_deg=10.0,
+    rcs_only_above_m=90_000.0,
+    terminal_mach=2.0,
+    floor_altitude_m=15_000.0,
+    max_time_s=3_000.0,
+    transient_s=30.0,
+    blocked_known=True,
+    density_factor=1.0,
+    coefficient_factors=None,
+):
+    """``core.entry_flight.EntryVehicle`` for ``vehicle`` (validated) flying the schedules
+    ``alpha_schedule`` [(Mach, alpha deg), ...] and ``bank_schedule`` [(speed m/s, bank deg), ...].
+
+    ``blocked``: None or (flap 'left'|'right', deflection deg); default the vehicle file's
+    ``surfaces.body_flaps.blocked``. The keyword values are the entry flight's parameters until
+    its mission and campaign keys exist (issue 24; docs/x38.md): surface rates and lag ESTIMATES,
+    003's mode program (RCS alone above 90 km), a terminal Mach of 2.
+
+    Truth against the flight software: ``blocked_known`` False commands the blocked flap as if
+    free (it does not move); ``density_factor`` scales the true density and ``coefficient_factors``
+    ({vehicle-file coefficient name: factor}) the true coefficients, while the flight software
+    keeps the vehicle file's.
+    """
+    from refexmc.core import entry_flight as ef
+
+    surfaces = vehicle["surfaces"]
+    flaps = surfaces["body_flaps"]
+    if blocked is None and "blocked" in flaps:
+        blocked = (flaps["blocked"]["flap"], flaps["blocked"]["deflection_deg"])
+    sf = np.zeros(ef.SURFACE_PARAMETERS)
+    sf[ef.SF_FLAP_MIN], sf[ef.SF_FLAP_MAX] = math.radians(flaps["min_deg"]), math.radians(flaps["max_deg"])
+    rudders = surfaces.get("rudders")
+    if rudders is not None:
+        sf[ef.SF_RUDDER_MIN], sf[ef.SF_RUDDER_MAX] = math.radians(rudders["min_deg"]), math.radians(rudders["max_deg"])
+        sf[ef.SF_RUDDER_MACH] = rudders["usable_below_mach"]
+        sf[ef.SF_HAS_RUDDERS] = 1.0
+    sf[ef.SF_FLAP_RATE] = math.radians(flap_rate_deg_s)
+    sf[ef.SF_RUDDER_RATE] = math.radians(rudder_rate_deg_s)
+    sf[ef.SF_TIME_CONSTANT] = surface_time_constant_s
+    sf[ef.SF_BLOCKED_FLAP] = -1.0 if blocked is None else {"left": 0.0, "right": 1.0}[blocked[0]]
+    sf[ef.SF_BLOCKED_DEFLECTION] = 0.0 if blocked is None else math.radians(blocked[1])
+    sf[ef.SF_HINGE_MOMENT_MAX] = flaps.get("hinge_moment_max_n_m", 0.0)
+    sf[ef.SF_HINGE_AREA_ARM] = flaps.get("hinge_area_arm_m3", 0.0)
+    sf[ef.SF_BLOCKED_KNOWN] = 1.0 if blocked_known else 0.0
+    ct = np.zeros(ef.CONTROL_PARAMETERS)
+    rate_hz = control_rate_hz or vehicle["flight_software"]["control_rate_hz"]
+    ct[ef.CT_PERIOD] = 1.0 / rate_hz
+    ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = angle_gain
+    ct[ef.CT_RATE_GAIN] = rate_gain
+    ct[ef.CT_INTEGRAL_GAIN] = integral_gain
+    ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3] = integral_limit_rad_s
+    ct[ef.CT_ALIGN_GAIN] = align_gain
+    ct[ef.CT_ALIGN_LIMIT] = math.radians(align_limit_deg)
+    ct[ef.CT_RCS_ONLY_ABOVE_M] = rcs_only_above_m
+    ct[ef.CT_TERMINAL_MACH] = terminal_mach
+    ct[ef.CT_FLOOR_ALTITUDE_M] = floor_altitude_m
+    ct[ef.CT_MAX_TIME_S] = max_time_s
+    ct[ef.CT_RCS_CAPACITY : ef.CT_RCS_CAPACITY + 3] = rcs_capacity(vehicle)
+    ct[ef.CT_WEIGHTS : ef.CT_WEIGHTS + 3] = propellant_weights(vehicle)
+    ct[ef.CT_TRANSIENT_S] = transient_s
+    ct[ef.CT_MASS] = vehicle["mass_kg"]
+    ct[ef.CT_NOSE_RADIUS_M] = vehicle["entry_aerodynamics"].get("nose_radius_m", 0.0)
+    inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    alpha = np.array([[m for m, _ in alpha_schedule], [math.radians(a) for _, a in alpha_schedule]])
+    bank = np.array([[v for v, _ in bank_schedule], [math.radians(b) for _, b in bank_schedule]])
+    nominal = model(vehicle, *planet)
+    truth = nominal
+    if density_factor != 1.0 or coefficient_factors:
+        atmosphere = nominal.atmosphere.copy()
+        atmosphere[:, 1] += math.log(density_factor)
+        coefficients = nominal.coefficients.copy()
+        slots = coefficient_slots()
+        for key, factor in (coefficient_factors or {}).items():
+            coefficients[slots[key]] *= factor
+        truth = nominal._replace(atmosphere=atmosphere, coefficients=coefficients)
+    return ef.EntryVehicle(truth, inertia, np.linalg.inv(inertia), sf, ct, alpha, bank, nominal)
+
+
+def rcs_capacity(vehicle):
+    """Largest pure moment about each body axis the thrusters give at their highest level (N m):
+    the LP allocation's scale s* for a very large moment (core.lp_allocation)."""
+    from refexmc.config.derived import torque_arms
+    from refexmc.core import lp_allocation
+
+    arms = np.ascontiguousarray(torque_arms(vehicle).T)
+    n = arms.shape[1]
+    u_max = np.full(n, max(vehicle["rcs"]["thrust_n"].values()))
+    work = np.zeros(lp_allocation.scratch_shape(n))
+    basis = np.zeros(3, dtype=np.int64)
+    in_basis = np.zeros(lp_allocation.work_columns(n), dtype=np.bool_)
+    u = np.zeros(n)
+    big = 1e9
+    capacity = np.zeros(3)
+    for axis in range(3):
+        unit = np.zeros(3)
+        unit[axis] = big
+        capacity[axis] = lp_allocation.allocate(arms, u_max, unit, u, work, basis, in_basis) * big
+    return capacity

@@ -1,0 +1,225 @@
+"""Translation near a small body (trajectory ``local``): position and velocity in a local frame
+under a uniform gravity vector, the thrusters' force through the body attitude, and the
+time-optimal translation law of 002 (core.time_optimal) per body axis in ``translate`` modes.
+
+The local frame is the attitude's inertial frame. Each control period the flight software
+takes the position error (position minus the mission's target) and the velocity into body axes
+(measured attitude) and runs eq. 44 per axis on the scaled state of core.time_optimal.scale,
+with the tank pressure from a perfect pressure transducer, the design's force per pascal and
+time constant per axis (config.pack: n C_F A_t and tau / n, n thrusters pushing along the axis)
+and the mass the pressure implies (dry mass + P V / (R T), eq. 1): u = +1 opens the axis's '+'
+thrusters, -1 its '-' ones. Inside the deadband (|e| and |v| of an axis below the
+flight_software.translation deadband) the axis coasts: 002 stops its simulation on arrival, and
+the sampled law, left on, chatters about the origin and spends the tank (docs/cold-gas.md).
+The axes share one tank and fire at the same time; each law sees the pressure the others leave.
+
+Within a segment (no valve breakpoint) the force is evaluated at both ends with the tank
+pressure there (core.feed) and taken as linear in between: exact for a constant feed, for a
+blow-down tank an error of order (segment / tau)^2 of the segment's impulse.
+"""
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from refexmc._jit import jit, jit_noalloc
+from refexmc.core import feed, quaternion, time_optimal
+from refexmc.core.bits import lowest_bit
+from refexmc.core.layout import (
+    F_TRANSLATION_DEADBAND,
+    F_TRANSLATION_DRY_MASS,
+    F_TRANSLATION_FORCE_PER_PA,
+    F_TRANSLATION_GAS_PER_PA,
+    F_TRANSLATION_LAW,
+    F_TRANSLATION_MASKS,
+    F_TRANSLATION_PD_GAINS,
+    F_TRANSLATION_PWM_STEPS,
+    F_TRANSLATION_TAU,
+    M_LOCAL_GRAVITY,
+    M_LOCAL_POSITION,
+    M_LOCAL_RESERVE,
+    M_LOCAL_VELOCITY,
+    MD_LOCAL_TARGET,
+    S_LOCAL_POSITION_ERROR,
+    S_LOCAL_SPEED,
+    S_SWITCHES,
+    S_TANK_PRESSURE_END,
+    T_DIRECTION,
+    T_SCALE,
+    TRANSLATION_BANG_BANG,
+    TRANSLATION_PD_PWM,
+    V_MASS,
+)
+from refexmc.core.modes import NOW_POSITION_ERROR, NOW_SPEED
+from refexmc.core.rcs import level_at
+
+LS_GAS0 = 0  # gas in the tank at t = 0 (kg): the mass lost since is gas0 - gas
+LS_U = 1  # 3: the law's last command per body axis
+LS_SWITCHES = 4  # 3: command changes per body axis
+LS_STEP = 7  # pd_pwm: control periods since the translate mode began
+LS_PWM = 8  # 3: pd_pwm: signed control periods to fire in this modulation period
+LOCAL_STATUS_SIZE = 11
+
+
+class Local(NamedTuple):
+    """The local trajectory's work."""
+
+    state: np.ndarray  # [position (3), velocity (3)], local frame
+    target: np.ndarray  # the target of the mode flown (MD_LOCAL_TARGET), local frame
+    force: np.ndarray  # (2, 3): thrust force (N, body axes) at the current segment's start and end
+    scratch: np.ndarray  # (3, 3)
+    status: np.ndarray  # LS_*
+
+
+@jit
+def work():
+    """Allocate the local trajectory's work."""
+    return Local(np.zeros(6), np.zeros(3), np.zeros((2, 3)), np.zeros((3, 3)), np.zeros(LOCAL_STATUS_SIZE))
+
+
+@jit_noalloc
+def start(mission, program, loc, tank):
+    """The mission's initial position and velocity, the first mode's target; the tank's initial gas."""
+    for i in range(3):
+        loc.state[i] = mission[M_LOCAL_POSITION + i]
+        loc.state[3 + i] = mission[M_LOCAL_VELOCITY + i]
+    target(program[0], loc)
+    for k in range(LOCAL_STATUS_SIZE):
+        loc.status[k] = 0.0
+    loc.status[LS_GAS0] = feed.gas(tank)
+
+
+@jit_noalloc
+def target(mode, loc):
+    """The target of the mode (its MD_LOCAL_TARGET) is the one the law and the predicates use."""
+    for i in range(3):
+        loc.target[i] = mode[MD_LOCAL_TARGET + i]
+
+
+@jit_noalloc
+def navigate(mission, loc, now):
+    """Position error and speed as the exit predicates read them (perfect navigation)."""
+    e2, v2 = 0.0, 0.0
+    for i in range(3):
+        e = loc.state[i] - loc.target[i]
+        e2 += e * e
+        v2 += loc.state[3 + i] * loc.state[3 + i]
+    now[NOW_POSITION_ERROR] = math.sqrt(e2)
+    now[NOW_SPEED] = math.sqrt(v2)
+
+
+@jit_noalloc
+def desired(fsw, mission, loc, tank, q_meas):
+    """The valves the law opens this control period (bit mask), 002 eq. 44 per body axis."""
+    error, velocity = loc.scratch[0], loc.scratch[1]
+    for i in range(3):
+        loc.scratch[2, i] = loc.state[i] - loc.target[i]
+    quaternion.rotate_inverse(q_meas, loc.scratch[2], error)
+    quaternion.rotate_inverse(q_meas, loc.state[3:6], velocity)
+    pressure = tank.state[feed.TK_PRESSURE]
+    mass = fsw[F_TRANSLATION_DRY_MASS] + pressure * fsw[F_TRANSLATION_GAS_PER_PA]  # the gas left, 002 eq. 1
+    law = fsw[F_TRANSLATION_LAW]
+    bang_bang = law == TRANSLATION_BANG_BANG
+    steps = int(fsw[F_TRANSLATION_PWM_STEPS])
+    phase = int(loc.status[LS_STEP]) % steps if law == TRANSLATION_PD_PWM else 0
+    loc.status[LS_STEP] += 1.0
+    mask = 0
+    for i in range(3):
+        k = fsw[F_TRANSLATION_FORCE_PER_PA + i] / mass
+        tau = fsw[F_TRANSLATION_TAU + i]
+        if k <= 0.0:  # no thrusters along this axis
+            continue
+        if abs(error[i]) <= fsw[F_TRANSLATION_DEADBAND] and abs(velocity[i]) <= fsw[F_TRANSLATION_DEADBAND + 1]:
+            u = 0.0  # arrived on this axis: a bang-off-bang law would chatter about the origin
+        elif law == TRANSLATION_PD_PWM:
+            u = _pd_pwm(fsw, loc, i, error[i], velocity[i], k * pressure, phase, steps)
+        else:
+            x1, x2, x3 = time_optimal.scale(error[i], velocity[i], k, pressure, tau, 1.0)
+            reserve = k * mission[M_LOCAL_RESERVE] * tau * tau
+            u = time_optimal.command(x1, x2, x3, reserve, bang_bang)
+        if u > 0.0:
+            mask |= int(fsw[F_TRANSLATION_MASKS + 2 * i])
+        elif u < 0.0:
+            mask |= int(fsw[F_TRANSLATION_MASKS + 2 * i + 1])
+        u = 1.0 if u > 0.0 else (-1.0 if u < 0.0 else 0.0)
+        if u != loc.status[LS_U + i]:
+            loc.status[LS_SWITCHES + i] += 1.0
+            loc.status[LS_U + i] = u
+    return mask
+
+
+@jit_noalloc
+def _pd_pwm(fsw, loc, axis, error, velocity, accel_available, phase, steps):
+    """The comparison law: a = -kp e - kd v, fired as a pulse of round(|a| / a_available * steps)
+    control periods at the start of each modulation period of ``steps`` periods; u this period."""
+    if phase == 0:
+        accel = -fsw[F_TRANSLATION_PD_GAINS] * error - fsw[F_TRANSLATION_PD_GAINS + 1] * velocity
+        fraction = min(abs(accel) / accel_available, 1.0) if accel_available > 0.0 else 0.0
+        loc.status[LS_PWM + axis] = math.copysign(math.floor(fraction * steps + 0.5), accel)
+    width = loc.status[LS_PWM + axis]
+    if phase < abs(width):
+        return 1.0 if width > 0.0 else -1.0
+    return 0.0
+
+
+@jit_noalloc
+def force_at(valve_state, thrusters, thrust_per_level, t, active, out):
+    """Thrust force (N, body axes) of the thrusters in ``active`` at ``t``."""
+    n = thrusters.shape[0]
+    fx, fy, fz = 0.0, 0.0, 0.0
+    m = active & ((1 << n) - 1)
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
+        f = thrust_per_level * thrusters[i, T_SCALE] * level_at(valve_state, i, t)
+        fx += f * thrusters[i, T_DIRECTION]
+        fy += f * thrusters[i, T_DIRECTION + 1]
+        fz += f * thrusters[i, T_DIRECTION + 2]
+    out[0], out[1], out[2] = fx, fy, fz
+
+
+@jit_noalloc
+def segment_force(valve_state, thrusters, tank, pressure_start, t_start, t_end, active, loc):
+    """The force at a segment's two ends into ``loc.force`` (the tank already advanced to t_end)."""
+    start_thrust = feed.thrust_per_level(tank, pressure_start)
+    end_thrust = feed.thrust_per_level(tank, tank.state[feed.TK_PRESSURE])
+    force_at(valve_state, thrusters, start_thrust, t_start, active, loc.force[0])
+    force_at(valve_state, thrusters, end_thrust, t_end, active, loc.force[1])
+
+
+@jit_noalloc
+def no_force(loc):
+    for j in range(2):
+        for i in range(3):
+            loc.force[j, i] = 0.0
+
+
+@jit_noalloc
+def advance(mission, vehicle, loc, tank, q, h):
+    """Position and velocity over ``h`` with the force linear from loc.force[0] to [1] (body
+    axes, through the attitude ``q``) on the mass left, plus gravity: exact for a linear force."""
+    mass = vehicle[V_MASS] - (loc.status[LS_GAS0] - feed.gas(tank))
+    a0, a1 = loc.scratch[0], loc.scratch[1]
+    quaternion.rotate(q, loc.force[0], a0)
+    quaternion.rotate(q, loc.force[1], a1)
+    for i in range(3):
+        g = mission[M_LOCAL_GRAVITY + i]
+        acc0 = a0[i] / mass + g
+        acc1 = a1[i] / mass + g
+        loc.state[i] += loc.state[3 + i] * h + (2.0 * acc0 + acc1) * h * h / 6.0
+        loc.state[3 + i] += 0.5 * (acc0 + acc1) * h
+
+
+@jit_noalloc
+def finish(mission, loc, tank, summary):
+    """The local trajectory's summary values."""
+    e2, v2 = 0.0, 0.0
+    for i in range(3):
+        e = loc.state[i] - loc.target[i]
+        e2 += e * e
+        v2 += loc.state[3 + i] * loc.state[3 + i]
+        summary[S_SWITCHES + i] = loc.status[LS_SWITCHES + i]
+    summary[S_LOCAL_POSITION_ERROR] = math.sqrt(e2)
+    summary[S_LOCAL_SPEED] = math.sqrt(v2)
+    summary[S_TANK_PRESSURE_END] = tank.state[feed.TK_PRESSURE]

@@ -1,0 +1,132 @@
+"""The cold-gas surveyor (configs/vehicles/cold-gas-surveyor*.yaml, configs/missions/surveyor-hop.yaml):
+the hop arrives, a stuck valve the hop needs fails it by a named reason, the deadband is what keeps
+the law from spending the tank, and PD + PWM is slower and more frugal (docs/cold-gas.md)."""
+
+import copy
+from pathlib import Path
+
+import pytest
+
+from refexmc.config.load import load_mission, load_vehicle
+from refexmc.config.pack import mode_names, pack
+from refexmc.simulate import fly
+
+ROOT = Path(__file__).resolve().parents[1]
+MISSION = load_mission(ROOT / "configs/missions/surveyor-hop.yaml")
+RESERVE_PA = 1.0e6  # the mission's reserve_pressure_pa
+
+
+def _hop(vehicle, failed=()):
+    return fly(pack(vehicle, MISSION, failed_thrusters=failed), history_rate_hz=1.0, mode_names=mode_names(MISSION))
+
+
+@pytest.fixture(scope="module")
+def surveyor():
+    return load_vehicle(ROOT / "configs/vehicles/cold-gas-surveyor.yaml")
+
+
+def test_the_nominal_hop_arrives_with_the_reserve(surveyor):
+    """Within the mission's 5 cm and 1 cm/s, the tank above the 10 bar reserve, x accelerating,
+    coasting and braking (a few command changes), in well under the 120 s timeout."""
+    result = _hop(surveyor)
+    assert result.success, result.failure_reason
+    row = result.runs_values()
+    assert row["position_error_end_m"] <= 0.05 and row["speed_end_m_s"] <= 0.01
+    assert row["tank_pressure_end_pa"] > RESERVE_PA
+    assert row["switches_x"] <= 6
+    assert row["t_end_s"] < 40.0
+
+
+@pytest.mark.parametrize(("thruster", "needed"), [(1, True), (3, True), (5, False)])
+def test_a_stuck_valve_the_hop_needs_fails_it_by_name(surveyor, thruster, needed):
+    """XP (1) pushes the 3 m, YP (3) the 1 m: stuck closed, the hop cannot be made and the mode
+    times out (failure reason hop_timeout); ZP (5) is not needed nominally and the hop arrives."""
+    result = _hop(surveyor, failed=(thruster,))
+    if needed:
+        assert not result.success
+        assert result.failure_reason == "hop_timeout"
+    else:
+        assert result.success
+
+
+def test_without_a_deadband_the_law_chatters_and_spends_more_gas(surveyor):
+    """The deadband is the flight software's stop: without it an axis that has arrived keeps
+    switching about the origin (docs/cold-gas.md sec. 2)."""
+    bare = copy.deepcopy(surveyor)
+    del bare["flight_software"]["translation"]["deadband_position_m"]
+    del bare["flight_software"]["translation"]["deadband_speed_m_s"]
+    with_deadband, without = _hop(surveyor).runs_values(), _hop(bare).runs_values()
+    assert without["switches_y"] > 3 * with_deadband["switches_y"]
+    assert without["fuel_used_kg"] > with_deadband["fuel_used_kg"]
+
+
+def test_pd_pwm_is_slower_and_uses_less_gas_than_the_law(surveyor):
+    """The comparison campaign's vehicle: the same hop, more than twice the time, less than half the gas."""
+    pd = _hop(load_vehicle(ROOT / "configs/vehicles/cold-gas-surveyor-pd-pwm.yaml"))
+    law = _hop(surveyor)
+    assert pd.success
+    assert pd.runs_values()["t_end_s"] > 2.0 * law.runs_values()["t_end_s"]
+    assert pd.runs_values()["fuel_used_kg"] < 0.5 * law.runs_values()["fuel_used_kg"]
+
+
+@pytest.mark.parametrize(
+    ("file", "old", "new", "words"),
+    [
+        (
+            "vehicles/cold-gas-surveyor.yaml",
+            "    model: blow_down                   # 002 sec. 3.2: nozzle and valve straight on the tank",
+            "    model: constant",
+            ["rcs.feed.tank_volume_m3", "feed is constant"],
+        ),
+        (
+            "vehicles/cold-gas-surveyor.yaml",
+            "    law: time_optimal                  # 002 eq. 44 per body axis",
+            "    law: pd_pwm",
+            ["flight_software.translation", "pd_pwm needs 'position_gain_s2'"],
+        ),
+        (
+            "vehicles/cold-gas-surveyor.yaml",
+            "trajectory: local",
+            "trajectory: none",
+            ["'local' needs a vehicle with the local trajectory"],
+        ),
+    ],
+)
+def test_bad_local_input_exits_2(tmp_path, file, old, new, words):
+    """A constant feed with tank keys, a pd_pwm law without its gains, a local mission for a vehicle
+    without the local trajectory: exit 2, one message with the file and key path, nothing flown."""
+    from click.testing import CliRunner
+
+    from refexmc.cli import main
+
+    text = (ROOT / "configs" / file).read_text()
+    assert old in text, old
+    edited = tmp_path / Path(file).name
+    edited.write_text(text.replace(old, new))
+    campaign = (ROOT / "campaigns/surveyor-hop.yaml").read_text()
+    campaign = campaign.replace(f"../configs/{file}", str(edited)).replace("../configs/", f"{ROOT}/configs/")
+    path = tmp_path / "campaign.yaml"
+    path.write_text(campaign)
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    for word in words:
+        assert word in result.output, result.output
+
+
+def test_a_translate_mode_flies_to_its_own_target(surveyor):
+    """surveyor-hop-sequential: hop_x goes to the mode's target_position_m [3, 0, 0] and stops
+    (the exit predicates measured against it), then hop_y to the mission's [3, 1, 0]; slower than
+    both axes at once on the shared tank (docs/cold-gas.md sec. 4)."""
+    mission = load_mission(ROOT / "configs/missions/surveyor-hop-sequential.yaml")
+    sequential = fly(pack(surveyor, mission), history_rate_hz=1.0, mode_names=mode_names(mission))
+    assert sequential.success, sequential.failure_reason
+    row = sequential.runs_values()
+    assert row["t_hop_x_s"] > 0.0 and row["t_hop_y_s"] > 0.0
+    assert row["position_error_end_m"] <= 0.05  # against [3, 1, 0], the last mode's target
+    assert row["t_end_s"] > _hop(surveyor).runs_values()["t_end_s"]
+    # hop_x alone: stopping at [3, 0, 0] means y has not moved yet
+    first = copy.deepcopy(mission)
+    first["modes"] = first["modes"][:1]
+    alone = fly(pack(surveyor, first), history_rate_hz=1.0, mode_names=mode_names(first))
+    assert alone.success and alone.runs_values()["switches_y"] <= 2
