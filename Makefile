@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo smoke baseline test test-fast bench bench-campaign lint format clean
+.PHONY: demo smoke baseline test test-fast mutate bench bench-campaign lint format clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -40,6 +40,19 @@ test: $(STAMP)
 ## test-fast: skip tests marked slow
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"
+
+## mutate: mutation testing (mutmut) of refexmc/core/ and report/requirements.py against their unit tests, in a
+## copy (build/mutate) whose kernels lose their @jit decorators (mutmut skips decorated functions; REFEXMC_DISABLE_JIT=1
+## makes them plain Python anyway). Hours on 2 cores, not in CI; MUTANTS='refexmc.core.navigation*' narrows it and
+## a second run only tries what changed (docs/mutation.md)
+MUTATE_DIR := build/mutate
+mutate: $(STAMP)
+	mkdir -p $(MUTATE_DIR)
+	rm -rf $(MUTATE_DIR)/refexmc $(MUTATE_DIR)/tests
+	cp -R refexmc tests configs campaigns pyproject.toml $(MUTATE_DIR)/
+	sed -i -E '/^@jit(_noalloc|_inline)?(\(.*\))?$$/d' $(MUTATE_DIR)/refexmc/core/*.py
+	cd $(MUTATE_DIR) && REFEXMC_DISABLE_JIT=1 $(CURDIR)/$(BIN)/mutmut run $(MUTANTS)
+	cd $(MUTATE_DIR) && $(CURDIR)/$(BIN)/mutmut results
 
 ## bench: flight-kernel benchmarks (results go to benchmarks/RESULTS.md by hand)
 bench: $(STAMP)

@@ -13,6 +13,12 @@ import click
 
 from refexmc.config.errors import ConfigError
 
+STRICT = click.option("--strict", is_flag=True, help="Design warnings are errors (exit 2): docs/missions.md.")
+
+
+def plural(count, word):
+    return f"{count} {word}{'' if count == 1 else 's'}"
+
 
 def _bad_input(message):
     click.echo(f"error: {message}", err=True)
@@ -73,8 +79,22 @@ def main():
 )
 @click.option("--batch", type=int, help="With --until-decided: runs between looks [default: budget / 10, >= 10].")
 @click.option("--alpha", type=float, help="With --until-decided: wrong-verdict rate [default: 0.05].")
+@STRICT
 def run(
-    campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until_decided, batch, alpha
+    campaign,
+    out,
+    jobs,
+    runs,
+    seed,
+    resume,
+    overwrite,
+    backend,
+    scheduler,
+    no_progress,
+    until_decided,
+    batch,
+    alpha,
+    strict,
 ):
     """Run CAMPAIGN (default: campaigns/refex-mc100.yaml) and write OUT (default runs/<name>).
 
@@ -110,7 +130,7 @@ def run(
     until = {"batch": batch, "alpha": 0.05 if alpha is None else alpha} if until_decided else None
     try:
         result = _run_campaign(
-            campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until
+            campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until, strict
         )
     finally:
         pool.stop()  # idle now, and this process ends: its exit would wait ~0.4 s for them to leave
@@ -143,7 +163,9 @@ def _local_workers(scheduler, jobs):
     return workers or jobs or pool.usable_cores()
 
 
-def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until=None):
+def _run_campaign(
+    campaign, out, jobs, runs, seed, resume, overwrite, backend, scheduler, no_progress, until=None, strict=False
+):
     """The result of ``run_campaign`` (``until``: of ``run_until_decided`` with these options); bad
     input, a failure or an interrupt exits with its message and code."""
     from refexmc.campaign import storage
@@ -167,6 +189,7 @@ def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, s
             overwrite=overwrite,
             resume=resume,
             progress=None if no_progress else progress_mode(),
+            strict=strict,
         )
     except ConfigError as exc:
         _bad_input(str(exc))
@@ -187,7 +210,9 @@ def _run_campaign(campaign, out, jobs, runs, seed, resume, overwrite, backend, s
 
 
 def format_run_summary(result):
-    """A few lines a reviewer reads first: success, propellant, hand-over error, mode times."""
+    """A few lines a reviewer reads first: success, propellant, final angle error, mode times."""
+    from refexmc.config.mission_words import end_name
+
     table = result["runs"]
     counts = result["counts"]
     lines = [
@@ -198,10 +223,12 @@ def format_run_summary(result):
     if len(ok) == 1:
         row = ok.iloc[0]
         verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
-        lines.append(f"  flight: {verdict}, hand-over at t = {row['t_end_s']:.1f} s")
+        end = end_name(result["campaign"]["mission"]) if row["success"] else "flight stopped"
+        lines.append(f"  flight: {verdict}, {end} at t = {row['t_end_s']:.1f} s")
         lines.append(f"  propellant remaining: {100 * row['fuel_remaining']:.1f} % ({row['fuel_used_kg']:.3f} kg used)")
         theta = row["theta_t_handover_deg"]
-        lines.append(f"  total angle error at hand-over: {theta:.2f} deg" if not math.isnan(theta) else "")
+        at = f"at the {end}" if row["success"] else "when it stopped"
+        lines.append(f"  total angle error {at}: {theta:.2f} deg" if not math.isnan(theta) else "")
         names = [mode["name"] for mode in result["campaign"]["mission"]["modes"]]
         times = ", ".join(f"{m} {row[f't_{m.lower()}_s']:.1f}" for m in names)
         lines.append(f"  time in mode [s]: {times}")
@@ -297,12 +324,19 @@ def rerun(out, run_id, history_rate, dest):
         _os_error(exc, "rerun failed")
     except ArrowException as exc:
         _unreadable(exc, f"rerun failed: cannot read {out}", DAMAGED_HINT)
+    from refexmc.config.mission_words import end_condition, end_name
+
     row = result["row"]
+    mission = result["campaign"]["mission"]
     verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
     click.echo(f"run {run_id} of {result['campaign']['name']}: {verdict}, status {row['status']}")
+    click.echo(f"  the mission: {end_condition(mission)}")
+    stopped = end_name(mission) if row["success"] else "flight stopped"
+    theta = row["theta_t_handover_deg"]
     click.echo(
-        f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, hand-over at t = {row['t_end_s']:.2f} s, "
-        f"theta_t {row['theta_t_handover_deg']:.3f} deg, failed thrusters [{row['failed_thrusters']}]"
+        f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, {stopped} at t = {row['t_end_s']:.2f} s"
+        + (f", total angle error {theta:.3f} deg" if not math.isnan(theta) else "")
+        + f", failed thrusters [{row['failed_thrusters']}]"
         + (f", failed wheels [{row['failed_wheels']}]" if "failed_wheels" in row else "")
     )
     click.echo(f"  history: {result['path']}")
@@ -317,22 +351,31 @@ def rerun(out, run_id, history_rate, dest):
 
 @main.command()
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-def validate(files):
+@STRICT
+def validate(files, strict):
     """Check campaign, vehicle or mission FILES without running anything.
 
-    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml
+    Design warnings (a design that validates but may not fly as meant: docs/missions.md) are
+    printed on stderr; --strict makes them errors (exit 2).
+    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml --strict
     """
     from refexmc.config.load import load_any
 
     bad = 0
     for path in files:
+        warnings = []
         try:
-            kind, _ = load_any(path)
+            kind, _ = load_any(path, warnings)
         except ConfigError as exc:
             click.echo(f"error: {exc}", err=True)
             bad += 1
             continue
-        click.echo(f"{path}: valid {kind}")
+        for warning in warnings:
+            click.echo(f"{'error' if strict else 'warning'}: {warning}", err=True)
+        if strict and warnings:
+            bad += 1
+            continue
+        click.echo(f"{path}: valid {kind}" + (f", {plural(len(warnings), 'design warning')}" if warnings else ""))
     if bad:
         sys.exit(2)
 
@@ -342,7 +385,8 @@ def validate(files):
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("--torque", help="TX,TY,TZ: show what fires for this body torque (N m).")
 @click.option("--level", help="thrust level for --torque (default: the vehicle's first).")
-def inspect(file, as_json, torque, level):
+@STRICT
+def inspect(file, as_json, torque, level, strict):
     """Print the design quantities derived from a vehicle (or a campaign's vehicle).
 
     omega_dot_max (000 eq. 1), gains (eq. 38, 34), f_min (eq. 44), switching times, allocation table;
@@ -350,12 +394,18 @@ def inspect(file, as_json, torque, level):
     Example: refexmc inspect configs/vehicles/refex.yaml --json
     """
     from refexmc.config.derived import design
+    from refexmc.config.design_checks import strict_error
     from refexmc.config.load import load_any
 
+    warnings = []
     try:
-        kind, data = load_any(file)
+        kind, data = load_any(file, warnings)
     except ConfigError as exc:
         _bad_input(str(exc))
+    if strict and warnings:
+        _bad_input(str(strict_error(warnings)))
+    for warning in warnings:
+        click.echo(f"warning: {warning}", err=True)
     if kind == "mission":
         _bad_input(f"{file}: a mission has no design quantities; give a vehicle or campaign file")
     vehicle = data["vehicle"] if kind == "campaign" else data
@@ -396,6 +446,9 @@ def _inspect_torque(vehicle, text, level, as_json):
         click.echo("\n".join(lines))
         return
     lines = [f"allocation ({alloc['method']}, {alloc['level']} thrust) of torque {values} N m"]
+    if alloc["method"] == "table":
+        opened = sum(u > 0.0 for u in alloc["commands"])
+        lines[0] += f": {opened} valves open, thrust derated x{alloc['derating']:g}"
     for i, u in enumerate(alloc["commands"]):
         if u > 0.0:
             lines.append(f"  thruster {i + 1:2d}  {u:10.6f} N")
@@ -410,7 +463,8 @@ def format_design(name, info):
     from refexmc.config.derived import CORRECTION_WARNING_MS
 
     def vec(values, fmt):
-        return "  ".join(format(v, fmt) for v in values)
+        width = int(fmt.split(".")[0].rstrip("dfg") or 0)
+        return "  ".join(format(v, fmt) if v is not None else "-".rjust(width) for v in values)
 
     lines = [f"vehicle {name}"]
     if "lever_arms_m" in info:
@@ -433,6 +487,15 @@ def format_design(name, info):
         if info["controller"] != "smc":
             lines.append(f"    Kp                          {vec(info['gains'][level]['kp'], '8.3f')}")
             lines.append(f"    Kd                          {vec(info['gains'][level]['kd'], '8.3f')}")
+        if level in info.get("deadbands", {}):
+            band, bit = info["deadbands"][level], info["minimum_impulse_bit"][level]
+            j = "" if info["controller"] == "pd" else "J "
+            lines.append(f"    rate deadband [deg/s]       {vec(band['rate_deg_s'], '8.4f')}   tau_min / ({j}Kd)")
+            lines.append(
+                f"    angle deadband [deg]        {vec(band['angle_deg'], '8.4f')}   2 asin(tau_min / ({j}Kp))"
+            )
+            lines.append(f"    min impulse bit [N m s]     {vec(bit['n_m_s'], '8.4f')}   shortest pulse, '+' entry")
+            lines.append(f"      its rate change [deg/s]   {vec(bit['rate_deg_s'], '8.4f')}")
         if level in info.get("pulse_equivalent_ms", {}):
             lines.append(
                 f"    valves: a {info['hardware_min_on_ms']:g} ms pulse gives {info['pulse_equivalent_ms'][level]:.2f} "
@@ -462,9 +525,12 @@ def format_design(name, info):
         if info["actuation"] == "lp_pwm":
             lines.append(f"  actuation {info['actuation']}: LP allocation (004 eq. 2-5); see --torque")
         return "\n".join(lines)
-    lines.append("  allocation (axis command -> thrusters):")
+    levels = list(info["allocation_torque_n_m"])
+    lines.append("  allocation: axis command -> thrusters; the torque they realise [N m, x y z], derated, per level")
+    lines.append(f"    {'':8s} {'':14s}" + "".join(f"{level:>30s}" for level in levels))
     for key, ids in info["allocation"].items():
-        lines.append(f"    {key:8s} {', '.join(map(str, ids))}")
+        torques = "".join(f"  {vec(info['allocation_torque_n_m'][level][key], '8.3f')}" for level in levels)
+        lines.append(f"    {key:8s} {', '.join(map(str, ids)):14s}{torques}")
     return "\n".join(lines)
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 from numpy.polynomial import Polynomial
+from scipy.spatial.transform import Rotation
 
 # --------------------------------------------------------------------------------------------
 # Pulse-width pulse-frequency modulation, 000 eq. 41-48
@@ -541,6 +542,71 @@ def burn_direction(law, r_gps, v_gps, r_nom, v_nom, a_nom, position_gain, veloci
 
 
 # --------------------------------------------------------------------------------------------
+# Navigation errors (reference-model sec. 5; 000 sec. 2.2, 6.2) and their noise source
+# --------------------------------------------------------------------------------------------
+
+
+class SplitMix64:
+    """SplitMix64 (Steele, Lea, Flood 2014) in Python ints, with Box-Muller normals (one of the pair)."""
+
+    GOLDEN, MIX1, MIX2 = 0x9E3779B97F4A7C15, 0xBF58476D1CE4E5B9, 0x94D049BB133111EB
+
+    def __init__(self, state):
+        self.state = int(state) & _MASK64
+
+    def uniform(self):
+        self.state = (self.state + self.GOLDEN) & _MASK64
+        z = self.state
+        z = ((z ^ (z >> 30)) * self.MIX1) & _MASK64
+        z = ((z ^ (z >> 27)) * self.MIX2) & _MASK64
+        z ^= z >> 31
+        return ((z >> 11) + 0.5) / 2.0**53  # in (0, 1)
+
+    def normal(self):
+        u1, u2 = self.uniform(), self.uniform()
+        return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+def navigation_measure(
+    q, rate, attitude_bias, attitude_noise, rate_bias, rate_noise, calibration_time, time_calibrating, noise
+):
+    """(measured quaternion [x, y, z, w], measured rate) of the reference model sec. 5.
+
+    The attitude error is the body-axes rotation vector b e^(-t_cal / tau) + n (n ~ N(0, sigma^2)
+    per axis): the bias decays only over ``time_calibrating``, the time spent in calibrating modes
+    (frozen once they end), and not at all without a time constant. Measured rate = truth + bias +
+    noise. ``noise``: a SplitMix64 drawn in the kernel's order (attitude x, y, z, then rate x, y, z),
+    a draw only where the sigma is positive.
+    """
+    decay = math.exp(-time_calibrating / calibration_time) if calibration_time > 0 and time_calibrating > 0 else 1.0
+    error = decay * np.asarray(attitude_bias, float)
+    if attitude_noise > 0:
+        error = error + attitude_noise * np.array([noise.normal() for _ in range(3)])
+    measured = (Rotation.from_quat(q) * Rotation.from_rotvec(error)).as_quat()
+    if np.dot(measured, q) < 0:  # the same rotation; the sign closest to the truth
+        measured = -measured
+    rates = np.asarray(rate, float) + np.asarray(rate_bias, float)
+    if rate_noise > 0:
+        rates = rates + rate_noise * np.array([noise.normal() for _ in range(3)])
+    return measured, rates
+
+
+# --------------------------------------------------------------------------------------------
+# PD control with partial feedback linearisation, 000 eq. 30 and 35
+# --------------------------------------------------------------------------------------------
+
+
+def pd_feedback_linearisation_torque(q_error, rate_error, rate_meas, accel_ref, kp, kd, inertia, attitude_controlled):
+    """u = J v + omega x J omega (eq. 30), v = omega_dot_g - Kd omega_e - Kp q_e,vec (eq. 35);
+    in rate damping (attitude not controlled, 000 sec. 3.2) v has no Kp term."""
+    inertia = np.asarray(inertia, float)
+    omega = np.asarray(rate_meas, float)
+    v = np.asarray(accel_ref, float) - np.asarray(kd, float) * np.asarray(rate_error, float)
+    if attitude_controlled:
+        v = v - np.asarray(kp, float) * np.asarray(q_error[:3], float)
+    return inertia @ v + np.cross(omega, inertia @ omega)
+
+
 # Entry flight over a rotating spherical Earth, 003 eq. 3 (longitude/latitude rates and the
 # centripetal sign in gamma-dot as for a heading from north: core.entry's docstring)
 # --------------------------------------------------------------------------------------------

@@ -193,7 +193,8 @@ def test_bad_campaign_is_refused_with_one_message(tmp_path, existing_out, text, 
     for out, flags in ((fresh, []), (existing_out, ["--overwrite"])):
         result = CliRunner().invoke(main, ["run", str(campaign), "-o", str(out), "--no-progress", *flags, *args])
         assert result.exit_code == 2, result.output
-        assert "Traceback" not in result.output and result.exception is None or isinstance(result.exception, SystemExit)
+        assert "Traceback" not in result.output
+        assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
         message = result.output.strip()
         for word in words:
             assert word in message, (word, message)

@@ -67,6 +67,8 @@ def test_rerun_reproduces_a_run_and_writes_its_history(out, tmp_path):
     assert dest.is_file()
     bad = CliRunner().invoke(main, ["rerun", str(out), "99"])
     assert bad.exit_code == 2 and "run id 0..5" in bad.output
+    # the message names the output directory and the argument, not a placeholder file
+    assert bad.output.strip() == f"error: {out}: RUN_ID: expected a run id 0..5, got 99", bad.output
 
 
 def test_report_of_an_incomplete_campaign_never_passes(tmp_path):

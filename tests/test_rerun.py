@@ -62,3 +62,34 @@ def test_rerun_refuses_a_bad_directory_or_run_id(finished, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     assert rerun(copy, 2)["differ"] == []  # OUT alone is enough, wherever it is
+
+
+def test_rerun_history_matches_the_stored_history_sample_by_sample(finished, tmp_path):
+    """The re-flown full-rate history holds every stored (2 Hz) sample, bit for bit: the same
+    flight, sampled more often (a rerun that only matched the summary row would pass the tests above)."""
+    out, rows = finished
+    stored = pq.read_table(out / "histories").to_pandas()
+    for run_id in (0, 3):
+        full = pq.read_table(rerun(out, run_id, dest=tmp_path / f"run{run_id}.parquet")["path"]).to_pandas()
+        mine = stored[stored["run_id"] == run_id].reset_index(drop=True)
+        assert len(mine) > 10
+        # the last stored sample is the final state, not on the 2 Hz grid; both histories end with it
+        picked = full.set_index("t_s").loc[mine["t_s"]].reset_index()[list(full.columns)]
+        assert list(picked.columns) == list(mine.columns)
+        for column in mine.columns:
+            assert picked[column].equals(mine[column]), column
+
+
+def test_rerun_reports_a_stored_column_the_new_row_lacks(finished, tmp_path):
+    """A stored column the re-flown row does not have (a renamed or dropped output) differs."""
+    import pyarrow as pa
+
+    out, _ = finished
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    table = pq.read_table(copy / "runs")
+    table = table.append_column("an_old_output", pa.array([1.0] * table.num_rows))
+    for part in (copy / "runs").glob("part-*.parquet"):
+        part.unlink()
+    pq.write_table(table, copy / "runs" / "part-00000.parquet")
+    assert rerun(copy, 1)["differ"] == ["an_old_output"]

@@ -47,7 +47,7 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
     if "sweep" in campaign:  # its runs are the points' (refexmc.campaign.sweep)
         raise ConfigError("a sweep's output: re-fly a run of one point, OUT/points/NNN", file=out)
     if not 0 <= run_id < campaign["runs"]:
-        raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", path=("RUN_ID",))
+        raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", file=out, path=("RUN_ID",))
     plan = RunPlan(campaign)
     if history_rate_hz is None:
         history_rate_hz = 1.0 / control_period(plan.nominal_inputs)
@@ -59,5 +59,8 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
         history = storage.empty_history_table()
     storage.write_table_atomic(history, path)
     stored = stored_row(out, run_id)
-    differ = [] if stored is None else [key for key in row if key not in stored or not _same(row[key], stored[key])]
+    differ = []
+    if stored is not None:  # a column either row lacks differs too (a stored column the new row lost)
+        keys = list(row) + [key for key in stored if key not in row]
+        differ = [key for key in keys if key not in row or key not in stored or not _same(row[key], stored[key])]
     return {"row": row, "stored": stored, "differ": differ, "path": path, "campaign": campaign}

@@ -27,6 +27,7 @@ from refexmc.campaign import lock, pool, storage
 from refexmc.campaign.backends import BACKENDS, check_backend, start_workers, stop_workers
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import Guard
+from refexmc.config.design_checks import strict_error
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import apply_overrides, load_campaign
 
@@ -48,8 +49,9 @@ def default_jobs():
     return pool.usable_cores()
 
 
-def resolve_campaign(campaign_file=None, runs=None, seed=None):
-    """The validated campaign with the overrides applied (ConfigError on bad input)."""
+def resolve_campaign(campaign_file=None, runs=None, seed=None, warnings=None):
+    """The validated campaign with the overrides applied (ConfigError on bad input); its design
+    warnings (config.design_checks) are appended to the list ``warnings``."""
     if campaign_file is None:
         if not DEFAULT_CAMPAIGN.is_file():
             raise ConfigError(
@@ -57,7 +59,7 @@ def resolve_campaign(campaign_file=None, runs=None, seed=None):
                 file=DEFAULT_CAMPAIGN,
             )
         campaign_file = DEFAULT_CAMPAIGN
-    campaign = apply_overrides(load_campaign(campaign_file), runs=runs, seed=seed)
+    campaign = apply_overrides(load_campaign(campaign_file, warnings), runs=runs, seed=seed)
     return campaign_file, campaign
 
 
@@ -225,6 +227,7 @@ def run_campaign(
     chunk_size=None,
     scheduler=None,
     notify=notify_stderr,
+    strict=False,
     extend=False,
 ):
     """Validate and run a campaign file (default: DEFAULT_CAMPAIGN); return output path, counts, runs table.
@@ -233,7 +236,9 @@ def run_campaign(
     ``chunk_size``: runs per chunk of a new OUT (default ``$REFEXMC_CHUNK_SIZE`` or :func:`default_chunk_size`);
     a resumed OUT keeps the chunk size in its manifest. ``scheduler``: the Dask cluster of
     ``backend='dask'`` (an address, a scheduler file, or ``local:N``). ``notify(message)``: what
-    the user should know on the way (a damaged part flown again, a stale lock taken over).
+    the user should know on the way (a damaged part flown again, a stale lock taken over), and
+    each design warning of the campaign (config.design_checks; also in ``manifest.json``'s
+    ``design_warnings``); ``strict``: a design warning is bad input instead.
     ``extend`` (with ``resume``): OUT may hold the same campaign with fewer runs; the missing runs
     are added (refexmc.campaign.decided).
 
@@ -246,7 +251,12 @@ def run_campaign(
     the campaign early kills them. After a complete campaign they are left to the next one in this
     process (:func:`refexmc.campaign.backends.stop_workers` ends them).
     """
-    campaign_file, campaign = resolve_campaign(campaign_file, runs, seed)
+    design_warnings = []
+    campaign_file, campaign = resolve_campaign(campaign_file, runs, seed, design_warnings)
+    if strict and design_warnings:
+        raise strict_error(design_warnings)
+    for warning in design_warnings:
+        notify(f"warning: {warning}")
     jobs = default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
@@ -267,6 +277,7 @@ def run_campaign(
             "scheduler": scheduler,
             "run_time_limit_s": float(campaign.get("run_time_limit_s", DEFAULT_RUN_TIME_LIMIT_S)),
         },
+        "design_warnings": [str(w) for w in design_warnings],
     }
 
     def check():
@@ -329,7 +340,7 @@ def _run_locked(flight, previous, options, progress, notify):
     else:
         chunk_size, started, resumed = flight["chunk_size"], storage.now(), []
         storage.write_resolved(out, campaign)
-    execution = {**flight["execution"], "resumed": resumed}
+    execution = {**flight["execution"], "resumed": resumed, "design_warnings": flight["design_warnings"]}
 
     def write_manifest(status, finished=None, counts=None):
         info = storage.manifest(campaign_file, campaign, chunk_size, status, started, finished, counts, **execution)

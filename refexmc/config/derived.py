@@ -234,6 +234,85 @@ def allocation_table(vehicle):
     return table
 
 
+def derating_factor(vehicle, valves_open):
+    """Thrust factor of every thruster with ``valves_open`` valves producing thrust (000 sec. 2.1):
+    the vehicle's ``rcs.derating`` entry for that count, its last entry beyond the list."""
+    derating = vehicle["rcs"]["derating"]
+    return float(derating[min(valves_open, len(derating)) - 1]) if valves_open > 0 else 1.0
+
+
+def entry_torque_per_newton(vehicle, ids):
+    """Body torque (N m per N of nominal thrust) of the thrusters ``ids`` (1-based) open together,
+    each derated for their number: sum of r x d over them, times the derating factor."""
+    arms = torque_arms(vehicle)
+    return arms[[i - 1 for i in ids]].sum(axis=0) * derating_factor(vehicle, len(ids))
+
+
+def allocation_torques(vehicle, level):
+    """{axis command: realised body torque (N m)} of each row of the allocation table at a thrust
+    level, derating included: what the table's thrusters give when they all fire."""
+    thrust = vehicle["rcs"]["thrust_n"][level]
+    table = allocation_table(vehicle)
+    out = {}
+    for w in itertools.product((-1, 0, 1), repeat=3):
+        key = axis_command_key(w)
+        if key:
+            ids = [int(i) + 1 for i in np.flatnonzero(table[(w[0] + 1) * 9 + (w[1] + 1) * 3 + (w[2] + 1)])]
+            out[key] = (entry_torque_per_newton(vehicle, ids) * thrust).tolist()
+    return out
+
+
+def effective_thrusters_per_axis(vehicle):
+    """{'+x': n, '-x': n, ...}: the thrusters' worth of torque the single-axis entries of the
+    allocation table realise about their axis, derated, in units of one thruster at the lever arm
+    l_i (000 eq. 1's n_t: ReFEx's '+y' opens 3 valves derated to 0.73, worth 2.19)."""
+    arms = lever_arms(vehicle)
+    entries = vehicle["flight_software"]["allocation"]
+    out = {}
+    for axis, name in enumerate("xyz"):
+        for sign in "+-":
+            ids = entries.get(sign + name, [])
+            torque = entry_torque_per_newton(vehicle, ids)[axis] if ids else 0.0
+            out[sign + name] = float(abs(torque) / arms[axis]) if arms[axis] > 0.0 else 0.0
+    return out
+
+
+def deadbands(vehicle, level):
+    """(rate deadband [rad/s], angle deadband [rad]) per body axis of a thrust level: the largest
+    single-axis error the controller answers with less than the PWPF threshold tau_min =
+    tau_min_fraction tau_max (000 sec. 5), so no valve fires. At rest with one error alone
+    (000 eq. 36-37): pd_feedback_linearisation |J_ii Kd_i omega_e| < tau_min, |J_ii Kp_i sin(phi/2)|
+    < tau_min; pd (gains in N m, N m s) the same without J. None where there is no such threshold
+    (actuation other than pwpf_table, controller smc)."""
+    fsw = vehicle["flight_software"]
+    if fsw["actuation"] != "pwpf_table" or fsw["controller"] == "smc":
+        return None
+    tau_min = fsw["pwpf"]["tau_min_fraction"] * torque_max(vehicle, level)
+    kp, kd = gains_flown(vehicle, level)
+    scale = np.ones(3) if fsw["controller"] == "pd" else np.diag(np.asarray(vehicle["inertia_kg_m2"], dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):  # 0 / 0 where a gain and the torque are 0
+        rate = np.where(kd > 0.0, tau_min / (scale * kd), np.inf)
+        ratio = np.where(kp > 0.0, tau_min / (scale * kp), np.inf)
+    angle = np.where(ratio < 1.0, 2.0 * np.arcsin(np.minimum(ratio, 1.0)), np.pi)  # beyond 1: never fires
+    return rate, np.where(kp > 0.0, angle, np.inf)  # inf: no gain, the error is never acted on
+
+
+def minimum_impulse_bit(vehicle, level):
+    """(impulse [N m s], rate change [rad/s]) per body axis of the shortest hardware pulse
+    (switching_limits_ms.min_on, at least one control period) of the '+' single-axis entry at a
+    thrust level: its realised torque about the axis times the pulse's full-thrust width through
+    the valve transients (:func:`pulse_impulse_ms`), and that over J_ii."""
+    period_ms = 1e3 / vehicle["flight_software"]["control_rate_hz"]
+    width_ms = max(vehicle["rcs"]["switching_limits_ms"]["min_on"], period_ms)
+    full_ms = pulse_impulse_ms(width_ms, *valve_constants(vehicle, level))
+    thrust = vehicle["rcs"]["thrust_n"][level]
+    entries = vehicle["flight_software"]["allocation"]
+    impulse = np.array(
+        [abs(entry_torque_per_newton(vehicle, entries.get("+" + a, []))[k]) * thrust for k, a in enumerate("xyz")]
+    ) * (full_ms / 1e3)
+    return impulse, impulse / np.diag(np.asarray(vehicle["inertia_kg_m2"], dtype=float))
+
+
 def design(vehicle):
     """Everything ``refexmc inspect`` shows, as plain Python types."""
     fsw = vehicle["flight_software"]
@@ -287,6 +366,11 @@ def _wheel_design(vehicle):
     }
 
 
+def _finite(values):
+    """A list for JSON: None where a value is not finite (a deadband without a gain)."""
+    return [float(v) if np.isfinite(v) else None for v in values]
+
+
 def _rcs_design(vehicle):
     """The thruster design (000): lever arms, omega_dot_max and gains per thrust level, PWPF, switching
     limits, the allocation table."""
@@ -303,6 +387,16 @@ def _rcs_design(vehicle):
         out["pulse_correction_matching_ms"][level] = pulse_correction_matching_ms(vehicle, level)
         if flies_wheels(vehicle):  # the thrusters are not flown; their design is still shown
             out.setdefault("rcs_omega_dot_max_rad_s2", {})[level] = omega_dot_max(vehicle, level).tolist()
+    if deadbands(vehicle, rcs_level_names(vehicle)[0]) is not None:
+        out["deadbands"], out["minimum_impulse_bit"] = {}, {}
+        for level in rcs_level_names(vehicle):
+            rate, angle = deadbands(vehicle, level)
+            out["deadbands"][level] = {"rate_deg_s": _finite(np.degrees(rate)), "angle_deg": _finite(np.degrees(angle))}
+            impulse, rate_change = minimum_impulse_bit(vehicle, level)
+            out["minimum_impulse_bit"][level] = {
+                "n_m_s": impulse.tolist(),
+                "rate_deg_s": np.degrees(rate_change).tolist(),
+            }
     pwpf = fsw["pwpf"]
     limits = vehicle["rcs"]["switching_limits_ms"]
     out["f_min_fraction"] = f_min_fraction(vehicle)
@@ -324,6 +418,7 @@ def _rcs_design(vehicle):
         if key:
             row = (w[0] + 1) * 9 + (w[1] + 1) * 3 + (w[2] + 1)
             out["allocation"][key] = [int(i) + 1 for i in np.flatnonzero(table[row])]
+    out["allocation_torque_n_m"] = {level: allocation_torques(vehicle, level) for level in rcs_level_names(vehicle)}
     return out
 
 
@@ -366,8 +461,9 @@ def allocate_torque(vehicle, torque, level=None):
 
     ``lp_pwm``: the LP allocation of the flight software (core.lp_allocation, 004 eq. 2-5), each
     thruster limited to the level's thrust; ``pwpf_table``: the allocation table's row for the
-    signs of the torque's components, its thrusters at the level's full thrust (what the table
-    opens when the PWPF commands every axis the torque has).
+    signs of the torque's components, its thrusters at the level's full thrust derated for their
+    number (what the table opens when the PWPF commands every axis the torque has; ``derating``:
+    the factor, 1 for the LP).
     """
     from refexmc.core import lp_allocation
 
@@ -380,6 +476,7 @@ def allocate_torque(vehicle, torque, level=None):
     torque = np.asarray(torque, dtype=float)
     method = vehicle["flight_software"]["actuation"]
     share = None
+    factor = 1.0
     if method == "lp_pwm":
         u = np.zeros(n)
         work = np.zeros(lp_allocation.scratch_shape(n))
@@ -390,7 +487,9 @@ def allocate_torque(vehicle, torque, level=None):
     else:
         signs = tuple(int(v) for v in np.sign(torque))
         row = (signs[0] + 1) * 9 + (signs[1] + 1) * 3 + (signs[2] + 1)
-        u = allocation_table(vehicle)[row] * float(thrust)
+        opened = allocation_table(vehicle)[row]
+        factor = derating_factor(vehicle, int(opened.sum()))  # every open valve derated (000 sec. 2.1)
+        u = opened * float(thrust) * factor
     return {
         "allocation": {
             "method": "lp" if method == "lp_pwm" else "table",
@@ -399,6 +498,7 @@ def allocate_torque(vehicle, torque, level=None):
             "commands": u.tolist(),
             "realised_torque_n_m": (arms.T @ u).tolist(),
             "attained_share": share,
+            "derating": factor,
         },
         "thrusters": [
             {"position_m": list(t["position_m"]), "direction": d.tolist(), "max_thrust_n": thrust}

@@ -272,6 +272,19 @@ def nominal(path, vehicle, mission):
     return np.atleast_1d(np.asarray(value, dtype=float)).copy()
 
 
+def _declared_instead(path, root):
+    """``"; rcs.thrust_n declares: nominal"``: the keys of the deepest node of ``path`` that the
+    file has (a thrust level by another name), or '' when the first key is already missing."""
+    node, keys = root, path.split(".")
+    for depth, key in enumerate(keys):
+        if not isinstance(node, dict) or key not in node:
+            if depth == 0 or not isinstance(node, dict):
+                return ""
+            return f"; {'.'.join(keys[:depth])} declares: {', '.join(map(str, node))}"
+        node = node[key]
+    return ""
+
+
 def _undeclared(path, vehicle, mission):
     """Why ``path`` cannot be dispersed for this vehicle and mission (a quantity they do not
     have: no trajectory, no aerodynamics, no atmosphere), or None."""
@@ -289,7 +302,9 @@ def _undeclared(path, vehicle, mission):
         nominal(path, vehicle, mission)
     except KeyError:
         part = "mission" if path.split(".")[0] in _MISSION_ROOTS else "vehicle"
-        return f"'{path}': the {part} file does not declare it"
+        return f"'{path}': the {part} file does not declare it" + _declared_instead(
+            path, mission if part == "mission" else vehicle
+        )
     return None
 
 

@@ -2,7 +2,7 @@
 
 
 class ConfigError(Exception):
-    """Bad input. ``str()`` gives ``file:line: key.path: message``."""
+    """Bad input. ``str()`` gives ``file:line: key.path: message`` (the parts it has)."""
 
     def __init__(self, message, file=None, line=None, path=()):
         self.message = message
@@ -12,8 +12,8 @@ class ConfigError(Exception):
         super().__init__(str(self))
 
     def __str__(self):
-        where = str(self.file) if self.file else "<input>"
+        where = str(self.file) if self.file else ""  # no file (a command-line argument): no place to name
         if self.line is not None:
             where += f":{self.line}"
         key = ".".join(str(p) for p in self.path)
-        return f"{where}: {key}: {self.message}" if key else f"{where}: {self.message}"
+        return ": ".join(part for part in (where, key, self.message) if part)

@@ -1,6 +1,7 @@
 """Read YAML files, validate them against the schema, and report bad input precisely."""
 
 import difflib
+import functools
 import math
 import re
 import sys
@@ -10,7 +11,7 @@ import jsonschema
 import numpy as np
 import yaml
 
-from refexmc.config import entry, published, requirements, schema
+from refexmc.config import design_checks, entry, published, requirements, schema
 from refexmc.config import feed as config_feed
 from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
 from refexmc.config.errors import ConfigError
@@ -193,9 +194,10 @@ def validate(data, schema_def, file, lines, prefix=()):
         raise ConfigError(message, file=file, line=line, path=prefix + path)
 
 
-def check_vehicle(vehicle, file, lines, prefix=()):
+def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
     """Checks the schema cannot express: an actuator for the actuation, the keys each actuator and
-    controller take, thruster and wheel numbering, allocation ids, wheel axes, physical inertia."""
+    controller take, thruster and wheel numbering, allocation ids, wheel axes, physical inertia;
+    then the design checks (config.design_checks), whose warnings go to the list ``warnings``."""
 
     def fail(message, *path):
         line = next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
@@ -253,6 +255,9 @@ def check_vehicle(vehicle, file, lines, prefix=()):
     if message:
         fail(message, "inertia_kg_m2")
     entry.check(vehicle, fail)  # issue 24: entry aerodynamics and surfaces
+    found = design_checks.check_vehicle(vehicle, fail)
+    if warnings is not None:
+        warnings.extend(found)
 
 
 def _check_numbering(units, what, path, fail):
@@ -618,10 +623,11 @@ def _check_orbit(vehicle, mission, fail_mission, fail_vehicle):
                 )
 
 
-def load_vehicle(path):
+def load_vehicle(path, warnings=None):
+    """The validated vehicle file; its design warnings are appended to the list ``warnings``."""
     data, lines = read_yaml(path)
     validate(data, schema.VEHICLE, path, lines)
-    check_vehicle(data, path, lines)
+    check_vehicle(data, path, lines, warnings=warnings)
     return data
 
 
@@ -718,16 +724,20 @@ def enumerated_failures(campaign):
     return None
 
 
-def load_campaign(path):
-    """Validated campaign with vehicle and mission inlined; ConfigError on any bad input."""
+def load_campaign(path, warnings=None):
+    """Validated campaign with vehicle and mission inlined; ConfigError on any bad input. The
+    design warnings of its vehicle and mission (config.design_checks) are appended to ``warnings``."""
     from refexmc.config import dispersions  # imports this module
 
     path = Path(path)
     data, lines = read_yaml(path)
     validate(data, schema.CAMPAIGN, path, lines)
-    vehicle, fail_vehicle = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, check_vehicle)
+    found = []
+    checker = functools.partial(check_vehicle, warnings=found)
+    vehicle, fail_vehicle = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, checker)
     mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, check_mission)
     check_flight(vehicle, mission, fail_mission, fail_vehicle)
+    found += design_checks.check_flight(vehicle, mission, fail_mission)
     campaign = {
         "name": data["name"],
         "runs": data.get("runs"),
@@ -788,6 +798,8 @@ def load_campaign(path):
         campaign["runs"] = derived
     elif campaign["runs"] is None:
         raise ConfigError("'runs' is required", file=path, line=1, path=("runs",))
+    if warnings is not None:
+        warnings.extend(found)
     if campaign["sampling"] == "saltelli":  # the design's run count and what it cannot hold
         from refexmc.campaign import saltelli
 
@@ -831,14 +843,15 @@ def detect_kind(data):
     return None
 
 
-def load_any(path):
-    """Validate a campaign, vehicle or mission file; return (kind, validated data)."""
+def load_any(path, warnings=None):
+    """Validate a campaign, vehicle or mission file; return (kind, validated data). Design
+    warnings (a campaign's or a vehicle's) are appended to the list ``warnings``."""
     data, _ = read_yaml(path)
     kind = detect_kind(data)
     if kind == "campaign":
-        return kind, load_campaign(path)
+        return kind, load_campaign(path, warnings)
     if kind == "vehicle":
-        return kind, load_vehicle(path)
+        return kind, load_vehicle(path, warnings)
     if kind == "mission":
         return kind, load_mission(path)
     raise ConfigError("not a campaign, vehicle or mission file (no 'runs', 'rcs' or 'modes' key)", file=path, line=1)
