@@ -4,8 +4,8 @@ Each shipped campaign (ReFEx smoke, SPORE deorbit, IRASSI fine pointing, generic
 surveyor hop) flies a few runs in-process and is reported; the tests check, per mission, what a
 reader of another mission's report complained about (issue 25): no other mission's words, a
 statistics row, a figure and a worst-case list for every requirement metric, no figure axis
-without data, and the failure header as the runs table has it. The Chromium test renders every page at 1400 px and checks that no
-table is wider than the page.
+without data, and the failure header as the runs table has it. The Chromium test renders every
+page at 1400 px and checks that no table is wider than the page.
 """
 
 import re
