@@ -252,3 +252,81 @@ def load_kernels(families=()):
             run_flight.compile(_flight_argument_types())
     keyed_uniforms((0,), 1)
     keyed_uniforms_for_runs((0,), [0], 0, 0, 1)
+
+
+# --- the entry flight (issue 24, docs/x38.md): core.entry_flight, a kernel of its own ---
+
+ENTRY_COLUMNS = (
+    "rcs_propellant_kg",
+    "alpha_error_max_deg",
+    "beta_max_deg",
+    "bank_error_max_deg",
+    "peak_qbar_pa",
+    "peak_load_g",
+    "peak_heat_flux_w_m2",
+    "down_range_m",
+    "cross_range_m",
+    "terminal_mach",
+    "terminal_altitude_m",
+    "t_end_s",
+)
+ENTRY_FAILURES = {2: "floor altitude", 3: "time limit"}  # core.entry_flight.STATUS_*: why an entry failed
+
+
+class EntryResult:
+    """One entry flight's outputs, named: the summary (core.entry_flight.SU_*), the final flight
+    state and the history (core.entry_flight.HI_*, one row per second)."""
+
+    def __init__(self, summary, final_state, terminal_mach, history):
+        self.summary = summary
+        self.final_state = final_state
+        self.terminal_mach = terminal_mach
+        self.history = history
+
+    @property
+    def success(self):
+        from refexmc.core import entry_flight as ef
+
+        return int(self.summary[ef.SU_STATUS]) == ef.STATUS_TERMINAL_MACH
+
+    @property
+    def failure_reason(self):
+        from refexmc.core import entry_flight as ef
+
+        return None if self.success else ENTRY_FAILURES[int(self.summary[ef.SU_STATUS])]
+
+    def runs_values(self):
+        """The entry's metrics by ``ENTRY_COLUMNS`` name (SI units; angles in degrees)."""
+        from refexmc.core import entry_flight as ef
+
+        s = self.summary
+        values = (
+            s[ef.SU_PROPELLANT],
+            math.degrees(s[ef.SU_ALPHA_ERROR]),
+            math.degrees(s[ef.SU_BETA_ERROR]),
+            math.degrees(s[ef.SU_BANK_ERROR]),
+            s[ef.SU_PEAK_QBAR],
+            s[ef.SU_PEAK_LOAD],
+            s[ef.SU_PEAK_HEAT_FLUX],
+            s[ef.SU_DOWN_RANGE],
+            s[ef.SU_CROSS_RANGE],
+            self.terminal_mach,
+            self.final_state[0],
+            s[ef.SU_TIME],
+        )
+        return {name: float(value) for name, value in zip(ENTRY_COLUMNS, values, strict=True)}
+
+
+def fly_entry(flown, initial):
+    """Fly an entry (``config.entry.entry_flight_from_mission``'s vehicle and initial state)."""
+    from refexmc.core import entry
+    from refexmc.core import entry_flight as ef
+
+    wk = ef.work()
+    max_rows = int(math.ceil(flown.control[ef.CT_MAX_TIME_S])) + 2
+    history = np.zeros((max_rows, ef.HISTORY_COLUMNS))
+    summary = np.zeros(ef.SUMMARY_SIZE)
+    rows = ef.fly(flown, wk, initial, history, summary)
+    final = wk.state.copy()
+    _, _, mach = entry.air_data(flown.model, final[: entry.ENTRY_STATE_SIZE])
+    return EntryResult(summary, final, float(mach), history[:rows])

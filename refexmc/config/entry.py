@@ -294,3 +294,51 @@ def rcs_capacity(vehicle):
         unit[axis] = big
         capacity[axis] = lp_allocation.allocate(arms, u_max, unit, u, work, basis, in_basis) * big
     return capacity
+
+
+def entry_flight_from_mission(vehicle, mission, *, blocked=None, **keywords):
+    """(``core.entry_flight.EntryVehicle``, initial flight state) of an entry mission
+    (``schema.ENTRY_MISSION``, validated) flown by ``vehicle``: its Earth, guidance schedules, mode
+    program and terminal condition. ``blocked`` and ``keywords`` as :func:`entry_vehicle` (the
+    blocked flap, the truth apart from the flight software's model)."""
+    from refexmc.core import entry_attitude
+    from refexmc.core import entry_flight as ef
+
+    flight = mission["entry_flight"]
+    earth = mission["earth"]
+    planet = (earth["radius_m"], earth["mu_m3_s2"], earth["rotation_rate_rad_s"])
+    flown = entry_vehicle(
+        vehicle,
+        [(node["mach"], node["alpha_deg"]) for node in flight["alpha_schedule"]],
+        [(node["speed_m_s"], node["bank_deg"]) for node in flight["bank_schedule"]],
+        blocked=blocked,
+        planet=planet,
+        rcs_only_above_m=flight["rcs_only_above_m"],
+        terminal_mach=flight["terminal_mach"],
+        floor_altitude_m=flight["floor_altitude_m"],
+        max_time_s=flight["max_time_s"],
+        transient_s=flight["transient_s"],
+        **keywords,
+    )
+    state = flight["state"]
+    initial = np.zeros(ef.FLIGHT_STATE_SIZE)
+    initial[: ef.ENTRY_STATE_SIZE] = [
+        state["altitude_m"],
+        math.radians(state["longitude_deg"]),
+        math.radians(state["latitude_deg"]),
+        state["speed_m_s"],
+        math.radians(state["flight_path_angle_deg"]),
+        math.radians(state["heading_deg"]),
+    ]
+    scratch = np.zeros(entry_attitude.AXES_SCRATCH)
+    entry_attitude.attitude_from_angles(
+        initial[: ef.ENTRY_STATE_SIZE],
+        0.0,
+        planet[2],
+        math.radians(state["alpha_deg"]),
+        0.0,
+        math.radians(state["bank_deg"]),
+        scratch,
+        initial[ef.ENTRY_STATE_SIZE : ef.ENTRY_STATE_SIZE + 4],
+    )
+    return flown, initial

@@ -633,9 +633,38 @@ def load_vehicle(path, warnings=None):
 
 def load_mission(path):
     data, lines = read_yaml(path)
+    if isinstance(data, dict) and "entry_flight" in data:  # an entry mission (issue 24, docs/x38.md)
+        validate(data, schema.ENTRY_MISSION, path, lines)
+        check_entry_mission(data, path, lines)
+        return data
     validate(data, schema.MISSION, path, lines)
     check_mission(data, path, lines)
     return data
+
+
+def check_entry_mission(mission, file, lines, prefix=()):
+    """Checks of an entry mission the schema cannot express: the guidance schedules' axes
+    (Mach, speed) strictly increasing."""
+    fail = _failing_at(file, lines, prefix)
+    flight = mission["entry_flight"]
+    for key, axis in (("alpha_schedule", "mach"), ("bank_schedule", "speed_m_s")):
+        nodes = flight[key]
+        for k in range(1, len(nodes)):
+            if nodes[k][axis] <= nodes[k - 1][axis]:
+                fail(
+                    f"expected {axis} strictly increasing, got {nodes[k - 1][axis]!r} then {nodes[k][axis]!r}",
+                    "entry_flight",
+                    key,
+                    k,
+                    axis,
+                )
+    if flight["floor_altitude_m"] >= flight["state"]["altitude_m"]:
+        fail(
+            f"expected a floor below the entry altitude ({flight['state']['altitude_m']:g} m), "
+            f"got {flight['floor_altitude_m']:g}",
+            "entry_flight",
+            "floor_altitude_m",
+        )
 
 
 def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
@@ -838,7 +867,7 @@ def detect_kind(data):
         return "campaign"
     if "rcs" in data or "inertia_kg_m2" in data:
         return "vehicle"
-    if "modes" in data or "separation" in data:
+    if "modes" in data or "separation" in data or "entry_flight" in data:
         return "mission"
     return None
 

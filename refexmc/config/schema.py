@@ -939,6 +939,75 @@ MISSION = obj(
     ),
 )
 
+# --- issue 24: an entry mission (003, X-38): config.entry.entry_flight_from_mission flies it ---
+ENTRY_MISSION = obj(
+    "an entry mission: the closed-loop entry of core.entry_flight from the entry interface to a terminal "
+    "condition (docs/x38.md)",
+    {
+        "name": string("mission name"),
+        "earth": obj(
+            "rotating spherical Earth of 003 eq. 3",
+            {
+                "radius_m": number("radius [m]", **POSITIVE),
+                "mu_m3_s2": number("gravitational parameter [m^3/s^2]", **POSITIVE),
+                "rotation_rate_rad_s": number("spin rate [rad/s]", minimum=0.0),
+            },
+        ),
+        "entry_flight": obj(
+            "the entry: state at the entry interface, guidance, mode program, terminal condition",
+            {
+                "state": obj(
+                    "state of 003 eq. 3 at t = 0",
+                    {
+                        "altitude_m": number("altitude [m]", minimum=15_000.0, maximum=150_000.0),
+                        "longitude_deg": number("longitude [deg E]", minimum=-180.0, maximum=360.0),
+                        "latitude_deg": number("geocentric latitude [deg N]", minimum=-90.0, maximum=90.0),
+                        "speed_m_s": number("Earth-relative speed [m/s]", **POSITIVE),
+                        "flight_path_angle_deg": number("Earth-relative flight-path angle [deg]", -90.0, 90.0),
+                        "heading_deg": number("heading from north towards east [deg]", -360.0, 360.0),
+                        "alpha_deg": number("angle of attack of the initial attitude [deg]", -90.0, 90.0),
+                        "bank_deg": number("bank of the initial attitude (sideslip 0) [deg]", -180.0, 180.0),
+                    },
+                ),
+                "alpha_schedule": {
+                    "type": "array",
+                    "minItems": 1,
+                    "description": "guidance: commanded angle of attack over Mach, piecewise linear, held at the "
+                    "ends; Mach strictly increasing",
+                    "items": obj(
+                        "one node",
+                        {
+                            "mach": number("Mach number [-]", minimum=0.0),
+                            "alpha_deg": number("commanded angle of attack [deg]", -90.0, 90.0),
+                        },
+                    ),
+                },
+                "bank_schedule": {
+                    "type": "array",
+                    "minItems": 1,
+                    "description": "guidance: commanded bank over Earth-relative speed, piecewise linear, held at "
+                    "the ends; speed strictly increasing",
+                    "items": obj(
+                        "one node",
+                        {
+                            "speed_m_s": number("Earth-relative speed [m/s]", minimum=0.0),
+                            "bank_deg": number("commanded bank, positive turns the lift right [deg]", -180.0, 180.0),
+                        },
+                    ),
+                },
+                "rcs_only_above_m": number("mode program (003): RCS alone above this altitude [m]", minimum=0.0),
+                "terminal_mach": number("the flight ends below this Mach (success) [-]", **POSITIVE),
+                "floor_altitude_m": number("the flight ends below this altitude (failure) [m]", minimum=0.0),
+                "max_time_s": number("the flight ends at this time (failure) [s]", **POSITIVE),
+                "transient_s": number(
+                    "tracking errors count this long after the start and after each mode change [s]", minimum=0.0
+                ),
+            },
+        ),
+    },
+)
+
+
 _reference = {
     "oneOf": [{"type": "string"}, {"type": "object"}],
     "description": "path relative to the campaign file, or an inline mapping",
