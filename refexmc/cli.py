@@ -220,6 +220,13 @@ def format_run_summary(result):
         f"{counts['error']} errored -> {result['out']}",
     ]
     ok = table[table["status"] == "ok"]
+    if "entry_flight" in result["campaign"]["mission"]:  # an entry campaign (issue 24, docs/x38.md)
+        if len(ok):
+            lines.append(
+                f"  RCS propellant [kg]: min {ok['rcs_propellant_kg'].min():.2f}, "
+                f"median {ok['rcs_propellant_kg'].median():.2f}, max {ok['rcs_propellant_kg'].max():.2f}"
+            )
+        return "\n".join(lines)
     if len(ok) == 1:
         row = ok.iloc[0]
         verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"

@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from refexmc.config.requirements import (
+    ENTRY_COLUMNS,
     LOCAL_COLUMNS,
     ORBIT_COLUMNS,
     POINTING_COLUMNS,
@@ -256,20 +257,6 @@ def load_kernels(families=()):
 
 # --- the entry flight (issue 24, docs/x38.md): core.entry_flight, a kernel of its own ---
 
-ENTRY_COLUMNS = (
-    "rcs_propellant_kg",
-    "alpha_error_max_deg",
-    "beta_max_deg",
-    "bank_error_max_deg",
-    "peak_qbar_pa",
-    "peak_load_g",
-    "peak_heat_flux_w_m2",
-    "down_range_m",
-    "cross_range_m",
-    "terminal_mach",
-    "terminal_altitude_m",
-    "t_end_s",
-)
 ENTRY_FAILURES = {2: "floor altitude", 3: "time limit"}  # core.entry_flight.STATUS_*: why an entry failed
 
 

@@ -152,7 +152,12 @@ def plan_for(campaign):
     global _last_plan
     key = pickle.dumps(campaign, protocol=pickle.HIGHEST_PROTOCOL)
     if _last_plan[0] != key:
-        _last_plan = (key, RunPlan(campaign))
+        if "entry_flight" in campaign["mission"]:  # an entry campaign (issue 24): core.entry_flight
+            from refexmc.campaign.entry_plan import EntryRunPlan
+
+            _last_plan = (key, EntryRunPlan(campaign))
+        else:
+            _last_plan = (key, RunPlan(campaign))
     return _last_plan[1]
 
 

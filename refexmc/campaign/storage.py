@@ -276,8 +276,12 @@ def output_names(campaign):
     from refexmc.config import derived, dispersions, requirements  # config: what the files declare
 
     vehicle, mission = campaign["vehicle"], campaign["mission"]
-    modes = [mode["name"] for mode in mission["modes"]]
     parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
+    if "entry_flight" in mission:  # an entry campaign (campaign.entry_plan, issue 24)
+        from refexmc.config.entry import MODE_NAMES
+
+        return {"modes": list(MODE_NAMES), "columns": {"runs": requirements.entry_metric_columns(parameters)}}
+    modes = [mode["name"] for mode in mission["modes"]]
     options = requirements.column_options(vehicle, mission)
     columns = requirements.runs_metric_columns(modes, derived.thruster_count(vehicle), parameters, **options)
     return {"modes": modes, "columns": {"runs": columns}}

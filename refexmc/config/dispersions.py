@@ -22,7 +22,7 @@ from refexmc.config.errors import ConfigError
 from refexmc.core import layout as L
 
 AXES = ("x", "y", "z")
-_MISSION_ROOTS = ("separation", "navigation", "local")  # paths of the mission file (else the vehicle's)
+_MISSION_ROOTS = ("separation", "navigation", "local", "entry_flight")  # paths of the mission file (else the vehicle's)
 INERTIA_COMPONENTS = ("xx", "yy", "zz", "xy", "xz", "yz")
 INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 INERTIA_ROWS, INERTIA_COLUMNS = (list(index) for index in zip(*INERTIA_INDEX, strict=True))
@@ -113,12 +113,57 @@ def _params():
         Parameter("local.position_m", "m", "position at t = 0 (trajectory local)", "vector"),
         Parameter("local.velocity_m_s", "m/s", "velocity at t = 0 (trajectory local)", "vector"),
     ]
+    # an entry mission (issue 24, 003): its state, the blocked flap, the true air and coefficients
+    # (the flight software keeps the nominal ones)
+    for key, unit in ENTRY_STATE_KEYS.items():
+        p.append(Parameter(f"entry_flight.state.{key}", unit, f"entry state at t = 0: {key}", "scalar"))
+    p += [
+        Parameter("entry_flight.blocked_flap.deflection_deg", "deg", "where the blocked flap is", "scalar"),
+        Parameter("entry_flight.density_scale", "-", "factor on the true density (entry mission)", "scalar", 0.0),
+    ]
+    for key in ENTRY_SCALED_COEFFICIENTS:
+        p.append(
+            Parameter(
+                f"entry_flight.coefficient_scale.{key}",
+                "-",
+                f"factor on the true {key} table (entry mission)",
+                "scalar",
+            )
+        )
     return {param.path: _with_schema_range(param) for param in p}
+
+
+ENTRY_STATE_KEYS = {
+    "altitude_m": "m",
+    "longitude_deg": "deg",
+    "latitude_deg": "deg",
+    "speed_m_s": "m/s",
+    "flight_path_angle_deg": "deg",
+    "heading_deg": "deg",
+    "alpha_deg": "deg",
+    "bank_deg": "deg",
+}
+ENTRY_SCALED_COEFFICIENTS = (  # vehicle-file coefficient names (config.entry.coefficient_slots)
+    "lift",
+    "drag",
+    "pitch",
+    "pitch_per_elevon_rad",
+    "roll_per_aileron_rad",
+    "yaw_per_aileron_rad",
+    "roll_per_rudder_rad",
+    "yaw_per_rudder_rad",
+)
+_ENTRY_ONLY = ("entry_flight.density_scale", "entry_flight.coefficient_scale.")  # dispersion-only paths, nominal 1
 
 
 def _schema_node(path):
     """The schema of a vehicle or mission key path (vector items for arrays), or None."""
-    node = schema.MISSION if path.split(".")[0] in _MISSION_ROOTS else schema.VEHICLE
+    root = path.split(".")[0]
+    node = schema.VEHICLE
+    if root == "entry_flight":
+        node = schema.ENTRY_MISSION
+    elif root in _MISSION_ROOTS:
+        node = schema.MISSION
     for key in path.split("."):
         properties, per_key = node.get("properties", {}), node.get("additionalProperties")
         node = properties.get(key, per_key if isinstance(per_key, dict) else None)  # per-level mappings
@@ -257,6 +302,10 @@ def nominal(path, vehicle, mission):
         return np.ones(len(vehicle["rcs"]["thrusters"]))
     if path == "atmosphere.density_scale":
         return np.ones(1)
+    if path.startswith(_ENTRY_ONLY):
+        if "entry_flight" not in mission:
+            raise KeyError(path)
+        return np.ones(1)
     if path.startswith("rcs.valve_time_constants_ms."):
         _, _, level, name = path.split(".")
         rcs = vehicle["rcs"]
@@ -291,7 +340,18 @@ def _undeclared(path, vehicle, mission):
     trajectory = vehicle.get("trajectory", "planar_drag")
     if path.startswith("atmosphere.") and "atmosphere" not in mission:
         return f"'{path}' needs an atmosphere; the mission has none"
-    if path in ("mass_kg", "aerodynamics.drag_area_m2", "aerodynamics.mistrim_cm") and trajectory == "none":
+    entry = "entry_flight" in mission  # an entry mission flies the mass through 003 eq. 3
+    if path.startswith("entry_flight.coefficient_scale."):
+        key = path.rsplit(".", 1)[1]
+        if key not in vehicle.get("entry_aerodynamics", {}).get("coefficients", {}):
+            return f"'{path}': vehicle {vehicle['name']} has no '{key}' table (entry_aerodynamics.coefficients)"
+    if entry and path not in ("mass_kg",) and not path.startswith("entry_flight."):
+        return f"'{path}' is not flown by an entry mission; its paths: mass_kg, entry_flight.*"
+    if (
+        path in ("mass_kg", "aerodynamics.drag_area_m2", "aerodynamics.mistrim_cm")
+        and trajectory == "none"
+        and not entry
+    ):
         return f"'{path}' acts through the trajectory; vehicle {vehicle['name']} has none (trajectory: none)"
     feed_model = vehicle.get("rcs", {}).get("feed", {}).get("model", "constant")
     if path.startswith("rcs.thrust_n.") and feed_model == "blow_down":

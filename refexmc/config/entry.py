@@ -152,6 +152,8 @@ def model(vehicle, radius_m, mu_m3_s2, rotation_rad_s):
     )
 
 
+MODE_NAMES = ("rcs", "flaps", "flaps_rudders")  # core.entry_flight's modes by HI_MODE (003's mode program)
+
 STANDARD_GRAVITY = 9.80665  # m/s^2, for the specific impulse
 
 
@@ -305,6 +307,10 @@ def entry_flight_from_mission(vehicle, mission, *, blocked=None, **keywords):
     from refexmc.core import entry_flight as ef
 
     flight = mission["entry_flight"]
+    if blocked is None and "blocked_flap" in flight:
+        failure = flight["blocked_flap"]
+        blocked = (failure["flap"], failure["deflection_deg"])
+        keywords.setdefault("blocked_known", failure["known_to_flight_software"])
     earth = mission["earth"]
     planet = (earth["radius_m"], earth["mu_m3_s2"], earth["rotation_rate_rad_s"])
     flown = entry_vehicle(

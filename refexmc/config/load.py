@@ -764,6 +764,8 @@ def load_campaign(path, warnings=None):
     found = []
     checker = functools.partial(check_vehicle, warnings=found)
     vehicle, fail_vehicle = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, checker)
+    if _is_entry_mission(data["mission"], path):
+        return _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, found)
     mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, check_mission)
     check_flight(vehicle, mission, fail_mission, fail_vehicle)
     found += design_checks.check_flight(vehicle, mission, fail_mission)
@@ -833,6 +835,96 @@ def load_campaign(path, warnings=None):
         from refexmc.campaign import saltelli
 
         saltelli.check(campaign, path, lines)
+    return campaign
+
+
+def _is_entry_mission(ref, campaign_file):
+    """Whether a campaign's mission (inline or a file) is an entry mission (``entry_flight``)."""
+    if isinstance(ref, dict):
+        return "entry_flight" in ref
+    try:
+        data, _ = read_yaml((Path(campaign_file).parent / ref).resolve())
+    except ConfigError:
+        return False  # the ordinary route reports the file's problem
+    return isinstance(data, dict) and "entry_flight" in data
+
+
+# campaign keys an entry campaign (issue 24) does not take: thruster and wheel failures (a blocked
+# flap is the mission's entry_flight.blocked_flap), sweeps and Saltelli designs (not built for it)
+_ENTRY_CAMPAIGN_REFUSED = ("failures", "wheel_failures", "sweep", "published")
+
+
+def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, found):
+    """The validated campaign of an entry mission (docs/x38.md): the flight is
+    core.entry_flight (campaign.entry_plan), its runs columns requirements.ENTRY_COLUMNS."""
+    from refexmc.config import dispersions  # imports this module
+
+    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.ENTRY_MISSION, check_entry_mission)
+    for key in _ENTRY_CAMPAIGN_REFUSED:
+        if key in data:
+            raise ConfigError(
+                f"'{key}' is not available with an entry mission (a blocked flap is the mission's "
+                "entry_flight.blocked_flap)",
+                file=path,
+                line=lines.get((key,)),
+                path=(key,),
+            )
+    if data.get("sampling") == "saltelli":
+        raise ConfigError(
+            "sampling saltelli is not available with an entry mission",
+            file=path,
+            line=lines.get(("sampling",)),
+            path=("sampling",),
+        )
+    if "surfaces" not in vehicle:
+        fail_vehicle("an entry mission needs a vehicle with aerodynamic surfaces ('surfaces')")
+    flaps = vehicle["surfaces"]["body_flaps"]
+    blocked = mission["entry_flight"].get("blocked_flap")
+    if blocked is not None and not flaps["min_deg"] <= blocked["deflection_deg"] <= flaps["max_deg"]:
+        fail_mission(
+            f"expected a blocked deflection within the flap limits [{flaps['min_deg']}, {flaps['max_deg']}] deg "
+            f"of vehicle {vehicle['name']}, got {blocked['deflection_deg']}",
+            "entry_flight",
+            "blocked_flap",
+            "deflection_deg",
+        )
+    campaign = {
+        "name": data["name"],
+        "runs": data.get("runs"),
+        "seed": data["seed"],
+        "nominal_first": data.get("nominal_first", True),
+        "sampling": data.get("sampling", "random"),
+        "dispersions": data.get("dispersions", {}),
+        "failures": {"mode": "none"},
+        "run_time_limit_s": data.get("run_time_limit_s", 60.0),
+        "output": data.get("output", {"history_rate_hz": 1.0}),
+        "requirements": data.get("requirements", []),
+        "vehicle": vehicle,
+        "mission": mission,
+    }
+    if campaign["runs"] is None:
+        raise ConfigError("'runs' is required", file=path, line=1, path=("runs",))
+    specs = dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
+    spec = specs.get("entry_flight.blocked_flap.deflection_deg")
+    if spec is not None:
+        from refexmc.campaign.sampling import transform  # the sampler's own arithmetic, monotone in u
+
+        nominal = dispersions.nominal("entry_flight.blocked_flap.deflection_deg", vehicle, mission)
+        eps = dispersions.UNIFORM_EPS
+        low, high = (float(transform(spec, np.array([u]), nominal)[0]) for u in (eps, 1.0 - eps))
+        if low < flaps["min_deg"] or high > flaps["max_deg"]:
+            raise ConfigError(
+                f"expected draws within the flap limits [{flaps['min_deg']}, {flaps['max_deg']}] deg, "
+                f"the distribution reaches [{low:g}, {high:g}]",
+                file=path,
+                line=lines.get(("dispersions", "entry_flight.blocked_flap.deflection_deg")),
+                path=("dispersions", "entry_flight.blocked_flap.deflection_deg"),
+            )
+    parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
+    columns = requirements.entry_metric_columns(parameter_columns)
+    requirements.check_requirements(campaign["requirements"], columns, path, lines)
+    if warnings is not None:
+        warnings.extend(found)
     return campaign
 
 

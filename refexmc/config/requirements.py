@@ -211,6 +211,24 @@ LOCAL_COLUMNS = (
 )
 
 
+# runs of an entry mission (issue 24, 003; simulate.EntryResult): RCS propellant, the largest
+# alpha, sideslip and bank errors after the transients, peaks of q, load factor and Sutton-Graves
+# heat flux, down- and cross-range, Mach and altitude at the end, the flight time
+ENTRY_COLUMNS = (
+    "rcs_propellant_kg",
+    "alpha_error_max_deg",
+    "beta_max_deg",
+    "bank_error_max_deg",
+    "peak_qbar_pa",
+    "peak_load_g",
+    "peak_heat_flux_w_m2",
+    "down_range_m",
+    "cross_range_m",
+    "terminal_mach",
+    "terminal_altitude_m",
+    "t_end_s",
+)
+
 def column_options(vehicle, mission):
     """What decides a campaign's optional runs columns: ``trajectory`` (``orbit``: ORBIT_COLUMNS),
     ``pointing`` (the mission has a pointing window: POINTING_COLUMNS), ``wheels`` (the vehicle
@@ -236,6 +254,11 @@ def run_value_columns(mode_names, trajectory="planar_drag", pointing=False, whee
     if wheels:
         columns += WHEEL_COLUMNS
     return columns
+
+
+def entry_metric_columns(parameter_columns=()):
+    """The numeric columns of an entry campaign's runs table (campaign.entry_plan)."""
+    return [*ENTRY_COLUMNS, *parameter_columns]
 
 
 def runs_metric_columns(

@@ -1002,7 +1002,21 @@ ENTRY_MISSION = obj(
                 "transient_s": number(
                     "tracking errors count this long after the start and after each mode change [s]", minimum=0.0
                 ),
+                "blocked_flap": obj(
+                    "a body flap blocked from t = 0 (003; a failure; the vehicle file's surfaces.body_flaps.blocked "
+                    "is replaced)",
+                    {
+                        "flap": string("which flap", enum=["left", "right"]),
+                        "deflection_deg": number("where it is blocked, within the flap limits [deg]", -90.0, 90.0),
+                        "known_to_flight_software": {
+                            "type": "boolean",
+                            "description": "true: the blending holds it at its deflection and the guidance flies "
+                            "the alpha where it trims; false: the flight software commands it as if free",
+                        },
+                    },
+                ),
             },
+            optional=("blocked_flap",),
         ),
     },
 )

@@ -93,7 +93,8 @@ STATUS_TERMINAL_MACH, STATUS_FLOOR, STATUS_TIME_LIMIT = 1, 2, 3
 # history columns, one row per second
 HI_TIME, HI_ALTITUDE, HI_SPEED, HI_MACH, HI_ALPHA, HI_BETA, HI_BANK = 0, 1, 2, 3, 4, 5, 6
 HI_ALPHA_CMD, HI_BANK_CMD, HI_LEFT, HI_RIGHT, HI_RUDDER, HI_PROPELLANT, HI_QBAR = 7, 8, 9, 10, 11, 12, 13
-HISTORY_COLUMNS = 14
+HI_MODE = 14  # the mode program's mode: 0 RCS alone, 1 flaps and RCS, 2 flaps, rudders and RCS
+HISTORY_COLUMNS = 15  # the mode names: config.entry.MODE_NAMES
 
 
 class EntryVehicle(NamedTuple):
@@ -475,7 +476,7 @@ def fly(vehicle, wk, initial, history, summary):
             h[HI_ALPHA], h[HI_BETA], h[HI_BANK] = alpha, beta, bank
             h[HI_ALPHA_CMD], h[HI_BANK_CMD] = alpha_cmd, bank_cmd
             h[HI_LEFT], h[HI_RIGHT], h[HI_RUDDER] = wk.deflection[0], wk.deflection[1], wk.deflection[2]
-            h[HI_PROPELLANT], h[HI_QBAR] = propellant, qbar
+            h[HI_PROPELLANT], h[HI_QBAR], h[HI_MODE] = propellant, qbar, mode
             rows += 1
             next_row += 1.0
         c = wk.coefficients  # true, at the control period's condition
