@@ -44,8 +44,12 @@ _RANGE = {
 
 def nominal_source(path):
     """Where the nominal value of ``path`` comes from (dispersions.nominal)."""
-    if path in ("rcs.thrust_scale", "atmosphere.density_scale"):
+    if path in ("rcs.thrust_scale", "atmosphere.density_scale", "entry_flight.density_scale"):
         return "1 (dispersion only)"
+    if path.startswith("entry_flight.coefficient_scale."):
+        return "1 (dispersion only; entry mission)"
+    if path.startswith("entry_flight."):
+        return "entry mission file"
     if path.startswith("rcs.valve_time_constants_ms."):
         return "vehicle file, one value for every thruster"
     if path.split(".")[0] in ("separation", "navigation"):

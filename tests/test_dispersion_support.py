@@ -53,7 +53,14 @@ LOCAL_PATHS = ("rcs.feed.", "local.")  # a tank (rcs.feed) and the local traject
 _LOCAL_BASE = {}
 
 
+ENTRY_PATHS = ("entry_flight.",)  # an entry mission only (issue 24)
+
+
 def _base_for(path, base, orbit_base, wheel_base):
+    if path.startswith(ENTRY_PATHS):
+        if "entry" not in _LOCAL_BASE:
+            _LOCAL_BASE["entry"] = load_campaign(ROOT / "campaigns/x38-blocked-flap.yaml")
+        return _LOCAL_BASE["entry"]
     if path.startswith(ORBIT_PATHS):
         return orbit_base
     if path.startswith(LOCAL_PATHS):
@@ -286,6 +293,7 @@ CONFIG_PATHS = [
     # dispersion-only paths, and the wheels' initial momenta (per unit in the file, bounded there by
     # the momentum limit: tests/test_wheels_config.py)
     and p not in ("rcs.thrust_scale", "atmosphere.density_scale", "wheels.initial_momentum_n_m_s")
+    and not p.startswith(("entry_flight.density_scale", "entry_flight.coefficient_scale."))
 ]
 
 
@@ -307,8 +315,10 @@ def test_a_file_value_obeys_the_range_its_dispersions_are_checked_against(base, 
     file's own value; at the range's edge it accepts it. One range, declared once."""
     base = _base_for(path, base, orbit_base, wheel_base)
     param = dispersions.PARAMETERS[path]
-    kind = "mission" if path.split(".")[0] in ("separation", "navigation", "local") else "vehicle"
+    kind = "mission" if path.split(".")[0] in ("separation", "navigation", "local", "entry_flight") else "vehicle"
     schema_def = schema.MISSION if kind == "mission" else schema.VEHICLE
+    if path.startswith(ENTRY_PATHS):
+        schema_def = schema.ENTRY_MISSION
     outside, inside = [math.inf, -math.inf, math.nan], []
     if math.isfinite(param.lower):
         outside.append(param.lower if not param.lower_inclusive else math.nextafter(param.lower, -math.inf))

@@ -128,6 +128,7 @@ def _params():
                 "-",
                 f"factor on the true {key} table (entry mission)",
                 "scalar",
+                0.0,
             )
         )
     return {param.path: _with_schema_range(param) for param in p}
