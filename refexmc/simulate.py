@@ -300,6 +300,7 @@ class EntryResult:
             self.terminal_mach,
             self.final_state[0],
             s[ef.SU_TIME],
+            *s[ef.SU_MODE_TIME : ef.SU_MODE_TIME + 3],
         )
         return {name: float(value) for name, value in zip(ENTRY_COLUMNS, values, strict=True)}
 

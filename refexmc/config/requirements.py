@@ -213,7 +213,8 @@ LOCAL_COLUMNS = (
 
 # runs of an entry mission (issue 24, 003; simulate.EntryResult): RCS propellant, the largest
 # alpha, sideslip and bank errors after the transients, peaks of q, load factor and Sutton-Graves
-# heat flux, down- and cross-range, Mach and altitude at the end, the flight time
+# heat flux, down- and cross-range, Mach and altitude at the end, the flight time and the time in
+# each mode of the mode program (config.entry.MODE_NAMES: the report's t_<mode>_s)
 ENTRY_COLUMNS = (
     "rcs_propellant_kg",
     "alpha_error_max_deg",
@@ -227,7 +228,11 @@ ENTRY_COLUMNS = (
     "terminal_mach",
     "terminal_altitude_m",
     "t_end_s",
+    "t_rcs_s",
+    "t_flaps_s",
+    "t_flaps_rudders_s",
 )
+
 
 def column_options(vehicle, mission):
     """What decides a campaign's optional runs columns: ``trajectory`` (``orbit``: ORBIT_COLUMNS),

@@ -87,7 +87,8 @@ SUTTON_GRAVES_EARTH = 1.7415e-4  # kg^0.5 / m: q_dot = k sqrt(rho / R_n) V^3 (W/
 SU_TIME, SU_PROPELLANT, SU_ALPHA_ERROR, SU_BETA_ERROR, SU_BANK_ERROR = 0, 1, 2, 3, 4
 SU_PEAK_QBAR, SU_PEAK_LOAD, SU_STATUS, SU_STEPS = 5, 6, 7, 8
 SU_PEAK_HEAT_FLUX, SU_DOWN_RANGE, SU_CROSS_RANGE = 9, 10, 11  # W/m^2, m, m (at the end)
-SUMMARY_SIZE = 12
+SU_MODE_TIME = 12  # time flown in each mode (HI_MODE order), s, three slots
+SUMMARY_SIZE = 15
 STATUS_TERMINAL_MACH, STATUS_FLOOR, STATUS_TIME_LIMIT = 1, 2, 3
 
 # history columns, one row per second
@@ -491,6 +492,7 @@ def fly(vehicle, wk, initial, history, summary):
         actuate(vehicle, wk, dt)
         rk4_step(vehicle, wk, t, dt)
         propellant += rate * dt  # 003 eq. 5 over the period
+        summary[SU_MODE_TIME + mode] += dt
         t += dt
         steps += 1
         if not math.isfinite(wk.state[entry.EN_SPEED]):  # lost: end as at the floor

@@ -117,6 +117,8 @@ def aggregate_histories(campaign):
     ok = campaign.ok
     if not campaign.history_parts or ok.empty:
         return None
+    if "entry_flight" in (campaign.resolved.get("mission") or {}):  # an entry campaign: no attitude envelopes
+        return None
     run_ids = ok["run_id"].to_numpy(dtype=np.int64)
     modes = campaign.modes
     time_columns = campaign.mode_time_columns
