@@ -337,15 +337,21 @@ def rerun(out, run_id, history_rate, dest):
     mission = result["campaign"]["mission"]
     verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
     click.echo(f"run {run_id} of {result['campaign']['name']}: {verdict}, status {row['status']}")
-    click.echo(f"  the mission: {end_condition(mission)}")
-    stopped = end_name(mission) if row["success"] else "flight stopped"
-    theta = row["theta_t_handover_deg"]
-    click.echo(
-        f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, {stopped} at t = {row['t_end_s']:.2f} s"
-        + (f", total angle error {theta:.3f} deg" if not math.isnan(theta) else "")
-        + f", failed thrusters [{row['failed_thrusters']}]"
-        + (f", failed wheels [{row['failed_wheels']}]" if "failed_wheels" in row else "")
-    )
+    if "entry_flight" in mission:  # an entry campaign (issue 24, docs/x38.md)
+        click.echo(
+            f"  the entry ended at Mach {row['terminal_mach']:.3f}, {row['terminal_altitude_m'] / 1000:.1f} km, "
+            f"t = {row['t_end_s']:.1f} s; RCS propellant {row['rcs_propellant_kg']:.3f} kg"
+        )
+    else:
+        click.echo(f"  the mission: {end_condition(mission)}")
+        stopped = end_name(mission) if row["success"] else "flight stopped"
+        theta = row["theta_t_handover_deg"]
+        click.echo(
+            f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, {stopped} at t = {row['t_end_s']:.2f} s"
+            + (f", total angle error {theta:.3f} deg" if not math.isnan(theta) else "")
+            + f", failed thrusters [{row['failed_thrusters']}]"
+            + (f", failed wheels [{row['failed_wheels']}]" if "failed_wheels" in row else "")
+        )
     click.echo(f"  history: {result['path']}")
     if result["stored"] is None:
         click.echo("  (this run is not in OUT/runs: nothing to compare with)")

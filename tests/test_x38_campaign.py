@@ -2,6 +2,7 @@
 run_campaign; each run's metrics equal the direct simulate.fly_entry of the same drawn values;
 the dispersions reach the flight; bad entry-campaign input is exit 2 with file, line and key path."""
 
+import json
 import re
 import shutil
 from pathlib import Path
@@ -154,3 +155,22 @@ def test_a_path_of_the_entry_on_an_ordinary_mission_is_refused(tmp_path):
     path.write_text(text.replace("../configs/", f"{ROOT}/configs/"))
     result = CliRunner().invoke(main, ["validate", str(path)])
     assert result.exit_code == 2 and "entry_flight.density_scale" in result.output, result.output
+
+
+def test_the_report_gives_the_entry_metrics_and_requirements(flown):
+    _, out = flown
+    result = CliRunner().invoke(main, ["report", str(out), "--no-html"])
+    assert result.exit_code == 0, result.output
+    for word in ("rcs_propellant_kg", "cross_range_m", "rcs_propellant_kg.p99 < 100", "verdict: PASS"):
+        assert word in result.output, word
+    summary = json.loads((out / "report/summary.json").read_text())
+    assert summary["modes"] == ["rcs", "flaps", "flaps_rudders"]
+
+
+def test_a_rerun_flies_the_stored_row_again_bit_for_bit(flown, tmp_path):
+    _, out = flown
+    result = CliRunner().invoke(main, ["rerun", str(out), "3", "-o", str(tmp_path / "run3.parquet")])
+    assert result.exit_code == 0, result.output
+    assert "summary row identical to the stored one" in result.output
+    history = pq.read_table(tmp_path / "run3.parquet").to_pandas()
+    assert history["mode"].astype(str).iloc[0] == "rcs" and history["mach"].iloc[-1] < 2.2

@@ -48,7 +48,13 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
         raise ConfigError("a sweep's output: re-fly a run of one point, OUT/points/NNN", file=out)
     if not 0 <= run_id < campaign["runs"]:
         raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", file=out, path=("RUN_ID",))
-    plan = RunPlan(campaign)
+    if "entry_flight" in campaign["mission"]:  # an entry campaign (issue 24): its history is one row per second
+        from refexmc.campaign.entry_plan import EntryRunPlan
+
+        plan = EntryRunPlan(campaign)
+        history_rate_hz = 1.0 if history_rate_hz is None else history_rate_hz
+    else:
+        plan = RunPlan(campaign)
     if history_rate_hz is None:
         history_rate_hz = 1.0 / control_period(plan.nominal_inputs)
     if not history_rate_hz > 0:

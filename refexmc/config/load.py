@@ -861,7 +861,7 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
 
     mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.ENTRY_MISSION, check_entry_mission)
     for key in _ENTRY_CAMPAIGN_REFUSED:
-        if key in data:
+        if key in data and data[key] != {"mode": "none"}:  # a resolved campaign says failures: none
             raise ConfigError(
                 f"'{key}' is not available with an entry mission (a blocked flap is the mission's "
                 "entry_flight.blocked_flap)",
