@@ -174,3 +174,23 @@ def test_a_rerun_flies_the_stored_row_again_bit_for_bit(flown, tmp_path):
     assert "summary row identical to the stored one" in result.output
     history = pq.read_table(tmp_path / "run3.parquet").to_pandas()
     assert history["mode"].astype(str).iloc[0] == "rcs" and history["mach"].iloc[-1] < 2.2
+
+
+def test_every_entry_dispersion_path_changes_the_entry():
+    """No entry dispersion is silently ignored: each path alone, moved off its nominal, changes
+    the flight (the blocked flap's deflection on the blocked-flap mission)."""
+    from refexmc.campaign.entry_plan import EntryRunPlan
+    from refexmc.config import dispersions
+
+    campaign = load_campaign(BLOCKED)
+    plan = EntryRunPlan(campaign)
+    vehicle, mission = campaign["vehicle"], campaign["mission"]
+    reference = simulate.fly_entry(*plan.flight({})).summary
+    paths = [p for p in dispersions.PARAMETERS if p.startswith("entry_flight.")] + ["mass_kg"]
+    assert not [p for p in paths if dispersions._undeclared(p, vehicle, mission)]  # noqa: SLF001 - all flown here
+    assert len(paths) == 8 + 1 + 1 + 8 + 1  # state, blocked flap, density, coefficient tables, mass
+    for path in paths:
+        nominal = dispersions.nominal(path, vehicle, mission)[0]
+        moved = nominal * 1.02 if nominal != 0.0 else 0.5
+        summary = simulate.fly_entry(*plan.flight({path: [moved]})).summary
+        assert not (summary == reference).all(), path

@@ -945,14 +945,8 @@ ENTRY_MISSION = obj(
     "condition (docs/x38.md)",
     {
         "name": string("mission name"),
-        "earth": obj(
-            "rotating spherical Earth of 003 eq. 3",
-            {
-                "radius_m": number("radius [m]", **POSITIVE),
-                "mu_m3_s2": number("gravitational parameter [m^3/s^2]", **POSITIVE),
-                "rotation_rate_rad_s": number("spin rate [rad/s]", minimum=0.0),
-            },
-        ),
+        # the mission's Earth (declared once, in MISSION), its spin rate required: 003 eq. 3 turns with it
+        "earth": {**MISSION["properties"]["earth"], "required": ["radius_m", "mu_m3_s2", "rotation_rate_rad_s"]},
         "entry_flight": obj(
             "the entry: state at the entry interface, guidance, mode program, terminal condition",
             {
