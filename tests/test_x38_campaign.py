@@ -125,6 +125,11 @@ TEXT = (
             ["dispersions.rcs.isp_s", "not flown by an entry mission"],
         ),
         (
+            "history-faster-than-the-kernel-records",
+            TEXT.replace("history_rate_hz: 1.0", "history_rate_hz: 10.0"),
+            ["output.history_rate_hz", "at most 1 Hz with an entry mission"],
+        ),
+        (
             "thruster-failures",
             TEXT + "failures: {mode: fixed, thrusters: [1]}\n",
             ["failures", "not available with an entry mission"],

@@ -904,6 +904,14 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
     }
     if campaign["runs"] is None:
         raise ConfigError("'runs' is required", file=path, line=1, path=("runs",))
+    rate = campaign["output"]["history_rate_hz"]
+    if rate > 1.0:
+        raise ConfigError(
+            f"expected at most 1 Hz with an entry mission (core.entry_flight records one row per second), got {rate:g}",
+            file=path,
+            line=lines.get(("output", "history_rate_hz")),
+            path=("output", "history_rate_hz"),
+        )
     specs = dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
     spec = specs.get("entry_flight.blocked_flap.deflection_deg")
     if spec is not None:
