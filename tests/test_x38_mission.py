@@ -123,3 +123,29 @@ def test_bad_entry_mission_is_exit_2_with_file_line_and_key_path(case, tmp_path)
 def test_the_mission_file_validates():
     result = CliRunner().invoke(main, ["validate", str(MISSION)])
     assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize(("known", "flag"), [(True, 1.0), (False, 0.0)])
+def test_the_missions_blocked_flap_reaches_the_flight_known_or_not(known, flag):
+    vehicle = load_vehicle(ROOT / "configs/vehicles/x38.yaml")
+    mission = load_mission(ROOT / "configs/missions/x38-entry-right-flap-blocked.yaml")
+    mission["entry_flight"]["blocked_flap"]["known_to_flight_software"] = known
+    flown, _ = config_entry.entry_flight_from_mission(vehicle, mission)
+    assert flown.surfaces[ef.SF_BLOCKED_FLAP] == 1.0  # right
+    assert flown.surfaces[ef.SF_BLOCKED_DEFLECTION] == math.radians(14.0)
+    assert flown.surfaces[ef.SF_BLOCKED_KNOWN] == flag
+
+
+def test_a_blocked_deflection_outside_the_flap_limits_is_exit_2(tmp_path):
+    text = (ROOT / "configs/missions/x38-entry-right-flap-blocked.yaml").read_text()
+    (tmp_path / "mission.yaml").write_text(text.replace("deflection_deg: 14.0", "deflection_deg: 45.0"))
+    campaign = (ROOT / "campaigns/x38-nominal.yaml").read_text()
+    campaign = campaign.replace("../configs/missions/x38-entry.yaml", "mission.yaml")
+    path = tmp_path / "c.yaml"
+    path.write_text(campaign.replace("../configs/vehicles/", f"{ROOT}/configs/vehicles/"))
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    line = _line_of(text, "deflection_deg: 14.0")
+    assert f"{tmp_path / 'mission.yaml'}:{line}: " in result.output, result.output
+    assert "entry_flight.blocked_flap.deflection_deg" in result.output
+    assert "within the flap limits [-10.0, 40.0]" in result.output
