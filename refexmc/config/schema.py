@@ -623,6 +623,7 @@ MODE_KINDS = {
     },
 }
 # kinds of the local trajectory only
+LOCAL_NAVIGATION_KEYS = ("local_position_noise_m", "local_velocity_noise_m_s", "tank_pressure_noise_pa")
 LOCAL_KINDS = ("translate",)
 # targets computed from the trajectory (a vehicle without one cannot use them)
 TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
@@ -881,9 +882,7 @@ MISSION = obj(
                 "gps_position_noise_m",
                 "gps_velocity_bias_m_s",
                 "gps_velocity_noise_m_s",
-                "local_position_noise_m",
-                "local_velocity_noise_m_s",
-                "tank_pressure_noise_pa",
+                *LOCAL_NAVIGATION_KEYS,
             ),
         ),
         "disturbances": obj(
