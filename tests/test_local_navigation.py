@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from naive import SplitMix64, local_measure
+from scipy.stats import chi2
 from stored import campaign_copy
 
 from refexmc.campaign import storage
@@ -142,3 +143,38 @@ def test_each_noise_reaches_the_law_and_the_same_seed_flies_the_same_noise(hop, 
     assert [noisy[k] for k in keys] == [again[k] for k in keys]
     assert noisy["t_end_s"] != quiet["t_end_s"] or noisy["fuel_used_kg"] != quiet["fuel_used_kg"]
     assert other["fuel_used_kg"] != noisy["fuel_used_kg"]
+
+
+@pytest.mark.parametrize(
+    ("noise_key", "predicate"),
+    [("local_position_noise_m", "position_error_below_m"), ("local_velocity_noise_m_s", "speed_below_m_s")],
+)
+def test_in_flight_the_exit_predicates_see_the_drawn_sigma(tmp_path, noise_key, predicate):
+    """From flights: the surveyor at rest on its target, its law held off by a deadband of 10 m and
+    10 m/s, in a translate mode that ends when the measured position error (speed) is below
+    r = sigma. A measurement is inside with p = P(chi2_3 < 1) = 0.199 per control period, so the
+    periods flown until the mode ends (t_end / dt + 1) are geometric with mean 1/p = 5.03 (sd 4.5).
+    400 navigation seeds: the sample mean within 4 standard errors (0.9) of it, where a sigma 10 %
+    off would put it 6 standard errors away (flown with 1.1 sigma: 0.93 off, the test fails)."""
+    sigma = 0.01
+    text = (ROOT / "configs/missions/surveyor-hop.yaml").read_text()
+    text = text.replace(
+        "    kind: translate\n    exit: [{position_error_below_m: 0.05, speed_below_m_s: 0.01}]",
+        f"    kind: translate\n    exit: [{{{predicate}: {sigma}}}]",
+    )
+    text = text.replace("  position_m: [0.0, 0.0, 0.0]", "  position_m: [3.0, 1.0, 0.0]")
+    text = text.replace(f"  {noise_key}: 0.0", f"  {noise_key}: {sigma}")
+    (tmp_path / "mission.yaml").write_text(text)
+    mission = load_mission(tmp_path / "mission.yaml")
+    vehicle = load_vehicle(ROOT / "configs/vehicles/cold-gas-surveyor.yaml")
+    vehicle["flight_software"]["translation"].update(deadband_position_m=10.0, deadband_speed_m_s=10.0)
+    inputs = pack(vehicle, mission)
+    dt = inputs.fsw[layout.F_CONTROL_PERIOD]
+    periods = []
+    for seed in range(1, 401):
+        result = fly(inputs, nav_seed=seed, history_rate_hz=1.0, mode_names=mode_names(mission))
+        assert result.success
+        periods.append(round(result.runs_values()["t_end_s"] / dt) + 1)
+    p = chi2.cdf(1.0, 3)
+    standard_error = math.sqrt(1.0 - p) / p / math.sqrt(len(periods))
+    assert abs(np.mean(periods) - 1.0 / p) < 4.0 * standard_error, (np.mean(periods), 1.0 / p)
