@@ -591,6 +591,18 @@ def navigation_measure(
     return measured, rates
 
 
+def local_measure(position, velocity, pressure, position_noise, velocity_noise, pressure_noise, noise):
+    """(measured position, velocity, tank pressure) of the local trajectory (docs/cold-gas.md):
+    truth + sigma n per axis, drawn in the kernel's order (position x, y, z, velocity x, y, z,
+    pressure), a draw only where the sigma is positive; a pressure reading below zero reads zero."""
+    measured_position = [p + (position_noise * noise.normal() if position_noise > 0 else 0.0) for p in position]
+    measured_velocity = [v + (velocity_noise * noise.normal() if velocity_noise > 0 else 0.0) for v in velocity]
+    measured_pressure = pressure
+    if pressure_noise > 0:
+        measured_pressure = max(pressure + pressure_noise * noise.normal(), 0.0)
+    return np.array(measured_position), np.array(measured_velocity), measured_pressure
+
+
 # --------------------------------------------------------------------------------------------
 # PD control with partial feedback linearisation, 000 eq. 30 and 35
 # --------------------------------------------------------------------------------------------

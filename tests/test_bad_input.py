@@ -433,3 +433,40 @@ def test_dispersing_what_the_vehicle_or_mission_does_not_have_is_refused(tmp_pat
     assert result.exit_code == 2
     line = next(n for n, s in enumerate(campaign.splitlines(), 1) if s.startswith(f"  {path}:"))
     assert f":{line}: dispersions.{path}: " in result.output and words in result.output, result.output
+
+
+@pytest.mark.parametrize(
+    ("campaign", "mission", "old", "new", "words"),
+    [
+        (
+            "generic-slew.yaml",
+            "generic-slew.yaml",
+            "navigation:\n",
+            "navigation:\n  local_position_noise_m: 0.01\n",
+            "navigation.local_position_noise_m needs a vehicle with the local trajectory",
+        ),
+        (
+            "surveyor-hop.yaml",
+            "surveyor-hop.yaml",
+            "tank_pressure_noise_pa: 0.0",
+            "tank_pressure_noise_pa: -1.0e4",
+            "navigation.tank_pressure_noise_pa",
+        ),
+    ],
+)
+def test_bad_local_navigation_noise_is_refused_at_its_line(tmp_path, campaign, mission, old, new, words):
+    """A local-trajectory noise on a vehicle without one, or a negative sigma: exit 2, file:line."""
+    text = (ROOT / "configs/missions" / mission).read_text()
+    assert text.count(old) == 1
+    bad = text.replace(old, new)
+    (tmp_path / "mission.yaml").write_text(bad)
+    source = (ROOT / "campaigns" / campaign).read_text()
+    source = source.replace(f"../configs/missions/{mission}", str(tmp_path / "mission.yaml"))
+    (tmp_path / "campaign.yaml").write_text(source.replace("../configs/", f"{ROOT}/configs/"))
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "campaign.yaml")])
+    assert result.exit_code == 2, result.output
+    key = new.strip().splitlines()[-1].split(":")[0].strip()
+    line = next(n for n, s in enumerate(bad.splitlines(), 1) if s.strip().startswith(key + ":"))
+    assert f"{tmp_path / 'mission.yaml'}:{line}:" in result.output, result.output
+    assert words in result.output
+    assert "Traceback" not in result.output

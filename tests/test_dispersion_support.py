@@ -49,7 +49,7 @@ def wheel_base():
     return load_campaign(ROOT / "campaigns/irassi-fine-pointing.yaml")
 
 
-LOCAL_PATHS = ("rcs.feed.", "local.")  # a tank (rcs.feed) and the local trajectory only
+LOCAL_PATHS = ("rcs.feed.", "local.", "navigation.local_", "navigation.tank_pressure")  # a tank, a local trajectory
 _LOCAL_BASE = {}
 
 

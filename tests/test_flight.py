@@ -308,7 +308,9 @@ STEPS = {  # each family's own step functions: compiled only by a kernel of that
     "planar_drag": [environment.advance_nodes, environment.interpolate],
     "orbit": [orbit_flight.start, orbit_flight.steer, orbit_flight.engine_period, orbit_flight.translate],
     "feed": [feed.start, feed.segment, feed.gas],
-    "local": [local_flight.start, local_flight.desired, local_flight.advance, local_flight.navigate],
+    "local": [
+        local_flight.start, local_flight.desired, local_flight.advance, local_flight.navigate, local_flight.measure
+    ],
 }
 out = []
 for campaign in sys.argv[1:]:

@@ -402,7 +402,7 @@ def _flight_arrays(inputs, seed):
 
 ORBIT_PATHS = ("main_engine.", "navigation.gps_")  # quantities of an orbit vehicle and mission only
 WHEEL_PATHS = ("wheels.",)  # quantities of a vehicle with reaction wheels only (tests/test_wheel_failures.py)
-LOCAL_PATHS = ("rcs.feed.", "local.")  # a tank (rcs.feed) and the local trajectory only
+LOCAL_PATHS = ("rcs.feed.", "local.", "navigation.local_", "navigation.tank_pressure")  # a tank, a local trajectory
 
 
 def _paths_change_the_flight(campaign, paths):
@@ -425,6 +425,8 @@ def _paths_change_the_flight(campaign, paths):
                 value[k] += 20.0
             elif path == "separation.flight_path_angle_deg":
                 value[k] += 2.0
+            elif path == "navigation.tank_pressure_noise_pa":
+                value[k] = 2.5e4  # 0.3 Pa on a 50 bar tank changes no decision of the law
             else:
                 value[k] = _perturbed(value[k])
             inputs = reference_plan.sampler.inputs(reference_plan.nominal_inputs, {path: value}, ())
@@ -449,7 +451,7 @@ def test_every_tank_and_local_dispersion_path_changes_the_surveyor_hop():
     campaign = load_campaign(ROOT / "campaigns/surveyor-hop.yaml")
     campaign["dispersions"] = {}
     paths = [p for p in dispersions.PARAMETERS if p.startswith(LOCAL_PATHS)]
-    assert _paths_change_the_flight(campaign, paths) == 3 + 3 + 3
+    assert _paths_change_the_flight(campaign, paths) == 3 + 3 + 3 + 3
 
 
 def test_every_orbit_dispersion_path_changes_the_deorbit_flight():

@@ -5,9 +5,13 @@ the law from spending the tank, and PD + PWM is slower and more frugal (docs/col
 import copy
 from pathlib import Path
 
+import numpy as np
 import pytest
+from click.testing import CliRunner
+from stored import campaign_copy, read_runs, store_campaign
 
-from refexmc.config.load import load_mission, load_vehicle
+from refexmc.cli import main
+from refexmc.config.load import load_campaign, load_mission, load_vehicle
 from refexmc.config.pack import mode_names, pack
 from refexmc.simulate import fly
 
@@ -130,3 +134,30 @@ def test_a_translate_mode_flies_to_its_own_target(surveyor):
     first["modes"] = first["modes"][:1]
     alone = fly(pack(surveyor, first), history_rate_hz=1.0, mode_names=mode_names(first))
     assert alone.success and alone.runs_values()["switches_y"] <= 2
+
+
+REPORT_ONLY = [f"--tolerance={metric}=inf" for metric in ("t_hop_s", "t_end_s", "position_error_end_m", "pulses_total")]
+
+
+def test_compare_puts_the_law_and_pd_pwm_side_by_side(tmp_path):
+    """`refexmc compare` of the two campaigns (12 runs each, the same draws): paired run by run,
+    the time to arrive and the gas as the mean of each runs table (computed here from the stored
+    tables), PD + PWM over twice as slow and under half the gas, and with the time metrics set to
+    report only (docs/cold-gas.md) the comparison passes: exit 0."""
+    outs = {}
+    for name in ("surveyor-hop", "surveyor-hop-pd-pwm"):
+        path = campaign_copy(f"{name}.yaml", tmp_path, replace=[("runs: 1000", "runs: 12")])
+        outs[name] = tmp_path / f"out-{name}"
+        store_campaign(load_campaign(path), outs[name])
+    law, pd = outs["surveyor-hop"], outs["surveyor-hop-pd-pwm"]
+    result = CliRunner().invoke(main, ["compare", str(law), str(pd), *REPORT_ONLY])
+    assert result.exit_code == 0, result.output
+    assert "paired run by run on 12 runs" in result.output
+    rows = {line.split()[0]: line.split() for line in result.output.splitlines() if line.strip()}
+    for metric in ("t_hop_s", "fuel_used_kg"):
+        law_mean, pd_mean = (np.nanmean(read_runs(out)[metric]) for out in (law, pd))
+        for printed, mean in ((rows[metric][1], law_mean), (rows[metric][2], pd_mean)):
+            half_digit = 0.5 * 10.0 ** -len(printed.split(".")[1])  # rounded to the printed decimals
+            assert abs(float(printed) - mean) <= half_digit, (metric, printed, mean)
+    assert float(rows["t_hop_s"][2]) > 2.0 * float(rows["t_hop_s"][1])
+    assert float(rows["fuel_used_kg"][2]) < 0.5 * float(rows["fuel_used_kg"][1])

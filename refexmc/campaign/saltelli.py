@@ -26,6 +26,9 @@ NOISE_KEYS = (
     "rate_noise_deg_s",
     "gps_position_noise_m",
     "gps_velocity_noise_m_s",
+    "local_position_noise_m",
+    "local_velocity_noise_m_s",
+    "tank_pressure_noise_pa",
 )
 
 

@@ -96,6 +96,21 @@ def _params():
         Parameter("navigation.gps_position_noise_m", "m", "GPS position white noise, 1 sigma per axis", "scalar"),
         Parameter("navigation.gps_velocity_bias_m_s", "m/s", "GPS velocity bias, ECI axes", "vector"),
         Parameter("navigation.gps_velocity_noise_m_s", "m/s", "GPS velocity white noise, 1 sigma per axis", "scalar"),
+        Parameter(
+            "navigation.local_position_noise_m",
+            "m",
+            "local trajectory: position white noise, 1 sigma per axis",
+            "scalar",
+        ),
+        Parameter(
+            "navigation.local_velocity_noise_m_s",
+            "m/s",
+            "local trajectory: velocity white noise, 1 sigma per axis",
+            "scalar",
+        ),
+        Parameter(
+            "navigation.tank_pressure_noise_pa", "Pa", "translation law's tank-pressure white noise, 1 sigma", "scalar"
+        ),
         Parameter("atmosphere.density_scale", "-", "factor on every density of the atmosphere table", "scalar", 0.0),
         Parameter("wheels.friction.coulomb_n_m", "N m", "Coulomb friction tau_e, every wheel the same value", "scalar"),
         Parameter(
@@ -423,6 +438,9 @@ _NAV_FIELDS = {
     "navigation.gps_position_noise_m": ("gps_position_noise_m", 1.0),
     "navigation.gps_velocity_bias_m_s": ("gps_velocity_bias_m_s", 1.0),
     "navigation.gps_velocity_noise_m_s": ("gps_velocity_noise_m_s", 1.0),
+    "navigation.local_position_noise_m": ("local_position_noise_m", 1.0),
+    "navigation.local_velocity_noise_m_s": ("local_velocity_noise_m_s", 1.0),
+    "navigation.tank_pressure_noise_pa": ("tank_pressure_noise_pa", 1.0),
 }
 
 _WHEEL_COLUMNS = {  # every wheel the same value (scalar paths) or one value per wheel

@@ -496,6 +496,9 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
                 fail_mission(f"kind {mode['kind']} needs the local trajectory", "modes", m, "kind")
         if "translation" in vehicle["flight_software"]:
             fail_vehicle("'translation' needs the local trajectory", "flight_software", "translation")
+        for key in schema.LOCAL_NAVIGATION_KEYS:
+            if key in mission["navigation"]:
+                fail_mission(f"navigation.{key} needs a vehicle with the local trajectory", "navigation", key)
     if trajectory != "orbit":
         if "orbit" in mission:
             fail_mission(

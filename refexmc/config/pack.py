@@ -401,6 +401,9 @@ def pack_navigation(mission):
     _put(out, L.NAV, "gps_position_noise_m", nav.get("gps_position_noise_m", 0.0))
     _put(out, L.NAV, "gps_velocity_bias_m_s", nav.get("gps_velocity_bias_m_s", [0.0, 0.0, 0.0]))
     _put(out, L.NAV, "gps_velocity_noise_m_s", nav.get("gps_velocity_noise_m_s", 0.0))
+    _put(out, L.NAV, "local_position_noise_m", nav.get("local_position_noise_m", 0.0))
+    _put(out, L.NAV, "local_velocity_noise_m_s", nav.get("local_velocity_noise_m_s", 0.0))
+    _put(out, L.NAV, "tank_pressure_noise_pa", nav.get("tank_pressure_noise_pa", 0.0))
     return out
 
 

@@ -623,6 +623,7 @@ MODE_KINDS = {
     },
 }
 # kinds of the local trajectory only
+LOCAL_NAVIGATION_KEYS = ("local_position_noise_m", "local_velocity_noise_m_s", "tank_pressure_noise_pa")
 LOCAL_KINDS = ("translate",)
 # targets computed from the trajectory (a vehicle without one cannot use them)
 TRAJECTORY_TARGETS = ("sun_horizontal", "entry_predicted", "entry_velocity")
@@ -865,8 +866,24 @@ MISSION = obj(
                 "gps_velocity_noise_m_s": number(
                     "GPS velocity white noise, 1 sigma per axis and sample [m/s]", minimum=0.0
                 ),
+                "local_position_noise_m": number(
+                    "local trajectory: position white noise, 1 sigma per axis and control period [m]", minimum=0.0
+                ),
+                "local_velocity_noise_m_s": number(
+                    "local trajectory: velocity white noise, 1 sigma per axis and control period [m/s]", minimum=0.0
+                ),
+                "tank_pressure_noise_pa": number(
+                    "local trajectory: the translation law's tank-pressure transducer, white noise 1 sigma [Pa]",
+                    minimum=0.0,
+                ),
             },
-            optional=("gps_position_bias_m", "gps_position_noise_m", "gps_velocity_bias_m_s", "gps_velocity_noise_m_s"),
+            optional=(
+                "gps_position_bias_m",
+                "gps_position_noise_m",
+                "gps_velocity_bias_m_s",
+                "gps_velocity_noise_m_s",
+                *LOCAL_NAVIGATION_KEYS,
+            ),
         ),
         "disturbances": obj(
             "external disturbance torques (001 sec. 10.2, eq. 10-11)",

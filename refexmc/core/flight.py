@@ -462,7 +462,7 @@ def _start(
 
 
 @jit_noalloc(force_inline=True)
-def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sensed, status, t, loc):
+def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sensed, status, t, loc, tank):
     """Trajectory at ``t`` (new RK4 nodes as needed), flight conditions, measured attitude and
     rates. ``traj``: the planar trajectory's work (or None), ``orb`` the orbit's (or None)."""
     altitude, climb, qbar = 0.0, 0.0, 0.0
@@ -492,7 +492,7 @@ def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sense
     sensed.now[modes.NOW_QBAR] = qbar
     sensed.now[modes.NOW_TIME] = t
     if loc is not None:
-        local_flight.navigate(mission, loc, sensed.now)
+        local_flight.navigate(nav, loc, tank, sensed.rng_state, sensed.now)
     navigation.measure(x, nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4)
 
 
@@ -833,7 +833,7 @@ def _fly(
     t = 0.0
     while True:
         t = step * dt
-        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj_state, traj, orb, sensed, status, t, loc)
+        _navigate(mission, vehicle, atmosphere, inputs.nav, body.x, traj_state, traj, orb, sensed, status, t, loc, tank)
         controlled, has_reference = _advance_mode(
             program, exits, mission, vehicle, atmosphere, traj_state, sensed, guide, status, summary, t
         )
@@ -870,7 +870,7 @@ def _fly(
         if loc is not None:
             local_flight.target(program[flown], loc)
             if active and kind == modes.KIND_TRANSLATE:
-                translation = local_flight.desired(fsw, mission, loc, tank, sensed.q_meas)
+                translation = local_flight.desired(fsw, mission, loc, sensed.q_meas)
         _actuate(
             fsw,
             inputs.levels,

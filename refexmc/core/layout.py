@@ -242,6 +242,9 @@ N_GPS_POSITION_BIAS = NAV.add("gps_position_bias_m", 3)  # ECI axes
 N_GPS_POSITION_NOISE = NAV.add("gps_position_noise_m")  # 1 sigma per axis and sample
 N_GPS_VELOCITY_BIAS = NAV.add("gps_velocity_bias_m_s", 3)
 N_GPS_VELOCITY_NOISE = NAV.add("gps_velocity_noise_m_s")
+N_LOCAL_POSITION_NOISE = NAV.add("local_position_noise_m")  # local trajectory: 1 sigma per axis and period
+N_LOCAL_VELOCITY_NOISE = NAV.add("local_velocity_noise_m_s")
+N_TANK_PRESSURE_NOISE = NAV.add("tank_pressure_noise_pa")  # the translation law's pressure transducer
 NAV_SIZE = NAV.size
 
 # --- nominal deorbit burn: one row per guidance period, ignition to cut-off (core.deorbit) ---

@@ -2,10 +2,13 @@
 under a uniform gravity vector, the thrusters' force through the body attitude, and the
 time-optimal translation law of 002 (core.time_optimal) per body axis in ``translate`` modes.
 
-The local frame is the attitude's inertial frame. Each control period the flight software
-takes the position error (position minus the mission's target) and the velocity into body axes
+The local frame is the attitude's inertial frame. Each control period the navigation measures
+position, velocity (local frame) and tank pressure, each the truth plus white noise of the
+mission's ``navigation`` sigmas (drawn from the run's navigation stream, core.rng, only where a
+sigma is non-zero); the exit predicates read the measured values. The flight software takes the
+measured position error (position minus the mission's target) and velocity into body axes
 (measured attitude) and runs eq. 44 per axis on the scaled state of core.time_optimal.scale,
-with the tank pressure from a perfect pressure transducer, the design's force per pascal and
+with the measured tank pressure, the design's force per pascal and
 time constant per axis (config.pack: n C_F A_t and tau / n, n thrusters pushing along the axis)
 and the mass the pressure implies (dry mass + P V / (R T), eq. 1): u = +1 opens the axis's '+'
 thrusters, -1 its '-' ones. Inside the deadband (|e| and |v| of an axis below the
@@ -24,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import feed, quaternion, time_optimal
+from refexmc.core import feed, quaternion, rng, time_optimal
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     F_TRANSLATION_DEADBAND,
@@ -41,6 +44,9 @@ from refexmc.core.layout import (
     M_LOCAL_RESERVE,
     M_LOCAL_VELOCITY,
     MD_LOCAL_TARGET,
+    N_LOCAL_POSITION_NOISE,
+    N_LOCAL_VELOCITY_NOISE,
+    N_TANK_PRESSURE_NOISE,
     S_LOCAL_POSITION_ERROR,
     S_LOCAL_SPEED,
     S_SWITCHES,
@@ -70,12 +76,13 @@ class Local(NamedTuple):
     force: np.ndarray  # (2, 3): thrust force (N, body axes) at the current segment's start and end
     scratch: np.ndarray  # (3, 3)
     status: np.ndarray  # LS_*
+    measured: np.ndarray  # what the navigation measures: [position (3), velocity (3), tank pressure]
 
 
 @jit
 def work():
     """Allocate the local trajectory's work."""
-    return Local(np.zeros(6), np.zeros(3), np.zeros((2, 3)), np.zeros((3, 3)), np.zeros(LOCAL_STATUS_SIZE))
+    return Local(np.zeros(6), np.zeros(3), np.zeros((2, 3)), np.zeros((3, 3)), np.zeros(LOCAL_STATUS_SIZE), np.zeros(7))
 
 
 @jit_noalloc
@@ -98,26 +105,48 @@ def target(mode, loc):
 
 
 @jit_noalloc
-def navigate(mission, loc, now):
-    """Position error and speed as the exit predicates read them (perfect navigation)."""
+def navigate(nav, loc, tank, rng_state, now):
+    """Measured position, velocity and tank pressure into ``loc.measured``; the position error and
+    speed the exit predicates read, from the measured values."""
+    measure(nav, loc.state, tank.state[feed.TK_PRESSURE], rng_state, loc.measured)
     e2, v2 = 0.0, 0.0
     for i in range(3):
-        e = loc.state[i] - loc.target[i]
+        e = loc.measured[i] - loc.target[i]
         e2 += e * e
-        v2 += loc.state[3 + i] * loc.state[3 + i]
+        v2 += loc.measured[3 + i] * loc.measured[3 + i]
     now[NOW_POSITION_ERROR] = math.sqrt(e2)
     now[NOW_SPEED] = math.sqrt(v2)
 
 
 @jit_noalloc
-def desired(fsw, mission, loc, tank, q_meas):
+def measure(nav, state, pressure, rng_state, out):
+    """Truth plus white noise: position and velocity (1 sigma per axis), then the pressure (a
+    measured pressure below zero reads zero). A zero sigma draws nothing: the truth, bit for bit."""
+    sigma_position = nav[N_LOCAL_POSITION_NOISE]
+    sigma_velocity = nav[N_LOCAL_VELOCITY_NOISE]
+    sigma_pressure = nav[N_TANK_PRESSURE_NOISE]
+    for i in range(3):
+        out[i] = state[i]
+        if sigma_position > 0.0:
+            out[i] += sigma_position * rng.next_normal(rng_state)
+    for i in range(3):
+        out[3 + i] = state[3 + i]
+        if sigma_velocity > 0.0:
+            out[3 + i] += sigma_velocity * rng.next_normal(rng_state)
+    out[6] = pressure
+    if sigma_pressure > 0.0:
+        out[6] = max(pressure + sigma_pressure * rng.next_normal(rng_state), 0.0)
+
+
+@jit_noalloc
+def desired(fsw, mission, loc, q_meas):
     """The valves the law opens this control period (bit mask), 002 eq. 44 per body axis."""
     error, velocity = loc.scratch[0], loc.scratch[1]
     for i in range(3):
-        loc.scratch[2, i] = loc.state[i] - loc.target[i]
+        loc.scratch[2, i] = loc.measured[i] - loc.target[i]
     quaternion.rotate_inverse(q_meas, loc.scratch[2], error)
-    quaternion.rotate_inverse(q_meas, loc.state[3:6], velocity)
-    pressure = tank.state[feed.TK_PRESSURE]
+    quaternion.rotate_inverse(q_meas, loc.measured[3:6], velocity)
+    pressure = loc.measured[6]  # the pressure transducer
     mass = fsw[F_TRANSLATION_DRY_MASS] + pressure * fsw[F_TRANSLATION_GAS_PER_PA]  # the gas left, 002 eq. 1
     law = fsw[F_TRANSLATION_LAW]
     bang_bang = law == TRANSLATION_BANG_BANG
