@@ -260,6 +260,23 @@ def load_kernels(families=()):
 ENTRY_FAILURES = {2: "floor altitude", 3: "time limit"}  # core.entry_flight.STATUS_*: why an entry failed
 
 
+ENTRY_HISTORY = {  # an entry campaign's history column -> (core.entry_flight HI_* name, factor to its unit)
+    "altitude_m": ("HI_ALTITUDE", 1.0),
+    "speed_m_s": ("HI_SPEED", 1.0),
+    "mach": ("HI_MACH", 1.0),
+    "alpha_deg": ("HI_ALPHA", 180.0 / np.pi),
+    "beta_deg": ("HI_BETA", 180.0 / np.pi),
+    "bank_deg": ("HI_BANK", 180.0 / np.pi),
+    "alpha_command_deg": ("HI_ALPHA_CMD", 180.0 / np.pi),
+    "bank_command_deg": ("HI_BANK_CMD", 180.0 / np.pi),
+    "flap_left_deg": ("HI_LEFT", 180.0 / np.pi),
+    "flap_right_deg": ("HI_RIGHT", 180.0 / np.pi),
+    "rudder_deg": ("HI_RUDDER", 180.0 / np.pi),
+    "rcs_propellant_kg": ("HI_PROPELLANT", 1.0),
+    "qbar_pa": ("HI_QBAR", 1.0),
+}
+
+
 class EntryResult:
     """One entry flight's outputs, named: the summary (core.entry_flight.SU_*), the final flight
     state and the history (core.entry_flight.HI_*, one row per second)."""
@@ -281,6 +298,17 @@ class EntryResult:
         from refexmc.core import entry_flight as ef
 
         return None if self.success else ENTRY_FAILURES[int(self.summary[ef.SU_STATUS])]
+
+    def history_columns(self, every):
+        """History signals by column name, every ``every``-th row: ``t_s`` float64, ``mode`` int32
+        (index into ``config.entry.MODE_NAMES``), the others float32 (7 significant digits)."""
+        from refexmc.core import entry_flight as ef
+
+        h = self.history[::every]
+        columns = {"t_s": h[:, ef.HI_TIME].copy(), "mode": h[:, ef.HI_MODE].astype(np.int32)}
+        for name, (slot, factor) in ENTRY_HISTORY.items():
+            columns[name] = (h[:, getattr(ef, slot)] * factor).astype(np.float32)
+        return columns
 
     def runs_values(self):
         """The entry's metrics by ``ENTRY_COLUMNS`` name (SI units; angles in degrees)."""
@@ -318,3 +346,13 @@ def fly_entry(flown, initial):
     final = wk.state.copy()
     _, _, mach = entry.air_data(flown.model, final[: entry.ENTRY_STATE_SIZE])
     return EntryResult(summary, final, float(mach), history[:rows])
+
+
+def load_entry_kernel(flown, initial):
+    """Compile (or load from numba's disk cache) the entry kernel by flying an entry that ends at
+    once (``flown``, ``initial``: ``config.entry.entry_flight_from_mission``'s; ``flown`` is changed)."""
+    from refexmc.core import entry_flight as ef
+
+    if hasattr(ef.fly, "signatures") and not ef.fly.signatures:
+        flown.control[ef.CT_MAX_TIME_S] = 0.0
+        fly_entry(flown, initial)

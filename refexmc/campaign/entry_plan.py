@@ -19,21 +19,6 @@ from refexmc.config import dispersions, entry
 from refexmc.config.requirements import ENTRY_COLUMNS
 
 _SCALE = "entry_flight.coefficient_scale."
-_HISTORY = {  # history column -> (core.entry_flight HI_* name, factor to the column's unit)
-    "altitude_m": ("HI_ALTITUDE", 1.0),
-    "speed_m_s": ("HI_SPEED", 1.0),
-    "mach": ("HI_MACH", 1.0),
-    "alpha_deg": ("HI_ALPHA", 180.0 / np.pi),
-    "beta_deg": ("HI_BETA", 180.0 / np.pi),
-    "bank_deg": ("HI_BANK", 180.0 / np.pi),
-    "alpha_command_deg": ("HI_ALPHA_CMD", 180.0 / np.pi),
-    "bank_command_deg": ("HI_BANK_CMD", 180.0 / np.pi),
-    "flap_left_deg": ("HI_LEFT", 180.0 / np.pi),
-    "flap_right_deg": ("HI_RIGHT", 180.0 / np.pi),
-    "rudder_deg": ("HI_RUDDER", 180.0 / np.pi),
-    "rcs_propellant_kg": ("HI_PROPELLANT", 1.0),
-    "qbar_pa": ("HI_QBAR", 1.0),
-}
 
 
 class EntryRun:
@@ -45,15 +30,8 @@ class EntryRun:
         self.every = history_every
 
     def history_columns(self):
-        """History signals by column name: ``t_s`` float64, ``mode`` int32 (index into
-        ``config.entry.MODE_NAMES``), the others float32 (7 significant digits)."""
-        from refexmc.core import entry_flight as ef
-
-        h = self.result.history[:: self.every]
-        columns = {"t_s": h[:, ef.HI_TIME].copy(), "mode": h[:, ef.HI_MODE].astype(np.int32)}
-        for name, (slot, factor) in _HISTORY.items():
-            columns[name] = (h[:, getattr(ef, slot)] * factor).astype(np.float32)
-        return columns
+        """History signals by column name (``simulate.EntryResult.history_columns``)."""
+        return self.result.history_columns(self.every)
 
 
 class EntryRunPlan:
@@ -70,12 +48,7 @@ class EntryRunPlan:
     def load_kernels(self):
         """Compile (or load from numba's disk cache) the entry kernel by flying nothing: the first
         run pays it otherwise."""
-        from refexmc.core import entry_flight as ef
-
-        if hasattr(ef.fly, "signatures") and not ef.fly.signatures:
-            flown, initial = entry.entry_flight_from_mission(self.vehicle, self.mission)
-            flown.control[ef.CT_MAX_TIME_S] = 0.0
-            simulate.fly_entry(flown, initial)
+        simulate.load_entry_kernel(*entry.entry_flight_from_mission(self.vehicle, self.mission))
 
     def param_columns(self):
         return [c for path in self.sampler.specs for c in dispersions.columns(path, self.vehicle)]
