@@ -98,3 +98,23 @@ def test_cli_refusal_with_a_worker_started_exits_2_with_one_message_and_no_worke
     ]
     assert loky_workers(marker=marker) == []
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+
+
+def test_the_resource_trackers_shutdown_warnings_stay_off_the_error_message(monkeypatch):
+    """loky's resource tracker inherits the environment the pool sets: its warning about semaphores
+    of an executor killed while starting (CI saw it after a bad-input message) is ignored, other
+    warnings and the user's own PYTHONWARNINGS are kept."""
+    from refexmc.campaign import pool
+
+    monkeypatch.setenv("PYTHONWARNINGS", "error::DeprecationWarning")
+    pool._quiet_resource_tracker()
+    pool._quiet_resource_tracker()  # once only
+    assert os.environ["PYTHONWARNINGS"] == f"error::DeprecationWarning,{pool.QUIET_RESOURCE_TRACKER}"
+    script = (
+        "import warnings\n"
+        "warnings.warn('resource_tracker: There appear to be 1 leaked semlock objects to clean up at shutdown')\n"
+        "warnings.warn('another warning')\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=dict(os.environ))
+    assert "resource_tracker" not in result.stderr
+    assert "another warning" in result.stderr
