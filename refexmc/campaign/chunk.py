@@ -71,17 +71,8 @@ class RunPlan:
     def prepare_runs(self, run_ids):
         """:meth:`prepare` of each of ``run_ids``, their parameters drawn together (the same numbers);
         a run whose preparation raised gets the exception instead."""
-        try:
-            drawn = self.sampler.values_for_runs(run_ids)
-        except Exception:  # noqa: BLE001 - not a single run's problem: let each run raise it alone
-            drawn = [self._values_or_exception(run_id) for run_id in run_ids]
+        drawn = self.sampler.values_or_exceptions(run_ids)
         return [self._prepared(run_id, values) for run_id, values in zip(run_ids, drawn, strict=True)]
-
-    def _values_or_exception(self, run_id):
-        try:
-            return self.sampler.values(run_id)
-        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
-            return exc
 
     def _prepared(self, run_id, values):
         if isinstance(values, Exception):

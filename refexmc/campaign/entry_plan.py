@@ -55,17 +55,8 @@ class EntryRunPlan:
 
     def prepare_runs(self, run_ids):
         """(seed, p-columns, (flown vehicle, initial state)) of each run, or its exception."""
-        try:
-            drawn = self.sampler.values_for_runs(run_ids)
-        except Exception:  # noqa: BLE001 - not a single run's problem: let each run raise it alone
-            drawn = [self._values_or_exception(run_id) for run_id in run_ids]
+        drawn = self.sampler.values_or_exceptions(run_ids)
         return [self._prepared(run_id, values) for run_id, values in zip(run_ids, drawn, strict=True)]
-
-    def _values_or_exception(self, run_id):
-        try:
-            return self.sampler.values(run_id)
-        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
-            return exc
 
     def _prepared(self, run_id, values):
         if isinstance(values, Exception):

@@ -313,6 +313,20 @@ class Sampler:
             out.append(problem if problem is not None else values)
         return out
 
+    def values_or_exceptions(self, run_ids):
+        """:meth:`values_for_runs`; where drawing the chunk at once raises (not a single run's
+        problem), each run drawn alone, a run that raises getting its exception (an error row)."""
+        try:
+            return self.values_for_runs(run_ids)
+        except Exception:  # noqa: BLE001 - let each run raise it alone
+            return [self._values_or_exception(run_id) for run_id in run_ids]
+
+    def _values_or_exception(self, run_id):
+        try:
+            return self.values(run_id)
+        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
+            return exc
+
     def _draw(self, path, spec, run_ids):
         """{run id: values of ``path``} of ``run_ids``; inertia that is not physical is redrawn
         with attempts 1, 2, ... (an exception as the value when every attempt failed)."""

@@ -4,6 +4,18 @@ Units are in the key names (``_m``, ``_deg_s``, ``_ms``...) and repeated in each
 Unknown keys fail (``additionalProperties: false``).
 """
 
+# the parameters of a dispersion that a sweep may vary (config.sweep)
+SWEPT_DISTRIBUTION_PARAMETERS = (
+    "value",
+    "mean",
+    "sigma",
+    "low",
+    "high",
+    "median",
+    "moments_sigma_fraction",
+    "axes_sigma_deg",
+)
+
 
 def number(doc, minimum=None, maximum=None, exclusive_minimum=None):
     s = {"type": "number", "description": doc}
@@ -1173,16 +1185,7 @@ CAMPAIGN = obj(
                             "dispersion": string(
                                 "sweep this parameter of the path's distribution instead of the file value "
                                 "[the parameter's unit]",
-                                enum=[
-                                    "value",
-                                    "mean",
-                                    "sigma",
-                                    "low",
-                                    "high",
-                                    "median",
-                                    "moments_sigma_fraction",
-                                    "axes_sigma_deg",
-                                ],
+                                enum=list(SWEPT_DISTRIBUTION_PARAMETERS),
                             ),
                             "values": {
                                 "type": "array",

@@ -26,6 +26,7 @@ import numpy as np
 
 from refexmc.config import dispersions
 from refexmc.config.errors import ConfigError
+from refexmc.config.schema import SWEPT_DISTRIBUTION_PARAMETERS
 
 MISSION_ROOTS = ("separation", "navigation")  # paths under these are mission keys (dispersions._schema_node)
 DEFAULT_METRICS = ("fuel_remaining", "theta_t_handover_deg")
@@ -89,18 +90,6 @@ def point_campaign(campaign, index, values):
         node[keys[-1]] = value
         point["dispersions"] = {**point["dispersions"], path: {"dist": "constant", "value": value}}
     return point
-
-
-SWEPT_DISTRIBUTION_PARAMETERS = (
-    "value",
-    "mean",
-    "sigma",
-    "low",
-    "high",
-    "median",
-    "moments_sigma_fraction",
-    "axes_sigma_deg",
-)
 
 
 def _check_dispersion_axis(campaign, i, axis, fail, file):

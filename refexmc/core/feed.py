@@ -45,7 +45,7 @@ from refexmc.core.layout import (
     V_FEED_THROAT_AREA,
     V_FEED_THRUST_COEFFICIENT,
 )
-from refexmc.core.rcs import derating_factor, level_at
+from refexmc.core.rcs import derating_factor, level_at, open_count
 
 # Tank.state slots
 TK_PRESSURE = 0  # tank pressure now (Pa)
@@ -160,15 +160,7 @@ def segment(valve_state, thrusters, vehicle, arms, tank, t_start, t_end, tau_sta
     p0 = s[TK_PRESSURE]
     regulator = s[TK_REGULATOR]
     if regulator < math.inf:
-        n = thrusters.shape[0]
-        t_mid = 0.5 * (t_start + t_end)
-        n_open = 0
-        m = active & ((1 << n) - 1)
-        while m != 0:
-            i = lowest_bit(m)
-            m &= m - 1
-            if level_at(valve_state, i, t_mid) > 0.0:
-                n_open += 1
+        n_open = open_count(valve_state, thrusters.shape[0], active, 0.5 * (t_start + t_end))
         regulator *= derating_factor(vehicle, n_open)
     open_time = 0.5 * (
         open_sum(valve_state, thrusters, t_start, active) + open_sum(valve_state, thrusters, t_end, active)

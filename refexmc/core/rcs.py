@@ -161,6 +161,20 @@ def derating_factor(vehicle, n_open):
 
 
 @jit_noalloc(force_inline=True)
+def open_count(valve_state, n_thrusters, active, t):
+    """Valves open (level > 0) at time ``t`` among the thrusters in the bit mask ``active``: the
+    count that sets the derating within a segment (at its midpoint)."""
+    n_open = 0
+    m = active & ((1 << n_thrusters) - 1)
+    while m != 0:
+        i = lowest_bit(m)
+        m &= m - 1
+        if level_at(valve_state, i, t) > 0.0:
+            n_open += 1
+    return n_open
+
+
+@jit_noalloc(force_inline=True)
 def segment_thrust(
     valve_state, thrusters, vehicle, arms, nominal, t_start, t_end, tau_start, tau_end, active=ALL_THRUSTERS
 ):
@@ -172,14 +186,7 @@ def segment_thrust(
     (closed and settled, see :func:`update`) are skipped.
     """
     n = thrusters.shape[0]
-    t_mid = 0.5 * (t_start + t_end)
-    n_open = 0
-    m = active & ((1 << n) - 1)
-    while m != 0:
-        i = lowest_bit(m)
-        m &= m - 1
-        if level_at(valve_state, i, t_mid) > 0.0:
-            n_open += 1
+    n_open = open_count(valve_state, n, active, 0.5 * (t_start + t_end))
     force = nominal * derating_factor(vehicle, n_open)
     sx, sy, sz = 0.0, 0.0, 0.0  # sums in registers, in the same order as into the arrays
     ex, ey, ez = 0.0, 0.0, 0.0
