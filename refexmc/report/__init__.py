@@ -199,7 +199,7 @@ def render_figures(campaign, summary):
     if entry_histories.is_entry(campaign):  # an entry's signals over time (issue 24)
         from refexmc.report import entry_figures
 
-        result += entry_figures.figures_of(campaign, summary)
+        result += entry_figures.figures_of(campaign, summary, bounds_of)
     if histories is not None:
         shown, left_out = aggregate.modes_with_samples(histories, len(campaign.ok))
         arcsec = any(plan["units"].get(c) == "arcsec" for c in plan["requirement_columns"])

@@ -167,11 +167,10 @@ BANDS_TEXT = (
 )
 
 
-def figures_of(campaign, summary):
+def figures_of(campaign, summary, bounds_of):
     """[(title, caption, png bytes, file stem)] of an entry campaign's history figures; [] without
-    histories. Sets ``summary["entry_panels"]``: the panels drawn and those left out."""
-    from refexmc.report import bounds_of
-
+    histories. ``bounds_of(column, summary)``: [(value, label)] of the requirement bounds on a runs
+    column. Sets ``summary["entry_panels"]``: the panels drawn and those left out."""
     aggregate = entry_histories.aggregate_entry_histories(campaign)
     if aggregate is None:
         return []
