@@ -347,3 +347,20 @@ def test_the_entry_report_draws_the_histories_with_bands_that_hold_the_nominal(m
         left = aggregate["signals"]["flap_left_deg"][1]
         assert np.nanmax(left[:, 4]) > 1.0 and np.nanmax(right[:, 4]) > 1.0
         assert np.nanmin(left[:, 0]) == 0.0 and np.nanmin(right[:, 0]) == 0.0  # held at 0 above 90 km
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mission", ["x38-blocked-flap.yaml", "x38-nominal.yaml"], indirect=True)
+def test_the_entry_figures_render_in_chromium(mission, tmp_path):
+    """Chromium loads and draws every figure of the entry report, the history figures among them."""
+    from test_report_render import figures_drawn, probe
+
+    binary = shutil.which("chromium")
+    if binary is None:
+        pytest.skip("needs Debian's chromium (apt-get install chromium)")
+    name, out, report, _, _ = mission
+    titles = report["summary"]["figures"]
+    result = probe(binary, (out / "report" / "index.html").read_text(), tmp_path)
+    assert result["alts"] == titles and set(ENTRY_FIGURES) <= set(result["h2"])
+    assert figures_drawn(result) == [True] * len(titles), (name, result)
+    assert all(w > 100 and h > 100 for w, h in result["shown"]), result["shown"]
