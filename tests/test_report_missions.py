@@ -364,3 +364,59 @@ def test_the_entry_figures_render_in_chromium(mission, tmp_path):
     assert result["alts"] == titles and set(ENTRY_FIGURES) <= set(result["h2"])
     assert figures_drawn(result) == [True] * len(titles), (name, result)
     assert all(w > 100 and h > 100 for w, h in result["shown"]), result["shown"]
+
+
+@pytest.mark.parametrize(
+    ("where", "blocked", "dispersion", "expected"),
+    [
+        (
+            "mission",
+            {"flap": "right", "deflection_deg": 14.0, "known_to_flight_software": True},
+            {"dist": "uniform", "low": 10.0, "high": 20.0},
+            "right body flap blocked, dispersed (uniform low 10, high 20), drawn 10.5-19.5°, nominal 14°, "
+            "known to the flight software (3 of 3 runs with a blocked flap)",
+        ),
+        (
+            "mission",
+            {"flap": "left", "deflection_deg": 12.0, "known_to_flight_software": False},
+            None,
+            "left body flap blocked, fixed at 12°, unknown to the flight software (3 of 3 runs with a blocked flap)",
+        ),
+        (
+            "vehicle",
+            {"flap": "right", "deflection_deg": 16.0},
+            None,
+            "right body flap blocked, fixed at 16°, known to the flight software (3 of 3 runs with a blocked flap)",
+        ),
+        ("none", None, None, None),
+    ],
+)
+def test_the_failure_header_names_the_blocked_flap(tmp_path, where, blocked, dispersion, expected):
+    """Which flap, fixed or dispersed (with the range the runs drew), known to the flight software
+    or not; from the mission's entry_flight.blocked_flap or the vehicle file's body_flaps.blocked."""
+    import pandas as pd
+
+    from refexmc.report import data, summary
+
+    runs = pd.DataFrame({"run_id": [0, 1, 2], "status": "ok", "success": True})
+    mission = {"entry_flight": {"state": {}}}
+    vehicle = {"surfaces": {"body_flaps": {"min_deg": -20.0, "max_deg": 30.0}}}
+    resolved = {"mission": mission, "vehicle": vehicle, "failures": {"mode": "none"}}
+    if where == "mission":
+        mission["entry_flight"]["blocked_flap"] = blocked
+    elif where == "vehicle":
+        vehicle["surfaces"]["body_flaps"]["blocked"] = blocked
+    if dispersion:
+        resolved["dispersions"] = {"entry_flight.blocked_flap.deflection_deg": dispersion}
+        runs["p.entry_flight.blocked_flap.deflection_deg"] = [14.0, 10.5, 19.5]
+    campaign = data.Campaign(out=tmp_path, runs=runs, resolved=resolved, resolved_lines={})
+    kinds = summary.failures_section(campaign)
+    if expected is None:
+        assert kinds == []
+        return
+    (kind,) = kinds
+    assert kind["text"] == expected
+    assert kind["kind"] == "body flap" and kind["flap"] == blocked["flap"]
+    assert kind["mode"] == ("dispersed" if dispersion else "fixed")
+    assert kind["detected"] == blocked.get("known_to_flight_software", True)
+    assert kind["drawn_deg"] == ([10.5, 19.5] if dispersion else None)
