@@ -324,14 +324,14 @@ def test_the_entry_report_draws_the_histories_with_bands_that_hold_the_nominal(m
         compute = entry_histories.ENTRY_SIGNALS[signal][1]
         frame = {c: history[c].to_numpy(dtype=float) for c in columns}
         values = compute(frame) if compute else frame[columns[0]]
-        bins = np.minimum((history["t_s"].to_numpy() / envelope.dx).astype(int), envelope.bins - 1)
+        bins = envelope.bin_of(history["t_s"].to_numpy())  # centred on multiples of dx
         for b in np.unique(bins)[:: max(1, len(np.unique(bins)) // 50)]:
             here = values[bins == b]
             # min and max are exact; the percentiles lie between them
             assert q[b, 0] == here.min() and q[b, 4] == here.max(), (signal, b)
             assert q[b, 0] <= q[b, 1] <= q[b, 2] <= q[b, 3] <= q[b, 4]
         nominal = aggregate["nominal"]
-        mine = np.minimum((nominal["t_s"] / envelope.dx).astype(int), envelope.bins - 1)
+        mine = envelope.bin_of(nominal["t_s"])
         assert (q[mine, 0] <= nominal[signal]).all() and (nominal[signal] <= q[mine, 4]).all()
     right = aggregate["signals"]["flap_right_deg"][1]
     runs = read_runs(out)

@@ -135,11 +135,11 @@ REQUIREMENT_SIGNALS = {
 FIGURES = (
     (
         "Attitude tracking: α, β and bank μ against their commands",
-        "Top: angle of attack and bank of every flown run (bands) against the command of the nominal run 0 "
-        "(dashed blue; the α command follows the α(Mach) schedule{flap_alpha}, the bank the bank(speed) "
-        "schedule). Bottom: the tracking errors α − α_cmd, β (commanded 0) and μ − μ_cmd, transients "
-        "included; the requirements on the largest errors count only after the transients (transient_s after "
-        "the start and after each mode change), their bounds drawn at ±.",
+        "Top: angle of attack and bank of every flown run (bands){command} (the α command follows the α(Mach) "
+        "schedule{flap_alpha}, the bank the bank(speed) schedule). Bottom: the tracking errors α − α_cmd, "
+        "β (commanded 0) and μ − μ_cmd, transients included; the requirements on the largest errors count "
+        "only after the transients (transient_s after the start and after each mode change), their bounds "
+        "drawn at ±.",
         TRACKING,
         "entry_tracking",
     ),
@@ -161,7 +161,7 @@ FIGURES = (
 )
 BANDS_TEXT = (
     " Gray bands: min-max and 1-99 % of the {runs} flown runs still flying at each time (or speed), line: "
-    "median; black: the nominal run 0; dotted green: run 0's mode changes. Envelopes from {rows} history "
+    "median{nominal}. Envelopes from {rows} history "
     "samples every {every:g} s ({bins} bins; min and max exact per bin, percentiles to 0.25 % of the "
     "signal's range, errors to 6 % of their value)."
 )
@@ -188,7 +188,13 @@ def figures_of(campaign, summary, bounds_of):
                 bounds[signal].append((-value, "_" + label))  # the - side, no second legend entry
     first = next(iter(aggregate["signals"].values()))[0]
     bands = BANDS_TEXT.format(
-        runs=len(campaign.ok), rows=aggregate["rows"], every=1.0 / campaign.history_rate_hz, bins=first.bins
+        runs=len(campaign.ok),
+        rows=aggregate["rows"],
+        every=1.0 / campaign.history_rate_hz,
+        bins=first.bins,
+        nominal="; black: the nominal run 0; dotted green: run 0's mode changes"
+        if aggregate["nominal"] is not None
+        else " (no nominal run 0 flown: no nominal line)",
     )
     result = []
     for title, caption, layout, stem in FIGURES:
@@ -197,6 +203,9 @@ def figures_of(campaign, summary, bounds_of):
             continue
         text = caption.format(
             flap_alpha=", or with the flap blocked and known the α at which the flaps trim at it" if flap else "",
+            command=" against the commands of the nominal run 0 (dashed blue)"
+            if aggregate["nominal"] is not None
+            else "",
             flap_text=f" The {entry_histories.blocked_flap_text(flap)}." if flap else "",
         )
         left_out = [n for row in layout for n in row if n not in aggregate["signals"]]

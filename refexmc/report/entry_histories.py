@@ -93,7 +93,9 @@ def linear_edges(low, high, bins=LINEAR_VALUE_BINS):
 
 
 class Envelope:
-    """Percentile envelope of one signal over x bins: histogram quantiles and exact min/max."""
+    """Percentile envelope of one signal over x bins centred on multiples of ``dx`` (a history
+    sampled every dx lands one sample per run in each bin, whatever its rounding): histogram
+    quantiles and the exact min/max."""
 
     def __init__(self, bins, dx, edges):
         self.bins, self.dx = bins, float(dx)
@@ -103,7 +105,7 @@ class Envelope:
 
     def add(self, x, values):
         keep = np.isfinite(values) & np.isfinite(x)
-        x, values = x[keep], values[keep]
+        x, values = x[keep] + 0.5 * self.dx, values[keep]
         xbin = np.clip((np.maximum(x, 0.0) / self.dx).astype(np.int64), 0, self.bins - 1)  # as BinnedQuantiles
         np.minimum.at(self.low, xbin, values)
         np.maximum.at(self.high, xbin, values)
@@ -120,7 +122,11 @@ class Envelope:
         return q
 
     def x(self):
-        return (np.arange(self.bins) + 0.5) * self.dx
+        return np.arange(self.bins) * self.dx
+
+    def bin_of(self, x):
+        """The bin of each value of ``x``."""
+        return np.clip((np.maximum(np.asarray(x) + 0.5 * self.dx, 0.0) / self.dx).astype(np.int64), 0, self.bins - 1)
 
     def samples(self):
         return int(self.binned.sample_counts().sum())
