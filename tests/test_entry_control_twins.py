@@ -136,12 +136,18 @@ def test_control_equals_the_twin_on_random_flight_states(x38, case):
         state = np.zeros(ef.FLIGHT_STATE_SIZE)
         state[:6] = random_state(rng)
         t = rng.uniform(0.0, 2_000.0)
-        entry_attitude.attitude_from_angles(state[:6], t, rotation, *random_angles(rng), scratch, state[6:10])
-        state[10:13] = rng.uniform(-0.05, 0.05, 3)
+        angles = random_angles(rng)
+        entry_attitude.attitude_from_angles(state[:6], t, rotation, *angles, scratch, state[6:10])
         limits = ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3]
-        integral = rng.uniform(-1.2, 1.2, 3) * limits  # some beyond the clamp
         deflection = rng.uniform(-0.3, 0.3, 3)
-        alpha_cmd, bank_cmd = rng.uniform(0.3, 0.8), rng.uniform(-1.2, 1.2)
+        if rng.uniform() < 0.5:  # far from the commands: large moments, the thrusters saturate
+            state[10:13] = rng.uniform(-0.05, 0.05, 3)
+            integral = rng.uniform(-1.2, 1.2, 3) * limits  # some beyond the clamp
+            alpha_cmd, bank_cmd = rng.uniform(0.3, 0.8), rng.uniform(-1.2, 1.2)
+        else:  # near the commands: moments the blend gives within the thrusters' capacity
+            state[10:13] = rng.uniform(-2e-4, 2e-4, 3)
+            integral = rng.uniform(-1e-3, 1e-3, 3) * limits
+            alpha_cmd, bank_cmd = angles[0] + rng.normal(0.0, 1e-3), angles[2] + rng.normal(0.0, 1e-3)
         wk.state[:] = state
         wk.integral[:] = integral
         wk.deflection[:] = deflection
@@ -179,6 +185,7 @@ def test_control_equals_the_twin_on_random_flight_states(x38, case):
             saturated += 1
             assert np.allclose(wk.thruster, np.clip(unsaturated, -capacity, capacity), rtol=1e-9, atol=1e-9 * scale)
     assert modes_seen == {0, 1, 2}, f"the random states must cover every mode, saw {modes_seen}"
+    assert 30 <= saturated <= SAMPLES - 30, f"both branches need samples: {saturated} of {SAMPLES} saturated"
 
 
 def test_trim_alpha_and_the_alignment_bias_equal_the_twins(x38):
