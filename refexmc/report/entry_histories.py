@@ -44,7 +44,7 @@ ENTRY_SIGNALS = {
     "qbar_pa": (("qbar_pa",), None, "Pa", "dynamic pressure q̄", "t", False),
     "load_factor_g": (("load_factor_g",), None, "g", "load factor", "t", False),
     "heat_flux_w_m2": (("heat_flux_w_m2",), None, "W/m²", "stagnation heat flux", "t", False),
-    "altitude_over_speed_m": (("altitude_m", "speed_m_s"), None, "m", "altitude", "speed", False),
+    "altitude_over_speed_m": (("altitude_m", "speed_m_s"), None, "m", "altitude over speed", "speed", False),
     "flap_left_deg": (("flap_left_deg",), None, "deg", "left body flap", "t", False),
     "flap_right_deg": (("flap_right_deg",), None, "deg", "right body flap", "t", False),
     "rudder_deg": (("rudder_deg",), None, "deg", "rudders", "t", False),
