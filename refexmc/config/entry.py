@@ -72,6 +72,8 @@ def check(vehicle, fail):
                         i,
                     )
     if surfaces is None:
+        if "entry_control" in vehicle:
+            fail("the entry controller flies aerodynamic surfaces; the vehicle has none ('surfaces')", "entry_control")
         if tables is not None:
             for key in (*schema.ENTRY_FLAP_DERIVATIVES, *schema.ENTRY_RUDDER_DERIVATIVES):
                 if key in tables["coefficients"]:
@@ -84,6 +86,8 @@ def check(vehicle, fail):
         return
     if "atmosphere" not in vehicle:
         fail("aerodynamic surfaces need an atmosphere (the vehicle's 'atmosphere')", "surfaces")
+    if "entry_control" not in vehicle:
+        fail("aerodynamic surfaces need the entry controller's gains (the vehicle's 'entry_control')", "surfaces")
     if tables is None:
         fail("aerodynamic surfaces need the vehicle's 'entry_aerodynamics' tables", "surfaces")
     coefficients = tables["coefficients"]
@@ -189,16 +193,6 @@ def entry_vehicle(
     *,
     blocked=None,
     planet=(6_371_000.0, 3.986004418e14, 7.2921159e-5),
-    control_rate_hz=None,
-    flap_rate_deg_s=20.0,
-    rudder_rate_deg_s=20.0,
-    surface_time_constant_s=0.1,
-    angle_gain=(1.0, 1.0, 1.0),
-    rate_gain=4.0,
-    integral_gain=0.2,
-    integral_limit_rad_s=(2.0, 0.5, 0.5),
-    align_gain=0.05,
-    align_limit_deg=10.0,
     rcs_only_above_m=90_000.0,
     terminal_mach=2.0,
     floor_altitude_m=15_000.0,
@@ -212,9 +206,10 @@ def entry_vehicle(
     ``alpha_schedule`` [(Mach, alpha deg), ...] and ``bank_schedule`` [(speed m/s, bank deg), ...].
 
     ``blocked``: None or (flap 'left'|'right', deflection deg); default the vehicle file's
-    ``surfaces.body_flaps.blocked``. The keyword values are the entry flight's parameters until
-    its mission and campaign keys exist (issue 24; docs/x38.md): surface rates and lag ESTIMATES,
-    003's mode program (RCS alone above 90 km), a terminal Mach of 2.
+    ``surfaces.body_flaps.blocked``. The surfaces' rates and lag, the controller's gains
+    (``entry_control``) and the control rate come from the vehicle file; the mode program and the
+    terminal condition are keywords (an entry mission's keys: :func:`entry_flight_from_mission`),
+    by default 003's mode program (RCS alone above 90 km) and a terminal Mach of 2.
 
     Truth against the flight software: ``blocked_known`` False commands the blocked flap as if
     free (it does not move); ``density_factor`` scales the true density and ``coefficient_factors``
@@ -234,23 +229,23 @@ def entry_vehicle(
         sf[ef.SF_RUDDER_MIN], sf[ef.SF_RUDDER_MAX] = math.radians(rudders["min_deg"]), math.radians(rudders["max_deg"])
         sf[ef.SF_RUDDER_MACH] = rudders["usable_below_mach"]
         sf[ef.SF_HAS_RUDDERS] = 1.0
-    sf[ef.SF_FLAP_RATE] = math.radians(flap_rate_deg_s)
-    sf[ef.SF_RUDDER_RATE] = math.radians(rudder_rate_deg_s)
-    sf[ef.SF_TIME_CONSTANT] = surface_time_constant_s
+        sf[ef.SF_RUDDER_RATE] = math.radians(rudders["rate_max_deg_s"])
+    sf[ef.SF_FLAP_RATE] = math.radians(flaps["rate_max_deg_s"])
+    sf[ef.SF_TIME_CONSTANT] = surfaces["time_constant_s"]
     sf[ef.SF_BLOCKED_FLAP] = -1.0 if blocked is None else {"left": 0.0, "right": 1.0}[blocked[0]]
     sf[ef.SF_BLOCKED_DEFLECTION] = 0.0 if blocked is None else math.radians(blocked[1])
     sf[ef.SF_HINGE_MOMENT_MAX] = flaps.get("hinge_moment_max_n_m", 0.0)
     sf[ef.SF_HINGE_AREA_ARM] = flaps.get("hinge_area_arm_m3", 0.0)
     sf[ef.SF_BLOCKED_KNOWN] = 1.0 if blocked_known else 0.0
     ct = np.zeros(ef.CONTROL_PARAMETERS)
-    rate_hz = control_rate_hz or vehicle["flight_software"]["control_rate_hz"]
-    ct[ef.CT_PERIOD] = 1.0 / rate_hz
-    ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = angle_gain
-    ct[ef.CT_RATE_GAIN] = rate_gain
-    ct[ef.CT_INTEGRAL_GAIN] = integral_gain
-    ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3] = integral_limit_rad_s
-    ct[ef.CT_ALIGN_GAIN] = align_gain
-    ct[ef.CT_ALIGN_LIMIT] = math.radians(align_limit_deg)
+    gains = vehicle["entry_control"]
+    ct[ef.CT_PERIOD] = 1.0 / vehicle["flight_software"]["control_rate_hz"]
+    ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = gains["angle_gain_1_s"]
+    ct[ef.CT_RATE_GAIN] = gains["rate_gain_1_s"]
+    ct[ef.CT_INTEGRAL_GAIN] = gains["integral_gain_1_s"]
+    ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3] = gains["integral_limit_rad_times_s"]
+    ct[ef.CT_ALIGN_GAIN] = gains["align_gain_1_s"]
+    ct[ef.CT_ALIGN_LIMIT] = math.radians(gains["align_limit_deg"])
     ct[ef.CT_RCS_ONLY_ABOVE_M] = rcs_only_above_m
     ct[ef.CT_TERMINAL_MACH] = terminal_mach
     ct[ef.CT_FLOOR_ALTITUDE_M] = floor_altitude_m
