@@ -198,9 +198,11 @@ def entry_vehicle(
     floor_altitude_m=15_000.0,
     max_time_s=3_000.0,
     transient_s=30.0,
+    rcs_delay_ms=0.0,
     blocked_known=True,
     density_factor=1.0,
     coefficient_factors=None,
+    inertia=None,
 ):
     """``core.entry_flight.EntryVehicle`` for ``vehicle`` (validated) flying the schedules
     ``alpha_schedule`` [(Mach, alpha deg), ...] and ``bank_schedule`` [(speed m/s, bank deg), ...].
@@ -211,10 +213,13 @@ def entry_vehicle(
     terminal condition are keywords (an entry mission's keys: :func:`entry_flight_from_mission`),
     by default 003's mode program (RCS alone above 90 km) and a terminal Mach of 2.
 
+    ``rcs_delay_ms``: the thrusters' moment acts this long after each control instant (below
+    the control period; ValueError otherwise).
+
     Truth against the flight software: ``blocked_known`` False commands the blocked flap as if
-    free (it does not move); ``density_factor`` scales the true density and ``coefficient_factors``
-    ({vehicle-file coefficient name: factor}) the true coefficients, while the flight software
-    keeps the vehicle file's.
+    free (it does not move); ``density_factor`` scales the true density, ``coefficient_factors``
+    ({vehicle-file coefficient name: factor}) the true coefficients and ``inertia`` (3 x 3 kg m^2)
+    is the true inertia, while the flight software keeps the vehicle file's.
     """
     from refexmc.core import entry_flight as ef
 
@@ -240,6 +245,11 @@ def entry_vehicle(
     ct = np.zeros(ef.CONTROL_PARAMETERS)
     gains = vehicle["entry_control"]
     ct[ef.CT_PERIOD] = 1.0 / vehicle["flight_software"]["control_rate_hz"]
+    ct[ef.CT_RCS_DELAY_S] = rcs_delay_ms / 1000.0
+    if not 0.0 <= ct[ef.CT_RCS_DELAY_S] < ct[ef.CT_PERIOD]:
+        raise ValueError(
+            f"expected an RCS delay in [0, {1000.0 * ct[ef.CT_PERIOD]:g}) ms (the control period), got {rcs_delay_ms:g}"
+        )
     ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = gains["angle_gain_1_s"]
     ct[ef.CT_RATE_GAIN] = gains["rate_gain_1_s"]
     ct[ef.CT_INTEGRAL_GAIN] = gains["integral_gain_1_s"]
@@ -255,7 +265,8 @@ def entry_vehicle(
     ct[ef.CT_TRANSIENT_S] = transient_s
     ct[ef.CT_MASS] = vehicle["mass_kg"]
     ct[ef.CT_NOSE_RADIUS_M] = vehicle["entry_aerodynamics"].get("nose_radius_m", 0.0)
-    inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    fsw_inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    inertia = fsw_inertia if inertia is None else np.asarray(inertia, dtype=float)
     alpha = np.array([[m for m, _ in alpha_schedule], [math.radians(a) for _, a in alpha_schedule]])
     bank = np.array([[v for v, _ in bank_schedule], [math.radians(b) for _, b in bank_schedule]])
     nominal = model(vehicle, *planet)
@@ -268,7 +279,7 @@ def entry_vehicle(
         for key, factor in (coefficient_factors or {}).items():
             coefficients[slots[key]] *= factor
         truth = nominal._replace(atmosphere=atmosphere, coefficients=coefficients)
-    return ef.EntryVehicle(truth, inertia, np.linalg.inv(inertia), sf, ct, alpha, bank, nominal)
+    return ef.EntryVehicle(truth, inertia, np.linalg.inv(inertia), sf, ct, alpha, bank, nominal, fsw_inertia)
 
 
 def rcs_capacity(vehicle):
@@ -319,6 +330,7 @@ def entry_flight_from_mission(vehicle, mission, *, blocked=None, **keywords):
         floor_altitude_m=flight["floor_altitude_m"],
         max_time_s=flight["max_time_s"],
         transient_s=flight["transient_s"],
+        rcs_delay_ms=flight.get("rcs_delay_ms", 0.0),
         **keywords,
     )
     state = flight["state"]

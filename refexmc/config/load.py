@@ -915,28 +915,49 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
             line=lines.get(("output", "history_rate_hz")),
             path=("output", "history_rate_hz"),
         )
+    period_ms = 1000.0 / vehicle["flight_software"]["control_rate_hz"]
+    delay = mission["entry_flight"].get("rcs_delay_ms", 0.0)
+    if delay >= period_ms:
+        fail_mission(
+            f"expected an RCS delay below the control period of vehicle {vehicle['name']} ({period_ms:g} ms), "
+            f"got {delay:g}",
+            "entry_flight",
+            "rcs_delay_ms",
+        )
     specs = dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
-    spec = specs.get("entry_flight.blocked_flap.deflection_deg")
-    if spec is not None:
-        from refexmc.campaign.sampling import transform  # the sampler's own arithmetic, monotone in u
-
-        nominal = dispersions.nominal("entry_flight.blocked_flap.deflection_deg", vehicle, mission)
-        eps = dispersions.UNIFORM_EPS
-        low, high = (float(transform(spec, np.array([u]), nominal)[0]) for u in (eps, 1.0 - eps))
-        if low < flaps["min_deg"] or high > flaps["max_deg"]:
-            raise ConfigError(
-                f"expected draws within the flap limits [{flaps['min_deg']}, {flaps['max_deg']}] deg, "
-                f"the distribution reaches [{low:g}, {high:g}]",
-                file=path,
-                line=lines.get(("dispersions", "entry_flight.blocked_flap.deflection_deg")),
-                path=("dispersions", "entry_flight.blocked_flap.deflection_deg"),
-            )
+    _check_entry_draws(specs, "entry_flight.blocked_flap.deflection_deg", flaps["min_deg"], flaps["max_deg"],
+                       "the flap limits", "deg", vehicle, mission, path, lines)  # fmt: skip
+    _check_entry_draws(specs, "entry_flight.rcs_delay_ms", 0.0, period_ms, "the control period", "ms",
+                       vehicle, mission, path, lines, below_high=True)  # fmt: skip
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     columns = requirements.entry_metric_columns(parameter_columns)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     if warnings is not None:
         warnings.extend(found)
     return campaign
+
+
+def _check_entry_draws(specs, key, low_limit, high_limit, what, unit, vehicle, mission, path, lines, below_high=False):
+    """ConfigError when the distribution of ``key`` (if dispersed) reaches outside
+    [low_limit, high_limit] (``below_high``: [low_limit, high_limit))."""
+    from refexmc.campaign.sampling import transform  # the sampler's own arithmetic, monotone in u
+    from refexmc.config import dispersions
+
+    spec = specs.get(key)
+    if spec is None:
+        return
+    nominal = dispersions.nominal(key, vehicle, mission)
+    eps = dispersions.UNIFORM_EPS
+    low, high = (float(transform(spec, np.array([u]), nominal)[0]) for u in (eps, 1.0 - eps))
+    if low < low_limit or high > high_limit or (below_high and high >= high_limit):
+        bracket = ")" if below_high else "]"
+        raise ConfigError(
+            f"expected draws within {what} [{low_limit}, {high_limit}{bracket} {unit}, "
+            f"the distribution reaches [{low:g}, {high:g}]",
+            file=path,
+            line=lines.get(("dispersions", key)),
+            path=("dispersions", key),
+        )
 
 
 def apply_overrides(campaign, runs=None, seed=None):

@@ -1065,6 +1065,12 @@ ENTRY_MISSION = obj(
                 "transient_s": number(
                     "tracking errors count this long after the start and after each mode change [s]", minimum=0.0
                 ),
+                "rcs_delay_ms": number(
+                    "the thrusters' moment acts this long after each control instant, the previous period's "
+                    "until then (valve opening and closing the flight software does not allow for); below the "
+                    "vehicle's control period (absent: 0) [ms]",
+                    minimum=0.0,
+                ),
                 "blocked_flap": obj(
                     "a body flap blocked from t = 0 (003; a failure; the vehicle file's surfaces.body_flaps.blocked "
                     "is replaced)",
@@ -1079,7 +1085,7 @@ ENTRY_MISSION = obj(
                     },
                 ),
             },
-            optional=("blocked_flap",),
+            optional=("blocked_flap", "rcs_delay_ms"),
         ),
     },
 )
