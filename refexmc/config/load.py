@@ -853,8 +853,9 @@ def _is_entry_mission(ref, campaign_file):
 
 
 # campaign keys an entry campaign (issue 24) does not take: thruster and wheel failures (a blocked
-# flap is the mission's entry_flight.blocked_flap), sweeps and Saltelli designs (not built for it)
-_ENTRY_CAMPAIGN_REFUSED = ("failures", "wheel_failures", "sweep", "published")
+# flap is the mission's entry_flight.blocked_flap) and published values (not built for it); nor
+# Saltelli designs (below)
+_ENTRY_CAMPAIGN_REFUSED = ("failures", "wheel_failures", "published")
 
 
 def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, found):
@@ -932,9 +933,47 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     columns = requirements.entry_metric_columns(parameter_columns)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
+    if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        from refexmc.config import sweep
+
+        campaign["sweep"] = data["sweep"]
+        sweep.check_sweep(campaign, path, lines, columns)
+        _check_entry_sweep(campaign, flaps, period_ms, path, lines)
     if warnings is not None:
         warnings.extend(found)
     return campaign
+
+
+def _check_entry_sweep(campaign, flaps, period_ms, path, lines):
+    """An entry campaign's sweep of a file value: each value a dispersion the entry flies (the
+    point's ``constant`` dispersion, config.sweep.point_campaign), a blocked deflection within the
+    flap limits, an RCS delay below the control period."""
+    from refexmc.config import dispersions, sweep
+
+    limits = {
+        "entry_flight.blocked_flap.deflection_deg": (flaps["min_deg"], flaps["max_deg"], "the flap limits", "deg"),
+        "entry_flight.rcs_delay_ms": (0.0, period_ms, "the control period", "ms"),
+    }
+    for i, axis in enumerate(campaign["sweep"]["axes"]):
+        if "dispersion" in axis:
+            continue
+        key_path = ("sweep", "axes", i, "values" if "values" in axis else "range")
+        where = {"file": path, "line": lines.get(key_path) or lines.get(("sweep", "axes", i)), "path": key_path}
+        name = axis["parameter"]
+        for value in sweep.axis_values(axis):
+            try:
+                trial = {**campaign["dispersions"], name: {"dist": "constant", "value": value}}
+                dispersions.check(trial, campaign["vehicle"], campaign["mission"], path, {})
+            except ConfigError as exc:
+                raise ConfigError(f"at {value:g}: {exc.message}", **where) from None
+            if name in limits:
+                low, high, what, unit = limits[name]
+                inside = low <= value < high if name == "entry_flight.rcs_delay_ms" else low <= value <= high
+                if not inside:
+                    bracket = ")" if name == "entry_flight.rcs_delay_ms" else "]"
+                    raise ConfigError(
+                        f"expected values within {what} [{low}, {high}{bracket} {unit}, got {value:g}", **where
+                    )
 
 
 def _check_entry_draws(specs, key, low_limit, high_limit, what, unit, vehicle, mission, path, lines, below_high=False):
