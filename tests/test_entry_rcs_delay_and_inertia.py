@@ -55,11 +55,12 @@ def test_a_delayed_moment_step_turns_the_vehicle_as_the_closed_form(delay_s):
     rates = wk.state[Q + 4 : Q + 7]
     assert rates[1] == pytest.approx(q_expected, rel=1e-12)
     assert abs(rates[0]) < 1e-15 and abs(rates[2]) < 1e-15
-    q0, q1 = initial[Q : Q + 4], wk.state[Q : Q + 4]  # scalar-first quaternions
+    q0, q1 = initial[Q : Q + 4], wk.state[Q : Q + 4]  # scalar-last quaternions (core.quaternion)
     # q0^-1 (x) q1, the rotation between them: its scalar and vector parts, then its angle
     w = q0 @ q1
-    v = q0[0] * q1[1:] - q1[0] * q0[1:] - np.cross(q0[1:], q1[1:])
+    v = q0[3] * q1[:3] - q1[3] * q0[:3] - np.cross(q0[:3], q1[:3])
     assert 2.0 * math.atan2(np.linalg.norm(v), w) == pytest.approx(abs(theta_expected), rel=1e-9)
+    assert abs(v[0]) < 1e-14 and abs(v[2]) < 1e-14  # about body y alone
     # afterwards both slots hold this period's moment, the next period's "previous"
     assert list(wk.thruster) == list(wk.thruster_previous) == [0.0, -2500.0, 0.0]
 
