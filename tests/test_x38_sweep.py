@@ -102,6 +102,16 @@ VALUES = "      values: [10.0, 12.0, 14.0, 16.0, 18.0, 20.0]"
             ["sweep.axes.0.values", "at 200: 'rcs.isp_s' is not flown by an entry mission"],
         ),
         (
+            "a-dispersion-reaching-beyond-the-flap-limits",
+            TEXT.replace(
+                "dispersions:\n",
+                "dispersions:\n  entry_flight.blocked_flap.deflection_deg: {dist: uniform, low: 10.0, high: 20.0}\n",
+            )
+            .replace(AXIS, AXIS + "\n      dispersion: high")
+            .replace(VALUES, "      values: [20.0, 30.0, 50.0]"),
+            ["sweep.axes.0.values", "at high = 50: expected draws within the flap limits [-10.0, 40.0] deg"],
+        ),
+        (
             "swept-and-dispersed",
             TEXT.replace(
                 "dispersions:\n",
