@@ -5,8 +5,9 @@ Usage::
     .venv/bin/python benchmarks/bench_entry.py [--repeats N]
 
 Flies tests/test_entry_flight.py's entry (121.9 km to Mach 2, 10 Hz control) nominal and with the
-right flap blocked at 14 deg, pinned to one CPU, after a warm-up call; prints the median and the
-best of N of ``core.entry_flight.fly`` alone (the vehicle file is read once, before).
+right flap blocked at 14 deg (without and with a 30 ms RCS delay), pinned to one CPU, after a
+warm-up call; prints the median and the best of N of ``core.entry_flight.fly`` alone (the vehicle
+file is read once, before).
 Target (issue 24): one entry <= 50 ms. The first call's time (compile or cache load) is printed
 too.
 """
@@ -37,8 +38,17 @@ def main():
     from refexmc.core import entry_flight as ef
 
     print(f"load average: {os.getloadavg()[0]:.2f} (1 min)")
-    for name, blocked in (("nominal", None), ("flap blocked at 14 deg", ("right", 14.0))):
+    cases = (
+        ("nominal", None, 0.0),
+        ("flap blocked at 14 deg", ("right", 14.0), 0.0),
+        ("flap blocked at 14 deg, 30 ms RCS delay", ("right", 14.0), 0.03),  # two RK4 steps per period
+    )
+    for name, blocked, delay_s in cases:
+        if delay_s > 0.0 and not hasattr(ef, "CT_RCS_DELAY_S"):  # a commit before the delay existed
+            continue
         flown, initial = flight.prepare(blocked)
+        if delay_s > 0.0:
+            flown.control[ef.CT_RCS_DELAY_S] = delay_s
         wk, history, summary = ef.work(), np.zeros((3000, ef.HISTORY_COLUMNS)), np.zeros(ef.SUMMARY_SIZE)
         start = time.perf_counter()
         ef.fly(flown, wk, initial, history, summary)

@@ -27,10 +27,12 @@ BANK_BOUND_DEG = 5.0
 BETA_BOUND_DEG = 1.0
 
 
-def prepare(blocked=None, **truth):
+def prepare(blocked=None, entry_control=None, **truth):
     """(flown vehicle arrays, initial flight state) of the test entry; ``truth``: keywords of
-    config.entry.entry_vehicle that set the truth apart from the flight software's model."""
+    config.entry.entry_vehicle that set the truth apart from the flight software's model;
+    ``entry_control``: {key: value} replacing the vehicle file's controller keys."""
     vehicle = load_vehicle(ROOT / "configs/vehicles/x38.yaml")
+    vehicle["entry_control"].update(entry_control or {})
     flown = config_entry.entry_vehicle(vehicle, ALPHA_SCHEDULE, BANK_SCHEDULE, blocked=blocked, **truth)
     initial = np.zeros(ef.FLIGHT_STATE_SIZE)
     initial[:6] = ENTRY
@@ -42,8 +44,8 @@ def prepare(blocked=None, **truth):
     return flown, initial
 
 
-def fly(blocked=None, **truth):
-    flown, initial = prepare(blocked, **truth)
+def fly(blocked=None, entry_control=None, **truth):
+    flown, initial = prepare(blocked, entry_control, **truth)
     history = np.zeros((3000, ef.HISTORY_COLUMNS))
     summary = np.zeros(ef.SUMMARY_SIZE)
     rows = ef.fly(flown, ef.work(), initial, history, summary)
@@ -209,7 +211,7 @@ def test_alignment_feedback_keeps_the_free_flap_on_the_blocked_one_despite_pitch
     sits on the blocked one: within 1 deg in the hypersonic flaps phase, propellant within twice
     that of the exact model."""
     summary, history = fly(blocked=("right", 14.0), **PITCH_MODEL_ERROR)
-    open_loop, _ = fly(blocked=("right", 14.0), align_gain=0.0, **PITCH_MODEL_ERROR)
+    open_loop, _ = fly(blocked=("right", 14.0), entry_control={"align_gain_1_s": 0.0}, **PITCH_MODEL_ERROR)
     assert summary[ef.SU_STATUS] == ef.STATUS_TERMINAL_MACH
     late = (history[:, ef.HI_ALTITUDE] < 75_000.0) & (history[:, ef.HI_MACH] > 6.5)
     assert np.abs(np.degrees(history[late, ef.HI_LEFT]) - 14.0).max() < 1.0

@@ -7,6 +7,7 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
@@ -48,7 +49,10 @@ def test_a_few_runs_fly_and_each_equals_the_direct_flight_of_its_draws(flown):
             **flight["blocked_flap"],
             "deflection_deg": float(values["entry_flight.blocked_flap.deflection_deg"][0]),
         }
+        flight["rcs_delay_ms"] = float(values["entry_flight.rcs_delay_ms"][0])
         mission["entry_flight"] = flight
+        xx, yy, zz, xy, xz, yz = values["inertia_kg_m2"]
+        inertia = [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
         factors = {
             path.rsplit(".", 1)[1]: float(value[0])
             for path, value in values.items()
@@ -60,6 +64,7 @@ def test_a_few_runs_fly_and_each_equals_the_direct_flight_of_its_draws(flown):
                 mission,
                 density_factor=float(values["entry_flight.density_scale"][0]),
                 coefficient_factors=factors,
+                inertia=inertia,
             )
         ).runs_values()
         for name, value in direct.items():
@@ -75,6 +80,9 @@ def test_run_0_is_the_nominal_entry_and_the_draws_move_the_metrics(flown):
     runs = result["runs"].sort_values("run_id").reset_index(drop=True)
     assert runs.loc[0, "p.entry_flight.blocked_flap.deflection_deg"] == 14.0
     assert runs.loc[0, "p.entry_flight.density_scale"] == 1.0
+    assert runs.loc[0, "p.entry_flight.rcs_delay_ms"] == 0.0
+    delays = runs["p.entry_flight.rcs_delay_ms"]
+    assert ((delays >= 0.0) & (delays <= 60.0)).all() and delays.nunique() == 4
     blocked = runs["p.entry_flight.blocked_flap.deflection_deg"]
     assert ((blocked >= 10.0) & (blocked <= 20.0)).all() and blocked.nunique() == 4
     # different draws, different flights (the dispersions reach the kernel)
@@ -120,6 +128,21 @@ TEXT = (
             ["dispersions.entry_flight.blocked_flap.deflection_deg", "within the flap limits [-10.0, 40.0]"],
         ),
         (
+            "rcs-delay-draws-reaching-the-control-period",
+            TEXT.replace(
+                "{dist: truncnorm, sigma: 10.0, low: 0.0, high: 60.0}", "{dist: uniform, low: 50.0, high: 150.0}"
+            ),
+            ["dispersions.entry_flight.rcs_delay_ms", "within the control period [0.0, 100.0) ms"],
+        ),
+        (
+            "inertia-not-as-a-tensor",
+            TEXT.replace(
+                "inertia_kg_m2: {dist: inertia, moments_sigma_fraction: 0.0333, axes_sigma_deg: 0.333}",
+                "inertia_kg_m2: {dist: normal, sigma: 100.0}",
+            ),
+            ["dispersions.inertia_kg_m2", "only dist: inertia"],
+        ),
+        (
             "a-path-the-entry-does-not-fly",
             TEXT.replace("  mass_kg: {dist", "  rcs.isp_s: {dist"),
             ["dispersions.rcs.isp_s", "not flown by an entry mission"],
@@ -151,7 +174,19 @@ def test_bad_entry_campaign_input_is_exit_2_with_file_line_and_key_path(case, te
     _bad(tmp_path, text, words)
 
 
-def test_a_path_of_the_entry_on_an_ordinary_mission_is_refused(tmp_path):
+def test_a_mission_rcs_delay_of_a_control_period_is_refused_at_its_line(tmp_path):
+    shutil.copy(ROOT / "configs/vehicles/x38.yaml", tmp_path / "x38.yaml")
+    mission = (ROOT / "configs/missions/x38-entry-right-flap-blocked.yaml").read_text()
+    assert "  rcs_delay_ms: 0.0\n" in mission
+    (tmp_path / "mission.yaml").write_text(mission.replace("  rcs_delay_ms: 0.0\n", "  rcs_delay_ms: 100.0\n"))
+    line = next(n for n, text in enumerate(mission.splitlines(), 1) if text.startswith("  rcs_delay_ms:"))
+    (tmp_path / "campaign.yaml").write_text(TEXT)
+    result = CliRunner().invoke(main, ["validate", str(tmp_path / "campaign.yaml")])
+    assert result.exit_code == 2, result.output
+    where = f"{tmp_path / 'mission.yaml'}:{line}: entry_flight.rcs_delay_ms"
+    assert f"{where}: expected an RCS delay below" in result.output
+    assert "(100 ms), got 100" in result.output and "Traceback" not in result.output
+
     text = (ROOT / "campaigns/smoke.yaml").read_text()
     text = re.sub(
         r"\ndispersions:\n", "\ndispersions:\n  entry_flight.density_scale: {dist: normal, sigma: 0.1}\n", text
@@ -191,11 +226,12 @@ def test_every_entry_dispersion_path_changes_the_entry():
     plan = EntryRunPlan(campaign)
     vehicle, mission = campaign["vehicle"], campaign["mission"]
     reference = simulate.fly_entry(*plan.flight({})).summary
-    paths = [p for p in dispersions.PARAMETERS if p.startswith("entry_flight.")] + ["mass_kg"]
+    paths = [p for p in dispersions.PARAMETERS if p.startswith("entry_flight.")] + ["mass_kg", "inertia_kg_m2"]
     assert not [p for p in paths if dispersions._undeclared(p, vehicle, mission)]  # noqa: SLF001 - all flown here
-    assert len(paths) == 8 + 1 + 1 + 8 + 1  # state, blocked flap, density, coefficient tables, mass
+    # state, blocked flap, density, coefficient tables, RCS delay, mass, inertia
+    assert len(paths) == 8 + 1 + 1 + 8 + 1 + 1 + 1
     for path in paths:
-        nominal = dispersions.nominal(path, vehicle, mission)[0]
-        moved = nominal * 1.02 if nominal != 0.0 else 0.5
-        summary = simulate.fly_entry(*plan.flight({path: [moved]})).summary
+        nominal = dispersions.nominal(path, vehicle, mission)
+        moved = np.where(nominal != 0.0, nominal * 1.02, 0.5) if path != "inertia_kg_m2" else nominal * 1.02
+        summary = simulate.fly_entry(*plan.flight({path: moved})).summary
         assert not (summary == reference).all(), path

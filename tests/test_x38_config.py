@@ -130,6 +130,48 @@ def _cases():
         re.sub(r"\n    hinge_area_arm_m3: .*", "", TEXT),
         ["surfaces.body_flaps", "both hinge_moment_max_n_m and hinge_area_arm_m3, or neither"],
     )
+    # the surfaces' actuators and the entry controller (vehicle-file keys, not code defaults)
+    yield (
+        "flap-rate-missing",
+        TEXT.replace("    rate_max_deg_s: 20.0\n", ""),
+        ["surfaces.body_flaps", "rate_max_deg_s", f":{_line_of(TEXT, '  body_flaps:')}:"],
+    )
+    yield (
+        "rudder-rate-zero",
+        TEXT.replace("usable_below_mach: 6.0, rate_max_deg_s: 20.0}", "usable_below_mach: 6.0, rate_max_deg_s: 0.0}"),
+        ["surfaces.rudders.rate_max_deg_s", f":{_line_of(TEXT, '  rudders: {')}:"],
+    )
+    yield (
+        "negative-lag",
+        TEXT.replace("  time_constant_s: 0.1", "  time_constant_s: -0.1"),
+        ["surfaces.time_constant_s", f":{_line_of(TEXT, '  time_constant_s:')}:"],
+    )
+    yield (
+        "angle-gains-of-two-axes",
+        TEXT.replace("angle_gain_1_s: [1.0, 1.0, 1.0]", "angle_gain_1_s: [1.0, 1.0]"),
+        ["entry_control.angle_gain_1_s", f":{_line_of(TEXT, '  angle_gain_1_s:')}:"],
+    )
+    yield (
+        "negative-integral-gain",
+        TEXT.replace("integral_gain_1_s: 0.2", "integral_gain_1_s: -0.2"),
+        ["entry_control.integral_gain_1_s", f":{_line_of(TEXT, '  integral_gain_1_s:')}:"],
+    )
+    yield (
+        "misspelt-controller-key",
+        TEXT.replace("align_limit_deg: 10.0", "align_limit_degs: 10.0"),
+        ["entry_control", "align_limit_degs"],
+    )
+    yield (
+        "surfaces-without-controller",
+        TEXT[: TEXT.index("entry_control:")],
+        ["surfaces", "need the entry controller's gains", f":{_line_of(TEXT, 'surfaces:')}:"],
+    )
+    no_surfaces = TEXT[: TEXT.index("surfaces:")] + TEXT[TEXT.index("entry_control:") :]
+    yield (
+        "controller-without-surfaces",
+        no_surfaces,
+        ["entry_control", "the vehicle has none", f":{_line_of(no_surfaces, 'entry_control:')}:"],
+    )
     yield (
         "unknown-atmosphere",
         TEXT.replace("atmosphere: ussa1976 ", "atmosphere: mars "),

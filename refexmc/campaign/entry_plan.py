@@ -4,8 +4,9 @@
 The plan has :class:`chunk.RunPlan`'s interface (``prepare_runs``, ``fly_run``, ``fly``,
 ``error_row``, ``load_kernels``, ``param_columns``), so the backends fly it alike. Run i's inputs
 derive from (campaign seed, run id, parameter path) alone, drawn by ``campaign.sampling.Sampler``.
-The flight software keeps the vehicle file's density and coefficient tables; the dispersions set
-the truth (``config.entry.entry_vehicle``: ``density_factor``, ``coefficient_factors``).
+The flight software keeps the vehicle file's density, coefficient tables and inertia; the
+dispersions set the truth (``config.entry.entry_vehicle``: ``density_factor``,
+``coefficient_factors``, ``inertia``).
 """
 
 import copy
@@ -70,12 +71,15 @@ class EntryRunPlan:
     def flight(self, values):
         """(``core.entry_flight.EntryVehicle``, initial state) with the drawn ``values`` ({path: values})."""
         vehicle, mission = self.vehicle, self.mission
-        density, factors = 1.0, {}
+        density, factors, inertia = 1.0, {}, None
         if any(path in ("mass_kg",) or path.startswith("entry_flight.state.") for path in values) or (
-            "entry_flight.blocked_flap.deflection_deg" in values
+            "entry_flight.blocked_flap.deflection_deg" in values or "entry_flight.rcs_delay_ms" in values
         ):
             vehicle, mission = copy.deepcopy(vehicle), copy.deepcopy(mission)
         for path, value in values.items():
+            if path == "inertia_kg_m2":  # the truth's; the flight software keeps the vehicle file's
+                inertia = dispersions.inertia_matrix(np.atleast_1d(value))
+                continue
             number = float(np.atleast_1d(value)[0])
             if path == "mass_kg":
                 vehicle["mass_kg"] = number
@@ -83,13 +87,15 @@ class EntryRunPlan:
                 density = number
             elif path.startswith(_SCALE):
                 factors[path[len(_SCALE) :]] = number
-            else:  # entry_flight.state.<key>, entry_flight.blocked_flap.deflection_deg
+            else:  # entry_flight.state.<key>, entry_flight.blocked_flap.deflection_deg, entry_flight.rcs_delay_ms
                 node = mission
                 keys = path.split(".")
                 for key in keys[:-1]:
                     node = node[key]
                 node[keys[-1]] = number
-        return entry.entry_flight_from_mission(vehicle, mission, density_factor=density, coefficient_factors=factors)
+        return entry.entry_flight_from_mission(
+            vehicle, mission, density_factor=density, coefficient_factors=factors, inertia=inertia
+        )
 
     def _row(self, run_id, seed, params, result=None, error=None):
         row = {

@@ -146,6 +146,7 @@ def _params():
                 0.0,
             )
         )
+    p.append(Parameter("entry_flight.rcs_delay_ms", "ms", "delay of the thrusters' moment (entry mission)", "scalar"))
     return {param.path: _with_schema_range(param) for param in p}
 
 
@@ -361,8 +362,8 @@ def _undeclared(path, vehicle, mission):
         key = path.rsplit(".", 1)[1]
         if key not in vehicle.get("entry_aerodynamics", {}).get("coefficients", {}):
             return f"'{path}': vehicle {vehicle['name']} has no '{key}' table (entry_aerodynamics.coefficients)"
-    if entry and path not in ("mass_kg",) and not path.startswith("entry_flight."):
-        return f"'{path}' is not flown by an entry mission; its paths: mass_kg, entry_flight.*"
+    if entry and path not in ("mass_kg", "inertia_kg_m2") and not path.startswith("entry_flight."):
+        return f"'{path}' is not flown by an entry mission; its paths: mass_kg, inertia_kg_m2, entry_flight.*"
     if (
         path in ("mass_kg", "aerodynamics.drag_area_m2", "aerodynamics.mistrim_cm")
         and trajectory == "none"

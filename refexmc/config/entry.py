@@ -72,6 +72,8 @@ def check(vehicle, fail):
                         i,
                     )
     if surfaces is None:
+        if "entry_control" in vehicle:
+            fail("the entry controller flies aerodynamic surfaces; the vehicle has none ('surfaces')", "entry_control")
         if tables is not None:
             for key in (*schema.ENTRY_FLAP_DERIVATIVES, *schema.ENTRY_RUDDER_DERIVATIVES):
                 if key in tables["coefficients"]:
@@ -84,6 +86,8 @@ def check(vehicle, fail):
         return
     if "atmosphere" not in vehicle:
         fail("aerodynamic surfaces need an atmosphere (the vehicle's 'atmosphere')", "surfaces")
+    if "entry_control" not in vehicle:
+        fail("aerodynamic surfaces need the entry controller's gains (the vehicle's 'entry_control')", "surfaces")
     if tables is None:
         fail("aerodynamic surfaces need the vehicle's 'entry_aerodynamics' tables", "surfaces")
     coefficients = tables["coefficients"]
@@ -189,37 +193,33 @@ def entry_vehicle(
     *,
     blocked=None,
     planet=(6_371_000.0, 3.986004418e14, 7.2921159e-5),
-    control_rate_hz=None,
-    flap_rate_deg_s=20.0,
-    rudder_rate_deg_s=20.0,
-    surface_time_constant_s=0.1,
-    angle_gain=(1.0, 1.0, 1.0),
-    rate_gain=4.0,
-    integral_gain=0.2,
-    integral_limit_rad_s=(2.0, 0.5, 0.5),
-    align_gain=0.05,
-    align_limit_deg=10.0,
     rcs_only_above_m=90_000.0,
     terminal_mach=2.0,
     floor_altitude_m=15_000.0,
     max_time_s=3_000.0,
     transient_s=30.0,
+    rcs_delay_ms=0.0,
     blocked_known=True,
     density_factor=1.0,
     coefficient_factors=None,
+    inertia=None,
 ):
     """``core.entry_flight.EntryVehicle`` for ``vehicle`` (validated) flying the schedules
     ``alpha_schedule`` [(Mach, alpha deg), ...] and ``bank_schedule`` [(speed m/s, bank deg), ...].
 
     ``blocked``: None or (flap 'left'|'right', deflection deg); default the vehicle file's
-    ``surfaces.body_flaps.blocked``. The keyword values are the entry flight's parameters until
-    its mission and campaign keys exist (issue 24; docs/x38.md): surface rates and lag ESTIMATES,
-    003's mode program (RCS alone above 90 km), a terminal Mach of 2.
+    ``surfaces.body_flaps.blocked``. The surfaces' rates and lag, the controller's gains
+    (``entry_control``) and the control rate come from the vehicle file; the mode program and the
+    terminal condition are keywords (an entry mission's keys: :func:`entry_flight_from_mission`),
+    by default 003's mode program (RCS alone above 90 km) and a terminal Mach of 2.
+
+    ``rcs_delay_ms``: the thrusters' moment acts this long after each control instant (below
+    the control period; ValueError otherwise).
 
     Truth against the flight software: ``blocked_known`` False commands the blocked flap as if
-    free (it does not move); ``density_factor`` scales the true density and ``coefficient_factors``
-    ({vehicle-file coefficient name: factor}) the true coefficients, while the flight software
-    keeps the vehicle file's.
+    free (it does not move); ``density_factor`` scales the true density, ``coefficient_factors``
+    ({vehicle-file coefficient name: factor}) the true coefficients and ``inertia`` (3 x 3 kg m^2)
+    is the true inertia, while the flight software keeps the vehicle file's.
     """
     from refexmc.core import entry_flight as ef
 
@@ -234,23 +234,28 @@ def entry_vehicle(
         sf[ef.SF_RUDDER_MIN], sf[ef.SF_RUDDER_MAX] = math.radians(rudders["min_deg"]), math.radians(rudders["max_deg"])
         sf[ef.SF_RUDDER_MACH] = rudders["usable_below_mach"]
         sf[ef.SF_HAS_RUDDERS] = 1.0
-    sf[ef.SF_FLAP_RATE] = math.radians(flap_rate_deg_s)
-    sf[ef.SF_RUDDER_RATE] = math.radians(rudder_rate_deg_s)
-    sf[ef.SF_TIME_CONSTANT] = surface_time_constant_s
+        sf[ef.SF_RUDDER_RATE] = math.radians(rudders["rate_max_deg_s"])
+    sf[ef.SF_FLAP_RATE] = math.radians(flaps["rate_max_deg_s"])
+    sf[ef.SF_TIME_CONSTANT] = surfaces["time_constant_s"]
     sf[ef.SF_BLOCKED_FLAP] = -1.0 if blocked is None else {"left": 0.0, "right": 1.0}[blocked[0]]
     sf[ef.SF_BLOCKED_DEFLECTION] = 0.0 if blocked is None else math.radians(blocked[1])
     sf[ef.SF_HINGE_MOMENT_MAX] = flaps.get("hinge_moment_max_n_m", 0.0)
     sf[ef.SF_HINGE_AREA_ARM] = flaps.get("hinge_area_arm_m3", 0.0)
     sf[ef.SF_BLOCKED_KNOWN] = 1.0 if blocked_known else 0.0
     ct = np.zeros(ef.CONTROL_PARAMETERS)
-    rate_hz = control_rate_hz or vehicle["flight_software"]["control_rate_hz"]
-    ct[ef.CT_PERIOD] = 1.0 / rate_hz
-    ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = angle_gain
-    ct[ef.CT_RATE_GAIN] = rate_gain
-    ct[ef.CT_INTEGRAL_GAIN] = integral_gain
-    ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3] = integral_limit_rad_s
-    ct[ef.CT_ALIGN_GAIN] = align_gain
-    ct[ef.CT_ALIGN_LIMIT] = math.radians(align_limit_deg)
+    gains = vehicle["entry_control"]
+    ct[ef.CT_PERIOD] = 1.0 / vehicle["flight_software"]["control_rate_hz"]
+    ct[ef.CT_RCS_DELAY_S] = rcs_delay_ms / 1000.0
+    if not 0.0 <= ct[ef.CT_RCS_DELAY_S] < ct[ef.CT_PERIOD]:
+        raise ValueError(
+            f"expected an RCS delay in [0, {1000.0 * ct[ef.CT_PERIOD]:g}) ms (the control period), got {rcs_delay_ms:g}"
+        )
+    ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] = gains["angle_gain_1_s"]
+    ct[ef.CT_RATE_GAIN] = gains["rate_gain_1_s"]
+    ct[ef.CT_INTEGRAL_GAIN] = gains["integral_gain_1_s"]
+    ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3] = gains["integral_limit_rad_times_s"]
+    ct[ef.CT_ALIGN_GAIN] = gains["align_gain_1_s"]
+    ct[ef.CT_ALIGN_LIMIT] = math.radians(gains["align_limit_deg"])
     ct[ef.CT_RCS_ONLY_ABOVE_M] = rcs_only_above_m
     ct[ef.CT_TERMINAL_MACH] = terminal_mach
     ct[ef.CT_FLOOR_ALTITUDE_M] = floor_altitude_m
@@ -260,7 +265,8 @@ def entry_vehicle(
     ct[ef.CT_TRANSIENT_S] = transient_s
     ct[ef.CT_MASS] = vehicle["mass_kg"]
     ct[ef.CT_NOSE_RADIUS_M] = vehicle["entry_aerodynamics"].get("nose_radius_m", 0.0)
-    inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    fsw_inertia = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
+    inertia = fsw_inertia if inertia is None else np.asarray(inertia, dtype=float)
     alpha = np.array([[m for m, _ in alpha_schedule], [math.radians(a) for _, a in alpha_schedule]])
     bank = np.array([[v for v, _ in bank_schedule], [math.radians(b) for _, b in bank_schedule]])
     nominal = model(vehicle, *planet)
@@ -273,7 +279,7 @@ def entry_vehicle(
         for key, factor in (coefficient_factors or {}).items():
             coefficients[slots[key]] *= factor
         truth = nominal._replace(atmosphere=atmosphere, coefficients=coefficients)
-    return ef.EntryVehicle(truth, inertia, np.linalg.inv(inertia), sf, ct, alpha, bank, nominal)
+    return ef.EntryVehicle(truth, inertia, np.linalg.inv(inertia), sf, ct, alpha, bank, nominal, fsw_inertia)
 
 
 def rcs_capacity(vehicle):
@@ -324,6 +330,7 @@ def entry_flight_from_mission(vehicle, mission, *, blocked=None, **keywords):
         floor_altitude_m=flight["floor_altitude_m"],
         max_time_s=flight["max_time_s"],
         transient_s=flight["transient_s"],
+        rcs_delay_ms=flight.get("rcs_delay_ms", 0.0),
         **keywords,
     )
     state = flight["state"]

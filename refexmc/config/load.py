@@ -6,6 +6,7 @@ import math
 import re
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import jsonschema
 import numpy as np
@@ -853,8 +854,9 @@ def _is_entry_mission(ref, campaign_file):
 
 
 # campaign keys an entry campaign (issue 24) does not take: thruster and wheel failures (a blocked
-# flap is the mission's entry_flight.blocked_flap), sweeps and Saltelli designs (not built for it)
-_ENTRY_CAMPAIGN_REFUSED = ("failures", "wheel_failures", "sweep", "published")
+# flap is the mission's entry_flight.blocked_flap) and published values (not built for it); nor
+# Saltelli designs (below)
+_ENTRY_CAMPAIGN_REFUSED = ("failures", "wheel_failures", "published")
 
 
 def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, found):
@@ -915,28 +917,109 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
             line=lines.get(("output", "history_rate_hz")),
             path=("output", "history_rate_hz"),
         )
+    period_ms = 1000.0 / vehicle["flight_software"]["control_rate_hz"]
+    delay = mission["entry_flight"].get("rcs_delay_ms", 0.0)
+    if delay >= period_ms:
+        fail_mission(
+            f"expected an RCS delay below the control period of vehicle {vehicle['name']} ({period_ms:g} ms), "
+            f"got {delay:g}",
+            "entry_flight",
+            "rcs_delay_ms",
+        )
     specs = dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
-    spec = specs.get("entry_flight.blocked_flap.deflection_deg")
-    if spec is not None:
-        from refexmc.campaign.sampling import transform  # the sampler's own arithmetic, monotone in u
-
-        nominal = dispersions.nominal("entry_flight.blocked_flap.deflection_deg", vehicle, mission)
-        eps = dispersions.UNIFORM_EPS
-        low, high = (float(transform(spec, np.array([u]), nominal)[0]) for u in (eps, 1.0 - eps))
-        if low < flaps["min_deg"] or high > flaps["max_deg"]:
-            raise ConfigError(
-                f"expected draws within the flap limits [{flaps['min_deg']}, {flaps['max_deg']}] deg, "
-                f"the distribution reaches [{low:g}, {high:g}]",
-                file=path,
-                line=lines.get(("dispersions", "entry_flight.blocked_flap.deflection_deg")),
-                path=("dispersions", "entry_flight.blocked_flap.deflection_deg"),
-            )
+    for key, limit in _entry_limits(vehicle).items():
+        _check_entry_draws(specs.get(key), key, limit, vehicle, mission, path, lines.get(("dispersions", key)))
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     columns = requirements.entry_metric_columns(parameter_columns)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
+    if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        from refexmc.config import sweep
+
+        campaign["sweep"] = data["sweep"]
+        sweep.check_sweep(campaign, path, lines, columns)
+        _check_entry_sweep(campaign, path, lines)
     if warnings is not None:
         warnings.extend(found)
     return campaign
+
+
+class _Limit(NamedTuple):
+    """Where an entry path's values must lie: [low, high], or [low, high) with ``open_high``."""
+
+    low: float
+    high: float
+    what: str
+    unit: str
+    open_high: bool = False
+
+    def holds(self, value):
+        return self.low <= value and (value < self.high if self.open_high else value <= self.high)
+
+    def text(self):
+        return f"{self.what} [{self.low}, {self.high}{')' if self.open_high else ']'} {self.unit}"
+
+
+def _entry_limits(vehicle):
+    """The entry paths whose values the vehicle bounds beyond their schema range."""
+    flaps = vehicle["surfaces"]["body_flaps"]
+    period_ms = 1000.0 / vehicle["flight_software"]["control_rate_hz"]
+    return {
+        "entry_flight.blocked_flap.deflection_deg": _Limit(
+            flaps["min_deg"], flaps["max_deg"], "the flap limits", "deg"
+        ),
+        "entry_flight.rcs_delay_ms": _Limit(0.0, period_ms, "the control period", "ms", open_high=True),
+    }
+
+
+def _check_entry_draws(spec, key, limit, vehicle, mission, path, line):
+    """ConfigError at dispersions.<key> when the distribution ``spec`` (None: not dispersed)
+    reaches outside ``limit``."""
+    from refexmc.campaign.sampling import transform  # the sampler's own arithmetic, monotone in u
+    from refexmc.config import dispersions
+
+    if spec is None:
+        return
+    nominal = dispersions.nominal(key, vehicle, mission)
+    eps = dispersions.UNIFORM_EPS
+    low, high = (float(transform(spec, np.array([u]), nominal)[0]) for u in (eps, 1.0 - eps))
+    if not (limit.holds(low) and limit.holds(high)):
+        raise ConfigError(
+            f"expected draws within {limit.text()}, the distribution reaches [{low:g}, {high:g}]",
+            file=path,
+            line=line,
+            path=("dispersions", key),
+        )
+
+
+def _check_entry_sweep(campaign, path, lines):
+    """An entry campaign's sweep: each value of a file value a dispersion the entry flies (the
+    point's ``constant`` dispersion, config.sweep.point_campaign) within the vehicle's limits
+    (:func:`_entry_limits`); each point of a dispersion's parameter with its draws within them."""
+    from refexmc.config import dispersions, sweep
+
+    vehicle, mission = campaign["vehicle"], campaign["mission"]
+    limits = _entry_limits(vehicle)
+    for i, axis in enumerate(campaign["sweep"]["axes"]):
+        key_path = ("sweep", "axes", i, "values" if "values" in axis else "range")
+        where = {"file": path, "line": lines.get(key_path) or lines.get(("sweep", "axes", i)), "path": key_path}
+        name, limit = axis["parameter"], limits.get(axis["parameter"])
+        for value in sweep.axis_values(axis):
+            if "dispersion" in axis:  # the dispersion's own checks ran (config.sweep)
+                if limit is None:
+                    break
+                spec = {**campaign["dispersions"][name], axis["dispersion"]: value}
+                try:
+                    _check_entry_draws(spec, name, limit, vehicle, mission, path, None)
+                except ConfigError as exc:
+                    raise ConfigError(f"at {axis['dispersion']} = {value:g}: {exc.message}", **where) from None
+                continue
+            try:
+                trial = {**campaign["dispersions"], name: {"dist": "constant", "value": value}}
+                dispersions.check(trial, vehicle, mission, path, {})
+            except ConfigError as exc:
+                raise ConfigError(f"at {value:g}: {exc.message}", **where) from None
+            if limit is not None and not limit.holds(value):
+                raise ConfigError(f"expected values within {limit.text()}, got {value:g}", **where)
 
 
 def apply_overrides(campaign, runs=None, seed=None):

@@ -325,6 +325,7 @@ SURFACES = obj(
                     "2 q S_f c sin^2(alpha + delta) (Newtonian), which bounds the deflection [m^3]",
                     exclusive_minimum=0.0,
                 ),
+                "rate_max_deg_s": number("largest deflection rate of each flap actuator [deg/s]", **POSITIVE),
                 "blocked": obj(
                     "a flap blocked at a deflection (003 Hazard scenario): the other flap alone moves",
                     {
@@ -345,10 +346,47 @@ SURFACES = obj(
                 "usable_below_mach": number(
                     "Mach below which the rudders move; neutral above (003: 6) [-]", minimum=0.0
                 ),
+                "rate_max_deg_s": number("largest deflection rate of the rudder actuators [deg/s]", **POSITIVE),
             },
+        ),
+        "time_constant_s": number(
+            "first-order lag of every surface actuator: a surface moves towards its command by "
+            "1 - exp(-period / time_constant_s) of the difference each control period, within its rate (0: none) [s]",
+            minimum=0.0,
         ),
     },
     optional=("rudders",),
+)
+ENTRY_CONTROL = obj(
+    "the entry flight software's controller (core.entry_flight.control; 003: successive dynamic inversion plus "
+    "feedback): outer loop on alpha, beta, bank with integral action below the RCS-only altitude, inner loop "
+    "dynamic inversion of eq. 4, alignment of the free flap with a blocked one; at flight_software.control_rate_hz",
+    {
+        "angle_gain_1_s": vector(
+            "outer loop: errors of alpha, beta, bank times these give the commanded rates of those angles [1/s]",
+            exclusive_minimum=0.0,
+        ),
+        "rate_gain_1_s": number(
+            "inner loop: body-rate error times this gives the angular acceleration the dynamic inversion "
+            "commands [1/s]",
+            **POSITIVE,
+        ),
+        "integral_gain_1_s": number(
+            "outer loop: the integrals of the angle errors times this are added to the errors, below the "
+            "RCS-only altitude (0: no integral action) [1/s]",
+            minimum=0.0,
+        ),
+        "integral_limit_rad_times_s": vector(
+            "anti-windup: the integrals of the alpha, beta, bank errors are clamped within +-these [rad s]",
+            minimum=0.0,
+        ),
+        "align_gain_1_s": number(
+            "a blocked flap known to the flight software: the alpha bias moves by this times the free flap's "
+            "misalignment over the model's d(delta_trim)/d(alpha) per second (0: no alignment feedback) [1/s]",
+            minimum=0.0,
+        ),
+        "align_limit_deg": number("largest |alpha bias| of the alignment feedback [deg]", minimum=0.0, maximum=90.0),
+    },
 )
 
 VEHICLE = obj(
@@ -562,6 +600,7 @@ VEHICLE = obj(
         ),
         "entry_aerodynamics": ENTRY_AERODYNAMICS,
         "surfaces": SURFACES,
+        "entry_control": ENTRY_CONTROL,
     },
     optional=(
         "trajectory",
@@ -574,6 +613,7 @@ VEHICLE = obj(
         "atmosphere",
         "entry_aerodynamics",
         "surfaces",
+        "entry_control",
     ),
 )
 
@@ -1025,6 +1065,12 @@ ENTRY_MISSION = obj(
                 "transient_s": number(
                     "tracking errors count this long after the start and after each mode change [s]", minimum=0.0
                 ),
+                "rcs_delay_ms": number(
+                    "the thrusters' moment acts this long after each control instant, the previous period's "
+                    "until then (valve opening and closing the flight software does not allow for); below the "
+                    "vehicle's control period (absent: 0) [ms]",
+                    minimum=0.0,
+                ),
                 "blocked_flap": obj(
                     "a body flap blocked from t = 0 (003; a failure; the vehicle file's surfaces.body_flaps.blocked "
                     "is replaced)",
@@ -1039,7 +1085,7 @@ ENTRY_MISSION = obj(
                     },
                 ),
             },
-            optional=("blocked_flap",),
+            optional=("blocked_flap", "rcs_delay_ms"),
         ),
     },
 )

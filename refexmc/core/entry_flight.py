@@ -22,9 +22,14 @@ flaps, rudders and RCS blended for least propellant.
   attack at which the flaps trim at the blocked deflection (003: alpha "has to be increased"),
   corrected by feedback on the free flap's misalignment (:func:`align`).
 
+- Thrusters: the moment of each control period acts ``CT_RCS_DELAY_S`` after the control instant
+  (valve opening and closing); until then the previous period's moment acts (:func:`advance`).
+- Mass properties: the dynamics fly the true inertia, the dynamic inversion the flight
+  software's (``EntryVehicle.fsw_inertia``).
+
 Metrics: RCS propellant, tracking errors, peak q, load factor and stagnation-point heat flux
-(Sutton-Graves), down- and cross-range at the end. Not modelled yet: navigation errors, RCS
-valve dynamics (the thrusters give their moment exactly). Units SI, angles rad.
+(Sutton-Graves), down- and cross-range at the end. Not modelled yet: navigation errors, the valve
+rise and fall (the moment steps). Units SI, angles rad.
 """
 
 import math
@@ -80,7 +85,8 @@ CT_INTEGRAL_GAIN = 18  # integral of the angle errors in the outer loop (1/s); 0
 CT_INTEGRAL_LIMIT = 19  # anti-windup: |integral of the alpha, beta, bank error| at most (rad s), three slots
 CT_ALIGN_GAIN = 22  # blocked flap known: alpha bias rate per rad of free-flap misalignment (1/s)
 CT_ALIGN_LIMIT = 23  # |alpha bias| at most this (rad)
-CONTROL_PARAMETERS = 24
+CT_RCS_DELAY_S = 24  # the thrusters' moment acts this long after the control instant (s), below CT_PERIOD
+CONTROL_PARAMETERS = 25
 SUTTON_GRAVES_EARTH = 1.7415e-4  # kg^0.5 / m: q_dot = k sqrt(rho / R_n) V^3 (W/m^2), Earth air
 
 # summary
@@ -105,13 +111,14 @@ class EntryVehicle(NamedTuple):
     the flight software's (nominal) one, mass properties and the parameters."""
 
     model: entry.EntryModel  # the truth the dynamics fly
-    inertia: np.ndarray  # (3, 3) kg m^2, with I_xz (003 eq. 4)
+    inertia: np.ndarray  # (3, 3) kg m^2, with I_xz (003 eq. 4): the truth the dynamics fly
     inertia_inv: np.ndarray
     surfaces: np.ndarray  # SF_*
     control: np.ndarray  # CT_*
     alpha_schedule: np.ndarray  # (2, n): Mach (increasing), alpha (rad)
     bank_schedule: np.ndarray  # (2, n): speed m/s (increasing), bank (rad)
     fsw_model: entry.EntryModel  # what the flight software's control, blending and guidance use
+    fsw_inertia: np.ndarray  # (3, 3) kg m^2: what the flight software's dynamic inversion uses
 
 
 class Work(NamedTuple):
@@ -132,6 +139,7 @@ class Work(NamedTuple):
     coefficients: np.ndarray  # (AERO_COEFFICIENTS,) at the current stage
     integral: np.ndarray  # (3,) integrals of the alpha, beta, bank errors (rad s)
     alpha_bias: np.ndarray  # (1,) the alignment guidance's correction to the trim alpha (rad)
+    thruster_previous: np.ndarray  # (3,) the previous period's thruster moment (N m), acting until the delay
 
 
 @jit
@@ -155,6 +163,7 @@ def work():
         np.zeros(aerodynamics.AERO_COEFFICIENTS),
         np.zeros(3),
         np.zeros(1),
+        np.zeros(3),
     )
 
 
@@ -350,7 +359,7 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     # inner loop: dynamic inversion of 003 eq. 4
     k = ct[CT_RATE_GAIN]
     wdx, wdy, wdz = k * (p_cmd - p), k * (q_cmd - q), k * (r_cmd - r)
-    j = vehicle.inertia
+    j = vehicle.fsw_inertia
     hx = j[0, 0] * p + j[0, 1] * q + j[0, 2] * r
     hy = j[1, 0] * p + j[1, 1] * q + j[1, 2] * r
     hz = j[2, 0] * p + j[2, 1] * q + j[2, 2] * r
@@ -423,6 +432,27 @@ def actuate(vehicle, wk, dt):
 
 
 @jit_noalloc
+def advance(vehicle, wk, t, dt, delay):
+    """The flight state over one control period from ``t``: the thrusters give
+    ``wk.thruster_previous`` until ``t + delay`` and ``wk.thruster`` (this period's) after it, an
+    RK4 step on each side of the switch (one step when ``delay`` is 0). Afterwards both hold this
+    period's moment."""
+    if delay <= 0.0:
+        rk4_step(vehicle, wk, t, dt)
+    else:
+        for i in range(3):
+            held = wk.thruster_previous[i]
+            wk.thruster_previous[i] = wk.thruster[i]
+            wk.thruster[i] = held
+        rk4_step(vehicle, wk, t, delay)
+        for i in range(3):
+            wk.thruster[i] = wk.thruster_previous[i]
+        rk4_step(vehicle, wk, t + delay, dt - delay)
+    for i in range(3):
+        wk.thruster_previous[i] = wk.thruster[i]
+
+
+@jit_noalloc
 def fly(vehicle, wk, initial, history, summary):
     """Fly from ``initial`` (FLIGHT_STATE_SIZE) to the terminal Mach, the altitude floor or the
     time limit. ``history``: (rows, HISTORY_COLUMNS), one row per second while it lasts;
@@ -436,6 +466,7 @@ def fly(vehicle, wk, initial, history, summary):
         wk.deflection[i] = 0.0
         wk.command[i] = 0.0
         wk.thruster[i] = 0.0
+        wk.thruster_previous[i] = 0.0
         wk.integral[i] = 0.0
     wk.alpha_bias[0] = 0.0
     if blocked >= 0:
@@ -450,6 +481,8 @@ def fly(vehicle, wk, initial, history, summary):
     mode_since = 0.0
     steps = 0
     status = STATUS_TIME_LIMIT
+    delay = ct[CT_RCS_DELAY_S]
+    previous_rate = 0.0  # propellant rate of the moment acting until the delay
     while t < ct[CT_MAX_TIME_S]:
         speed = wk.state[entry.EN_SPEED]
         _, _, mach_now = entry.air_data(vehicle.fsw_model, wk.state[0:ENTRY_STATE_SIZE])
@@ -494,8 +527,12 @@ def fly(vehicle, wk, initial, history, summary):
             rows += 1
             next_row += 1.0
         actuate(vehicle, wk, dt)
-        rk4_step(vehicle, wk, t, dt)
-        propellant += rate * dt  # 003 eq. 5 over the period
+        advance(vehicle, wk, t, dt, delay)
+        if delay > 0.0:  # 003 eq. 5 over the period, for the moment that acts
+            propellant += previous_rate * delay + rate * (dt - delay)
+            previous_rate = rate
+        else:
+            propellant += rate * dt
         summary[SU_MODE_TIME + mode] += dt
         t += dt
         steps += 1
