@@ -26,9 +26,9 @@ import numpy as np
 
 from refexmc.config import dispersions
 from refexmc.config.errors import ConfigError
+from refexmc.config.parameters import MISSION_ROOTS  # paths under these are mission keys
 from refexmc.config.schema import SWEPT_DISTRIBUTION_PARAMETERS
 
-MISSION_ROOTS = ("separation", "navigation")  # paths under these are mission keys (dispersions._schema_node)
 DEFAULT_METRICS = ("fuel_remaining", "theta_t_handover_deg")
 
 
