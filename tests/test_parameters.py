@@ -62,7 +62,7 @@ def test_every_row_lands_in_a_layout_field_or_says_why():
 
 def test_a_row_for_a_key_the_schema_lacks_fails_at_import():
     with pytest.raises(KeyError, match="no such config key"):
-        parameters.key("navigation.no_such_noise_deg", parameters.SCALAR, "nav", "rate_noise_rad_s")
+        parameters.config_key("navigation.no_such_noise_deg", parameters.SCALAR, "nav", "rate_noise_rad_s")
 
 
 def test_a_config_key_reads_unit_range_and_default_from_its_schema_node():
@@ -77,6 +77,26 @@ def test_a_config_key_reads_unit_range_and_default_from_its_schema_node():
 
 def test_every_distribution_has_one_check():
     assert list(dispersions._CHECKS) == list(dispersions.DISTRIBUTIONS)  # noqa: SLF001
+
+
+def test_every_declared_path_validates_at_its_nominal(flown):
+    """Every path a shipped vehicle and mission declare passes the campaign check at its nominal
+    value (inside its schema range), resolved to that value: validation reads the same rows."""
+    vehicle, mission, _ = flown
+    checked = 0
+    for path, param in PARAMETERS.items():
+        if dispersions._undeclared(path, vehicle, mission) is not None:  # noqa: SLF001 - not flown here
+            continue
+        value = dispersions.nominal(path, vehicle, mission)
+        if param.shape == "inertia":
+            spec = {"dist": "inertia", "moments_sigma_fraction": 0.01}
+        else:
+            spec = {"dist": "constant", "value": value.tolist()}
+        resolved = dispersions.check({path: spec}, vehicle, mission, None, {})[path]
+        if param.shape != "inertia":
+            np.testing.assert_array_equal(resolved["value"], value, err_msg=path)
+        checked += 1
+    assert checked
 
 
 def test_the_nominal_applied_through_apply_is_the_packed_nominal_bit_for_bit(flown):
@@ -128,7 +148,7 @@ def test_a_new_parameter_is_one_row(monkeypatch):
     with pytest.raises(ConfigError, match="unknown parameter path"):
         dispersions.check({path: {"dist": "constant", "value": 2.0}}, vehicle, mission, None, {})
 
-    row = parameters.key(path, parameters.SCALAR, "vehicle", "aero_area_m2")
+    row = parameters.config_key(path, parameters.SCALAR, "vehicle", "aero_area_m2")
     monkeypatch.setitem(PARAMETERS, path, row)
     specs = dispersions.check({path: {"dist": "constant", "value": 2.0}}, vehicle, mission, None, {})
     assert dispersions.columns(path, vehicle) == [f"p.{path}"]
@@ -154,3 +174,39 @@ def test_the_unit_factor_matches_the_units_the_names_carry():
             assert param.scale == 1.0, path
             unit = "_" + path.rsplit("_", 1)[-1]
             assert param.field.endswith(unit) or param.unit == "-", (path, param.field)
+
+
+def _file_value(vehicle, mission, path):
+    """The value a file gives ``path``, read by hand (the per-wheel key from each unit), or None."""
+    if path == "wheels.initial_momentum_n_m_s":
+        units = vehicle.get("wheels", {}).get("units")
+        return None if units is None else [unit.get("initial_momentum_n_m_s", 0.0) for unit in units]
+    node = mission if path.split(".")[0] in ("separation", "navigation", "local") else vehicle
+    for part in path.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def test_packed_fields_hold_the_file_values_in_si_units(flown):
+    """An independent reading of the packer: each field a shipped file's parameter lands in holds
+    the file's value, through numpy's radians where the path is in degrees, bit for bit."""
+    vehicle, mission, inputs = flown
+    if inputs is None:
+        pytest.skip("an entry mission packs no core tables")
+    checked = 0
+    for path, param in PARAMETERS.items():
+        if param.table is None or param.special or param.key is None:
+            continue
+        value = _file_value(vehicle, mission, path)
+        if value is None:
+            continue
+        expected = np.radians(value) if path.endswith(("_deg", "_deg_s")) else np.asarray(value, dtype=float)
+        offset, count = TABLES[param.table].slices[param.field]
+        table = getattr(inputs, param.table)
+        packed = table[:, offset] if table.ndim == 2 else table[offset : offset + count]
+        expected = np.broadcast_to(expected, packed.shape)
+        assert packed.tobytes() == np.ascontiguousarray(expected).tobytes(), path
+        checked += 1
+    assert checked

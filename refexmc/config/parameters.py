@@ -56,7 +56,8 @@ class Parameter(NamedTuple):
     scale: float = 1.0  # user unit -> SI
     key: str | None = None  # the config key path ("[]": every item of a list); None: dispersion only
     nominal: float | None = None  # a dispersion-only path's nominal value (every component)
-    special: str = ""  # why apply, nominal or the packers treat it by name
+    # why it is treated by name: by the packers (its nominal) and, without a table, by apply
+    special: str = ""
 
 
 def _schema_root(path):
@@ -91,7 +92,7 @@ def schema_default(key):
 _UNIT = re.compile(r"^(?P<doc>.*?)\s*\[(?P<unit>[^\]]+)\](?P<rest>.*)$")
 
 
-def _from_schema(path, shape, table=None, field=None, scale=1.0, *, key=None, note="", special=""):
+def config_key(path, shape, table=None, field=None, scale=1.0, *, key=None, note="", special=""):
     """A config key's row: unit and meaning from its schema description, range from its number node."""
     key = key or path
     node = key_node(key)
@@ -111,32 +112,31 @@ def _from_schema(path, shape, table=None, field=None, scale=1.0, *, key=None, no
     return Parameter(path, unit, doc, shape, lower, upper, inclusive, table, field, scale, key, None, special)
 
 
-def _dispersion_only(path, unit, doc, shape, table=None, field=None, *, lower=-math.inf, nominal=None, special=""):
+def dispersion_only(path, unit, doc, shape, table=None, field=None, *, lower=-math.inf, nominal=None, special=""):
     """A path that is no config key: it declares its unit, meaning, range and nominal here."""
     return Parameter(path, unit, doc, shape, lower, math.inf, True, table, field, 1.0, None, nominal, special)
 
 
-key, only = _from_schema, _dispersion_only
 FLIGHT_SOFTWARE_KEEPS = "the flight software keeps the nominal"
 ENTRY = "the true entry vehicle (campaign.entry_plan builds it)"
 
 
 def _table():
     p = [
-        key("mass_kg", SCALAR, "vehicle", "mass_kg", note="trajectory drag only"),
-        key(
+        config_key("mass_kg", SCALAR, "vehicle", "mass_kg", note="trajectory drag only"),
+        config_key(
             "inertia_kg_m2",
             INERTIA,
             note=f"dist: inertia only; {FLIGHT_SOFTWARE_KEEPS}",
             special="six components of a symmetric tensor (a dispersion that keeps it physical)",
         ),
-        key("com_offset_m", VECTOR, "vehicle", "com_offset_m"),
-        key("aerodynamics.mistrim_cm", VECTOR, "vehicle", "aero_mistrim_cm"),
-        key("aerodynamics.drag_area_m2", SCALAR, "vehicle", "drag_area_m2"),
+        config_key("com_offset_m", VECTOR, "vehicle", "com_offset_m"),
+        config_key("aerodynamics.mistrim_cm", VECTOR, "vehicle", "aero_mistrim_cm"),
+        config_key("aerodynamics.drag_area_m2", SCALAR, "vehicle", "drag_area_m2"),
     ]
     for level in schema.REFEX_LEVEL_NAMES:  # every other level name takes their unit and range (parameter())
         p.append(
-            key(
+            config_key(
                 f"rcs.thrust_n.{level}",
                 SCALAR,
                 note=f"{level} level, all thrusters",
@@ -144,7 +144,7 @@ def _table():
             )
         )
     p += [
-        only(
+        dispersion_only(
             "rcs.thrust_scale",
             "-",
             "thrust factor per thruster (nominal 1)",
@@ -154,17 +154,19 @@ def _table():
             lower=0.0,
             nominal=1.0,
         ),
-        key("rcs.derating", DERATING, special="padded to layout.DERATING_MAX_VALVES with its last entry"),
-        key("rcs.isp_s", SCALAR, "vehicle", "isp_s", special="a blow-down or regulated feed packs its own (002 eq. 1)"),
-        key(
+        config_key("rcs.derating", DERATING, special="padded to layout.DERATING_MAX_VALVES with its last entry"),
+        config_key(
+            "rcs.isp_s", SCALAR, "vehicle", "isp_s", special="a blow-down or regulated feed packs its own (002 eq. 1)"
+        ),
+        config_key(
             "rcs.propellant_kg",
             SCALAR,
             "vehicle",
             "propellant_kg",
             special="a blow-down or regulated feed packs its gas (002 eq. 15)",
         ),
-        key("main_engine.thrust_n", SCALAR, "vehicle", "engine_thrust_n", note="orbit trajectory"),
-        key(
+        config_key("main_engine.thrust_n", SCALAR, "vehicle", "engine_thrust_n", note="orbit trajectory"),
+        config_key(
             "main_engine.misalignment_deg",
             VECTOR,
             note=FLIGHT_SOFTWARE_KEEPS,
@@ -174,7 +176,7 @@ def _table():
     for level in schema.REFEX_LEVEL_NAMES:
         for name in L.TIME_CONSTANT_NAMES:
             p.append(
-                key(
+                config_key(
                     f"rcs.valve_time_constants_ms.{level}.{name}",
                     THRUSTER,
                     note=f"at {level} thrust, per thruster, independent draws",
@@ -182,11 +184,11 @@ def _table():
                 )
             )
     p += [
-        key("separation.altitude_m", SCALAR, "mission", "separation_altitude_m"),
-        key("separation.speed_m_s", SCALAR, "mission", "separation_speed_m_s"),
-        key("separation.flight_path_angle_deg", SCALAR, "mission", "separation_flight_path_angle_rad", DEG),
-        key("separation.rates_deg_s", VECTOR, "mission", "separation_rates_rad_s", DEG),
-        key(
+        config_key("separation.altitude_m", SCALAR, "mission", "separation_altitude_m"),
+        config_key("separation.speed_m_s", SCALAR, "mission", "separation_speed_m_s"),
+        config_key("separation.flight_path_angle_deg", SCALAR, "mission", "separation_flight_path_angle_rad", DEG),
+        config_key("separation.rates_deg_s", VECTOR, "mission", "separation_rates_rad_s", DEG),
+        config_key(
             "separation.attitude_error_deg",
             ATTITUDE,
             "mission",
@@ -195,19 +197,19 @@ def _table():
             note="dist uniform_so3: any attitude",
             special="a mission may give it as Euler angles: their rotation vector is the nominal",
         ),
-        key("navigation.attitude_bias_deg", VECTOR, "nav", "attitude_bias_rad", DEG),
-        key("navigation.attitude_noise_deg", SCALAR, "nav", "attitude_noise_rad", DEG),
-        key("navigation.rate_bias_deg_s", VECTOR, "nav", "rate_bias_rad_s", DEG),
-        key("navigation.rate_noise_deg_s", SCALAR, "nav", "rate_noise_rad_s", DEG),
-        key("navigation.ssm_calibration_time_s", SCALAR, "nav", "ssm_calibration_time_s"),
-        key("navigation.gps_position_bias_m", VECTOR, "nav", "gps_position_bias_m"),
-        key("navigation.gps_position_noise_m", SCALAR, "nav", "gps_position_noise_m"),
-        key("navigation.gps_velocity_bias_m_s", VECTOR, "nav", "gps_velocity_bias_m_s"),
-        key("navigation.gps_velocity_noise_m_s", SCALAR, "nav", "gps_velocity_noise_m_s"),
-        key("navigation.local_position_noise_m", SCALAR, "nav", "local_position_noise_m"),
-        key("navigation.local_velocity_noise_m_s", SCALAR, "nav", "local_velocity_noise_m_s"),
-        key("navigation.tank_pressure_noise_pa", SCALAR, "nav", "tank_pressure_noise_pa"),
-        only(
+        config_key("navigation.attitude_bias_deg", VECTOR, "nav", "attitude_bias_rad", DEG),
+        config_key("navigation.attitude_noise_deg", SCALAR, "nav", "attitude_noise_rad", DEG),
+        config_key("navigation.rate_bias_deg_s", VECTOR, "nav", "rate_bias_rad_s", DEG),
+        config_key("navigation.rate_noise_deg_s", SCALAR, "nav", "rate_noise_rad_s", DEG),
+        config_key("navigation.ssm_calibration_time_s", SCALAR, "nav", "ssm_calibration_time_s"),
+        config_key("navigation.gps_position_bias_m", VECTOR, "nav", "gps_position_bias_m"),
+        config_key("navigation.gps_position_noise_m", SCALAR, "nav", "gps_position_noise_m"),
+        config_key("navigation.gps_velocity_bias_m_s", VECTOR, "nav", "gps_velocity_bias_m_s"),
+        config_key("navigation.gps_velocity_noise_m_s", SCALAR, "nav", "gps_velocity_noise_m_s"),
+        config_key("navigation.local_position_noise_m", SCALAR, "nav", "local_position_noise_m"),
+        config_key("navigation.local_velocity_noise_m_s", SCALAR, "nav", "local_velocity_noise_m_s"),
+        config_key("navigation.tank_pressure_noise_pa", SCALAR, "nav", "tank_pressure_noise_pa"),
+        dispersion_only(
             "atmosphere.density_scale",
             "-",
             "factor on every density of the atmosphere table",
@@ -216,9 +218,13 @@ def _table():
             nominal=1.0,
             special="scales the density column of the nominal atmosphere table",
         ),
-        key("wheels.friction.coulomb_n_m", SCALAR, "wheels", "coulomb_friction_n_m", note="every wheel the same"),
-        key("wheels.friction.viscous_n_m_s", SCALAR, "wheels", "viscous_friction_n_m_s", note="every wheel the same"),
-        key(
+        config_key(
+            "wheels.friction.coulomb_n_m", SCALAR, "wheels", "coulomb_friction_n_m", note="every wheel the same"
+        ),
+        config_key(
+            "wheels.friction.viscous_n_m_s", SCALAR, "wheels", "viscous_friction_n_m_s", note="every wheel the same"
+        ),
+        config_key(
             "wheels.initial_momentum_n_m_s",
             WHEEL,
             "wheels",
@@ -226,19 +232,21 @@ def _table():
             key="wheels.units[].initial_momentum_n_m_s",
             note="per wheel, independent draws; the flight software is not told",
         ),
-        key("rcs.feed.initial_pressure_pa", SCALAR, "vehicle", "feed_initial_pressure_pa"),
-        key("rcs.feed.temperature_k", SCALAR, "vehicle", "feed_temperature_k"),
-        key("rcs.feed.throat_area_m2", SCALAR, "vehicle", "feed_throat_area_m2"),
-        key("local.position_m", VECTOR, "mission", "local_position_m", note="trajectory local"),
-        key("local.velocity_m_s", VECTOR, "mission", "local_velocity_m_s", note="trajectory local"),
+        config_key("rcs.feed.initial_pressure_pa", SCALAR, "vehicle", "feed_initial_pressure_pa"),
+        config_key("rcs.feed.temperature_k", SCALAR, "vehicle", "feed_temperature_k"),
+        config_key("rcs.feed.throat_area_m2", SCALAR, "vehicle", "feed_throat_area_m2"),
+        config_key("local.position_m", VECTOR, "mission", "local_position_m", note="trajectory local"),
+        config_key("local.velocity_m_s", VECTOR, "mission", "local_velocity_m_s", note="trajectory local"),
     ]
     # an entry mission (issue 24, 003): its state, the blocked flap, the true air and coefficients
     # (the flight software keeps the nominal ones)
     for name in ENTRY_STATE_KEYS:
-        p.append(key(f"entry_flight.state.{name}", SCALAR, note="entry state at t = 0", special=ENTRY))
+        p.append(config_key(f"entry_flight.state.{name}", SCALAR, note="entry state at t = 0", special=ENTRY))
     p += [
-        key("entry_flight.blocked_flap.deflection_deg", SCALAR, note="deflection of the blocked flap", special=ENTRY),
-        only(
+        config_key(
+            "entry_flight.blocked_flap.deflection_deg", SCALAR, note="deflection of the blocked flap", special=ENTRY
+        ),
+        dispersion_only(
             "entry_flight.density_scale",
             "-",
             "factor on the true density (entry mission)",
@@ -250,7 +258,7 @@ def _table():
     ]
     for name in ENTRY_SCALED_COEFFICIENTS:
         p.append(
-            only(
+            dispersion_only(
                 f"entry_flight.coefficient_scale.{name}",
                 "-",
                 f"factor on the true {name} table (entry mission)",
