@@ -1,7 +1,8 @@
 """Print the table of dispersible parameter paths for docs/campaigns.md.
 
-The table is generated from ``refexmc.config.dispersions.PARAMETERS`` (the registry the campaign
-loader checks against), so the documentation cannot drift from the code unnoticed:
+The table is generated from ``refexmc.config.parameters.PARAMETERS`` (the one declaration of
+each path that validation, dispersion, packing and these docs read), so the documentation
+cannot drift from the code unnoticed:
 ``tests/test_docs.py`` compares the table in docs/campaigns.md with this script's output.
 
     .venv/bin/python docs/gen_parameter_table.py           # print the table
@@ -12,7 +13,7 @@ import math
 import sys
 from pathlib import Path
 
-from refexmc.config.dispersions import AXES, INERTIA_COMPONENTS, PARAMETERS
+from refexmc.config.parameters import AXES, DEG, INERTIA_COMPONENTS, MISSION_ROOTS, PARAMETERS, schema_default
 
 DOC = Path(__file__).with_name("campaigns.md")
 BEGIN = "<!-- parameters:begin -->"
@@ -42,21 +43,30 @@ _RANGE = {
 }
 
 
-def nominal_source(path):
-    """Where the nominal value of ``path`` comes from (dispersions.nominal)."""
-    if path in ("rcs.thrust_scale", "atmosphere.density_scale", "entry_flight.density_scale"):
-        return "1 (dispersion only)"
-    if path.startswith("entry_flight.coefficient_scale."):
-        return "1 (dispersion only; entry mission)"
-    if path.startswith("entry_flight."):
+def nominal_source(param):
+    """Where the nominal value of ``param`` comes from (dispersions.nominal)."""
+    entry = param.path.startswith("entry_flight.")
+    if param.key is None:
+        return f"{param.nominal:g} (dispersion only{'; entry mission' if entry else ''})"
+    if entry:
         return "entry mission file"
-    if path.startswith("rcs.valve_time_constants_ms."):
+    if param.path.startswith("rcs.valve_time_constants_ms."):
         return "vehicle file, one value for every thruster"
-    if path.split(".")[0] in ("separation", "navigation"):
-        return "mission file"
-    if path == "wheels.initial_momentum_n_m_s":
-        return "vehicle file, `wheels.units[*]` (default 0)"
-    return "vehicle file"
+    text = "mission file" if param.path.split(".")[0] in MISSION_ROOTS else "vehicle file"
+    if "[]" in param.key:
+        text += f", `{param.key.split('[]')[0]}[*]`"
+    default = schema_default(param.key)
+    if isinstance(default, list):  # a vector's default: every component the same
+        default = default[0]
+    return text if default is None else f"{text} (default {default:g})"
+
+
+def lands_in(param):
+    """Where the value goes in the packed run inputs: a field, or the special case's reason."""
+    if param.table is None:
+        return param.special
+    scale = "" if param.scale == 1.0 else " (deg to rad)" if param.scale == DEG else f" (times {param.scale:g})"
+    return f"`{param.table}.{param.field}`{scale}"
 
 
 def range_text(param):
@@ -80,8 +90,9 @@ def _cell(text):
 def table():
     """The markdown table, one row per dispersible path, in registry order."""
     lines = [
-        "| path | unit | components, `p.<path>` columns | physical range | nominal from | distributions | meaning |",
-        "|---|---|---|---|---|---|---|",
+        "| path | unit | components, `p.<path>` columns | physical range | nominal from | distributions | meaning "
+        "| lands in |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for path, param in PARAMETERS.items():
         cells = (
@@ -89,9 +100,10 @@ def table():
             param.unit,
             _COMPONENTS[param.shape],
             range_text(param),
-            nominal_source(path),
+            nominal_source(param),
             _DISTRIBUTIONS.get(param.shape, _DEFAULT_DISTRIBUTIONS),
             param.doc,
+            lands_in(param),
         )
         lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return "\n".join(lines) + "\n"

@@ -30,12 +30,12 @@ from refexmc.campaign.worker import Guard
 from refexmc.config.design_checks import strict_error
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import apply_overrides, load_campaign
+from refexmc.config.schema import DEFAULT_RUN_TIME_LIMIT_S
 
 MAX_CHUNK_SIZE = 100  # runs per chunk: ~0.5 s of flying, a 3 MB history part
 MIN_CHUNK_SIZE = 10  # each chunk costs ~15 ms (two part files of ~150 columns), ~3 runs' flying
 TARGET_CHUNKS = 32  # enough chunks that the last one to finish leaves the other workers idle briefly
 CHUNK_SIZE_ENV = "REFEXMC_CHUNK_SIZE"  # runs per chunk for a new OUT (tests use small chunks)
-DEFAULT_RUN_TIME_LIMIT_S = 60.0  # per-run wall-time limit when the campaign has no run_time_limit_s
 DEFAULT_CAMPAIGN = Path(refexmc.__file__).resolve().parents[1] / "campaigns" / "refex-mc100.yaml"
 WORK_DIR = storage.WORK_DIR
 

@@ -9,12 +9,17 @@ import itertools
 
 import numpy as np
 
-from refexmc.config.schema import WHEELS_LEVEL
+from refexmc.config.schema import DEFAULT_TRAJECTORY, WHEELS_LEVEL
 
 
 def flies_wheels(vehicle):
     """True when the flight software actuates reaction wheels (``flight_software.actuation: wheels``)."""
     return vehicle["flight_software"]["actuation"] == "wheels"
+
+
+def trajectory_model(vehicle):
+    """The vehicle's trajectory model (its ``trajectory`` key, default ``schema.DEFAULT_TRAJECTORY``)."""
+    return vehicle.get("trajectory", DEFAULT_TRAJECTORY)
 
 
 def rcs_level_names(vehicle):

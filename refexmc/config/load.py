@@ -14,7 +14,14 @@ import yaml
 
 from refexmc.config import design_checks, entry, published, requirements, schema
 from refexmc.config import feed as config_feed
-from refexmc.config.derived import allocation_table, inertia_problem, level_names, thruster_count, wheel_problem
+from refexmc.config.derived import (
+    allocation_table,
+    inertia_problem,
+    level_names,
+    thruster_count,
+    trajectory_model,
+    wheel_problem,
+)
 from refexmc.config.errors import ConfigError
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
 
@@ -484,7 +491,7 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
             )
     if vehicle["flight_software"]["controller"] == "pd" and "gains" not in vehicle["flight_software"]:
         fail_vehicle("controller pd needs given gains (flight_software.gains)", "flight_software", "controller")
-    trajectory = vehicle.get("trajectory", "planar_drag")
+    trajectory = trajectory_model(vehicle)
     if trajectory == "local":
         _check_local(vehicle, mission, fail_mission, fail_vehicle)
     else:
@@ -781,7 +788,7 @@ def load_campaign(path, warnings=None):
         "sampling": data.get("sampling", "random"),
         "dispersions": data.get("dispersions", {}),
         "failures": data.get("failures", {"mode": "none"}),
-        "run_time_limit_s": data.get("run_time_limit_s", 60.0),
+        "run_time_limit_s": data.get("run_time_limit_s", schema.DEFAULT_RUN_TIME_LIMIT_S),
         "output": data.get("output", {"history_rate_hz": 2.0}),
         "requirements": data.get("requirements", []),
         # only when given: the resolved campaign (its digest, --resume) of a file without it is unchanged
@@ -901,7 +908,7 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
         "sampling": data.get("sampling", "random"),
         "dispersions": data.get("dispersions", {}),
         "failures": {"mode": "none"},
-        "run_time_limit_s": data.get("run_time_limit_s", 60.0),
+        "run_time_limit_s": data.get("run_time_limit_s", schema.DEFAULT_RUN_TIME_LIMIT_S),
         "output": data.get("output", {"history_rate_hz": 1.0}),
         "requirements": data.get("requirements", []),
         "vehicle": vehicle,

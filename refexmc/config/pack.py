@@ -1,4 +1,9 @@
-"""Validated config dicts -> the flat arrays of ``refexmc.core.layout``."""
+"""Validated config dicts -> the flat arrays of ``refexmc.core.layout``.
+
+A dispersible parameter's nominal value is packed from its row of ``config.parameters`` (the
+field it lands in, its unit factor, its schema default): ``parameters.pack_nominal``, the same
+write ``config.dispersions.apply`` makes for a drawn value. What is packed here by name is the rest.
+"""
 
 import functools
 import json
@@ -6,7 +11,7 @@ import math
 
 import numpy as np
 
-from refexmc.config import deorbit, derived, schema
+from refexmc.config import deorbit, derived, parameters, schema
 from refexmc.config import feed as config_feed
 from refexmc.core import layout as L
 from refexmc.core import modes as core_modes
@@ -23,7 +28,7 @@ def _put(array, fields, name, value):
     array[offset : offset + size] = value
 
 
-NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0, "drag_area_m2": 0.0, "mistrim_cm": [0.0] * 3}
+NO_AERODYNAMICS = {"reference_area_m2": 0.0, "reference_length_m": 0.0}  # its dispersible keys: 0 (parameters)
 TRAJECTORY_MODELS = {
     "none": L.TRAJECTORY_NONE,
     "planar_drag": L.TRAJECTORY_PLANAR_DRAG,
@@ -35,8 +40,7 @@ TRANSLATION_LAWS = {
     "bang_bang": L.TRANSLATION_BANG_BANG,
     "pd_pwm": L.TRANSLATION_PD_PWM,
 }
-NO_ENGINE = {
-    "thrust_n": 0.0,
+NO_ENGINE = {  # its thrust: 0 (parameters)
     "isp_s": 1.0,
     "propellant_kg": 0.0,
     "direction": [1.0, 0.0, 0.0],
@@ -91,18 +95,16 @@ def pack_wheels(vehicle, failed=()):
     wheels = vehicle["wheels"]
     axes = derived.wheel_axes(vehicle).T
     out = np.zeros((len(wheels["units"]), L.WHEEL_SIZE))
-    for i, (row, unit) in enumerate(zip(out, wheels["units"], strict=True)):
+    for i, row in enumerate(out):
         _put(row, L.WHEEL, "axis", axes[i])
         _put(row, L.WHEEL, "spin_inertia_kg_m2", wheels["spin_inertia_kg_m2"])
         _put(row, L.WHEEL, "torque_max_n_m", wheels["torque_max_n_m"])
         _put(row, L.WHEEL, "momentum_max_n_m_s", wheels["momentum_max_n_m_s"])
-        _put(row, L.WHEEL, "coulomb_friction_n_m", wheels["friction"]["coulomb_n_m"])
-        _put(row, L.WHEEL, "viscous_friction_n_m_s", wheels["friction"]["viscous_n_m_s"])
         _put(row, L.WHEEL, "coulomb_width_rad_s", wheels["friction"]["coulomb_width_rpm"] * math.pi / 30.0)
         _put(row, L.WHEEL, "coulomb_friction_design_n_m", wheels["friction"]["coulomb_n_m"])  # never dispersed
         _put(row, L.WHEEL, "viscous_friction_design_n_m_s", wheels["friction"]["viscous_n_m_s"])
         _put(row, L.WHEEL, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
-        _put(row, L.WHEEL, "initial_momentum_n_m_s", unit.get("initial_momentum_n_m_s", 0.0))
+    parameters.pack_nominal(out, "wheels", vehicle)  # friction, initial momentum
     managed = wheels.get("null_space_management")
     if managed is not None:  # else the columns stay 0: no management
         out[:, L.W_NULL_SPACE_RATE] = 1.0 / managed["time_constant_s"]
@@ -128,9 +130,9 @@ def pack_vehicle(vehicle):
     aero = vehicle.get("aerodynamics", NO_AERODYNAMICS)
     derating = list(rcs["derating"])
     derating += [derating[-1]] * (L.DERATING_MAX_VALVES - len(derating))
+    # mass, CoM offset, mistrim, drag area, engine thrust, feed tank (zero where the vehicle has none)
+    parameters.pack_nominal(out, "vehicle", vehicle)
     _put(out, L.VEHICLE, "inertia_kg_m2", vehicle["inertia_kg_m2"])
-    _put(out, L.VEHICLE, "com_offset_m", vehicle["com_offset_m"])
-    _put(out, L.VEHICLE, "mass_kg", vehicle["mass_kg"])
     _put(out, L.VEHICLE, "derating", derating)
     feed = rcs.get("feed", {"model": "constant"})
     if feed.get("model", "constant") == "constant":
@@ -140,10 +142,7 @@ def pack_vehicle(vehicle):
         _pack_feed(out, feed)
     _put(out, L.VEHICLE, "aero_area_m2", aero["reference_area_m2"])
     _put(out, L.VEHICLE, "aero_length_m", aero["reference_length_m"])
-    _put(out, L.VEHICLE, "aero_mistrim_cm", aero["mistrim_cm"])
-    _put(out, L.VEHICLE, "drag_area_m2", aero["drag_area_m2"])
     engine = vehicle.get("main_engine", NO_ENGINE)
-    _put(out, L.VEHICLE, "engine_thrust_n", engine["thrust_n"])
     _put(out, L.VEHICLE, "engine_isp_s", engine["isp_s"])
     _put(out, L.VEHICLE, "engine_propellant_kg", engine["propellant_kg"])
     _put(out, L.VEHICLE, "engine_direction", derived.engine_direction(engine, engine["misalignment_deg"]))
@@ -159,7 +158,8 @@ def _pack_feed(out, feed):
     _put(out, L.VEHICLE, "propellant_kg", design["gas_kg"])
     _put(out, L.VEHICLE, "feed_model_id", config_feed.MODELS[feed["model"]])
     for key in schema.FEED_TANK_KEYS:
-        _put(out, L.VEHICLE, "feed_" + key, feed[key])
+        if f"rcs.feed.{key}" not in parameters.PARAMETERS:  # else packed with the parameters
+            _put(out, L.VEHICLE, "feed_" + key, feed[key])
     _put(out, L.VEHICLE, "feed_ambient_pressure_pa", feed.get("ambient_pressure_pa", 0.0))
     _put(out, L.VEHICLE, "feed_thrust_coefficient", design["thrust_coefficient"])
     _put(out, L.VEHICLE, "feed_flow_factor", design["flow_factor"])
@@ -181,13 +181,13 @@ def pack_thrusters(vehicle, failed=(), known=()):
         row = out[i]
         _put(row, L.THRUSTER, "position_m", thruster["position_m"])
         _put(row, L.THRUSTER, "direction", directions[i])
-        _put(row, L.THRUSTER, "thrust_scale", 1.0)
         for k, level in enumerate(levels):
             tc = rcs["valve_time_constants_ms"][level]
             for which, name in enumerate(L.TIME_CONSTANT_NAMES):
                 row[L.time_constant_column(k, which)] = tc[name] / 1e3
         _put(row, L.THRUSTER, "failed", 1.0 if (i + 1) in set(failed) else 0.0)
         _put(row, L.THRUSTER, "failure_known", 1.0 if (i + 1) in set(failed) & set(known) else 0.0)
+    parameters.pack_nominal(out, "thrusters", vehicle)  # the thrust scales, 1
     return out
 
 
@@ -273,7 +273,7 @@ def _pack_translation(out, vehicle):
     _put(out, L.FSW, "translation_deadband", [law.get("deadband_position_m", 0.0), law.get("deadband_speed_m_s", 0.0)])
 
 
-def pack_mission(mission, trajectory="planar_drag", plan=None):
+def pack_mission(mission, trajectory=schema.DEFAULT_TRAJECTORY, plan=None):
     """Mission array (layout.MISSION); ``trajectory`` is the vehicle's trajectory model, ``plan``
     an orbit mission's nominal deorbit plan (``config.deorbit.plan``)."""
     out = np.zeros(L.MISSION_SIZE)
@@ -285,12 +285,10 @@ def pack_mission(mission, trajectory="planar_drag", plan=None):
     disturbances = mission.get("disturbances", {})
     gravity = disturbances.get("gravity_gradient", {"bodies": [], "direction": [0.0, 0.0, 1.0]})
     gravity_direction = np.asarray(gravity["direction"], dtype=float)
+    # the separation state, the local trajectory's position and velocity (zero where the mission has none)
+    parameters.pack_nominal(out, "mission", mission)
     values = {
-        "separation_altitude_m": sep.get("altitude_m", 0.0),
-        "separation_speed_m_s": sep.get("speed_m_s", 0.0),
-        "separation_flight_path_angle_rad": rad(sep.get("flight_path_angle_deg", 0.0)),
-        "separation_rates_rad_s": rad(sep["rates_deg_s"]),
-        "separation_attitude_rotvec_rad": derived.separation_rotation_vector(sep),
+        "separation_attitude_rotvec_rad": derived.separation_rotation_vector(sep),  # or from Euler angles
         "sun_direction": sun / np.linalg.norm(sun),
         "earth_radius_m": earth["radius_m"],
         "earth_mu_m3_s2": earth["mu_m3_s2"],
@@ -312,8 +310,6 @@ def pack_mission(mission, trajectory="planar_drag", plan=None):
         values["burn_duration_s"] = plan.burn_duration_s
     local = mission.get("local")
     if local is not None:
-        values["local_position_m"] = local["position_m"]
-        values["local_velocity_m_s"] = local["velocity_m_s"]
         values["local_target_m"] = local["target_position_m"]
         values["local_gravity_m_s2"] = local.get("gravity_m_s2", [0.0, 0.0, 0.0])
         values["local_reserve_pressure_pa"] = local.get("reserve_pressure_pa", 0.0)
@@ -344,7 +340,7 @@ def _predicate_value(name, value):
     return math.radians(value) if name.endswith(("_deg", "_deg_s")) else float(value)
 
 
-def pack_modes(mission, levels=("low", "high"), burn_attitude=None):
+def pack_modes(mission, levels=schema.REFEX_LEVEL_NAMES, burn_attitude=None):
     """Mode table (layout.MODE rows) and exit table (layout.EXIT rows) of the mode program;
     ``levels``: the vehicle's thrust-level names (:func:`level_names`); ``burn_attitude``: the
     inertial attitude of a ``burn_start`` target (``derived.burn_start_attitude``)."""
@@ -390,20 +386,8 @@ def pack_modes(mission, levels=("low", "high"), burn_attitude=None):
 
 def pack_navigation(mission):
     """Navigation-error array (layout.NAV)."""
-    nav = mission["navigation"]
     out = np.zeros(L.NAV_SIZE)
-    _put(out, L.NAV, "attitude_bias_rad", np.radians(nav["attitude_bias_deg"]))
-    _put(out, L.NAV, "attitude_noise_rad", np.radians(nav["attitude_noise_deg"]))
-    _put(out, L.NAV, "rate_bias_rad_s", np.radians(nav["rate_bias_deg_s"]))
-    _put(out, L.NAV, "rate_noise_rad_s", np.radians(nav["rate_noise_deg_s"]))
-    _put(out, L.NAV, "ssm_calibration_time_s", nav["ssm_calibration_time_s"])
-    _put(out, L.NAV, "gps_position_bias_m", nav.get("gps_position_bias_m", [0.0, 0.0, 0.0]))
-    _put(out, L.NAV, "gps_position_noise_m", nav.get("gps_position_noise_m", 0.0))
-    _put(out, L.NAV, "gps_velocity_bias_m_s", nav.get("gps_velocity_bias_m_s", [0.0, 0.0, 0.0]))
-    _put(out, L.NAV, "gps_velocity_noise_m_s", nav.get("gps_velocity_noise_m_s", 0.0))
-    _put(out, L.NAV, "local_position_noise_m", nav.get("local_position_noise_m", 0.0))
-    _put(out, L.NAV, "local_velocity_noise_m_s", nav.get("local_velocity_noise_m_s", 0.0))
-    _put(out, L.NAV, "tank_pressure_noise_pa", nav.get("tank_pressure_noise_pa", 0.0))
+    parameters.pack_nominal(out, "nav", mission)  # every field is a dispersible parameter
     return out
 
 
@@ -447,7 +431,7 @@ def pack(vehicle, mission, failed_thrusters=(), plan=None, failed_wheels=(), det
         thrusters=pack_thrusters(vehicle, failed_thrusters, detected_thrusters),
         levels=pack_levels(vehicle, detected_wheels),
         fsw=pack_fsw(vehicle),
-        mission=pack_mission(mission, vehicle.get("trajectory", "planar_drag"), plan),
+        mission=pack_mission(mission, derived.trajectory_model(vehicle), plan),
         modes=mode_table,
         exits=exit_table,
         nav=pack_navigation(mission),

@@ -34,6 +34,7 @@ import re
 from dataclasses import dataclass
 
 from refexmc.config.errors import ConfigError
+from refexmc.config.schema import DEFAULT_TRAJECTORY
 
 CAMPAIGN_METRICS = {
     "runs": "runs in the runs table (ok and errored)",
@@ -239,13 +240,13 @@ def column_options(vehicle, mission):
     ``pointing`` (the mission has a pointing window: POINTING_COLUMNS), ``wheels`` (the vehicle
     has reaction wheels: WHEEL_COLUMNS); keyword arguments of :func:`run_value_columns`."""
     return {
-        "trajectory": vehicle.get("trajectory", "planar_drag"),
+        "trajectory": vehicle.get("trajectory", DEFAULT_TRAJECTORY),
         "pointing": "pointing_statistics_from_s" in mission,
         "wheels": "wheels" in vehicle,
     }
 
 
-def run_value_columns(mode_names, trajectory="planar_drag", pointing=False, wheels=False):
+def run_value_columns(mode_names, trajectory=DEFAULT_TRAJECTORY, pointing=False, wheels=False):
     """The float columns of a runs row, in table order (NaN in an errored run's row);
     ``trajectory``: the vehicle's trajectory model (``orbit`` adds ``ORBIT_COLUMNS``); ``pointing``,
     ``wheels``: add ``POINTING_COLUMNS``, ``WHEEL_COLUMNS`` (:func:`column_options`)."""
@@ -267,7 +268,7 @@ def entry_metric_columns(parameter_columns=()):
 
 
 def runs_metric_columns(
-    mode_names, n_thrusters, parameter_columns=(), trajectory="planar_drag", pointing=False, wheels=False
+    mode_names, n_thrusters, parameter_columns=(), trajectory=DEFAULT_TRAJECTORY, pointing=False, wheels=False
 ):
     """The numeric columns of a campaign's runs table (``refexmc.campaign.storage.runs_row``)."""
     pulses = [f"pulses_{k + 1}" for k in range(n_thrusters)]

@@ -17,8 +17,11 @@ SWEPT_DISTRIBUTION_PARAMETERS = (
 )
 
 
-def number(doc, minimum=None, maximum=None, exclusive_minimum=None):
+def number(doc, minimum=None, maximum=None, exclusive_minimum=None, default=None):
+    """A number key; ``default``: the value a file that omits it has (read by the packers)."""
     s = {"type": "number", "description": doc}
+    if default is not None:
+        s["default"] = default
     if minimum is not None:
         s["minimum"] = minimum
     if maximum is not None:
@@ -37,9 +40,12 @@ def integer(doc, minimum=None, maximum=None):
     return s
 
 
-def vector(doc, length=3, **limits):
+def vector(doc, length=3, default=None, **limits):
     item = number("component", **limits)
-    return {"type": "array", "items": item, "minItems": length, "maxItems": length, "description": doc}
+    s = {"type": "array", "items": item, "minItems": length, "maxItems": length, "description": doc}
+    if default is not None:
+        s["default"] = list(default)
+    return s
 
 
 def string(doc, enum=None):
@@ -61,6 +67,9 @@ def obj(doc, properties, optional=()):
 
 POSITIVE = {"exclusive_minimum": 0.0}
 LEVEL_NAME_PATTERN = "^[A-Za-z][A-Za-z0-9_]*$"
+REFEX_LEVEL_NAMES = ("low", "high")  # 000's thrust levels: the levels of a call that names none
+DEFAULT_TRAJECTORY = "planar_drag"  # a vehicle without a trajectory key
+DEFAULT_RUN_TIME_LIMIT_S = 60.0  # a campaign without run_time_limit_s
 MAX_LEVELS = 8
 
 
@@ -114,7 +123,7 @@ WHEEL = obj(
         },
         "axis": vector("spin axis in body axes, a column of 001's W (normalised on load) [-]"),
         "initial_momentum_n_m_s": number(
-            "I_w Omega at t = 0, Omega relative to the body, along the axis; default 0 [N m s]"
+            "I_w Omega at t = 0, Omega relative to the body, along the axis; default 0 [N m s]", default=0.0
         ),
     },
     optional=("name", "initial_momentum_n_m_s"),
@@ -397,9 +406,10 @@ VEHICLE = obj(
             "trajectory model: planar_drag (point mass, gravity and drag; altitude and dynamic pressure), "
             "orbit (3D two-body orbit with a main engine, 004 sec. III; the mission's orbit block) "
             "local (position near a small body, uniform gravity, thrust through the attitude; the mission's "
-            "local block, translate modes, docs/cold-gas.md) or none (attitude only); default planar_drag",
+            "local block, translate modes, docs/cold-gas.md) or none (attitude only); default " + DEFAULT_TRAJECTORY,
             enum=["planar_drag", "orbit", "none", "local"],
-        ),
+        )
+        | {"default": DEFAULT_TRAJECTORY},
         "mass_kg": number("vehicle mass [kg]", **POSITIVE),
         "length_m": number("vehicle length (documentation) [m]", **POSITIVE),
         "span_m": number("wing span (documentation) [m]", **POSITIVE),
@@ -910,23 +920,30 @@ MISSION = obj(
                 "ssm_calibration_time_s": number(
                     "attitude-bias decay time constant in modes with navigation_calibration; 0: none [s]", minimum=0.0
                 ),
-                "gps_position_bias_m": vector("GPS position bias, ECI axes (orbit trajectory) [m]"),
-                "gps_position_noise_m": number(
-                    "GPS position white noise, 1 sigma per axis and sample [m]", minimum=0.0
+                "gps_position_bias_m": vector(
+                    "GPS position bias, ECI axes (orbit trajectory) [m]", default=[0.0, 0.0, 0.0]
                 ),
-                "gps_velocity_bias_m_s": vector("GPS velocity bias, ECI axes [m/s]"),
+                "gps_position_noise_m": number(
+                    "GPS position white noise, 1 sigma per axis and sample [m]", minimum=0.0, default=0.0
+                ),
+                "gps_velocity_bias_m_s": vector("GPS velocity bias, ECI axes [m/s]", default=[0.0, 0.0, 0.0]),
                 "gps_velocity_noise_m_s": number(
-                    "GPS velocity white noise, 1 sigma per axis and sample [m/s]", minimum=0.0
+                    "GPS velocity white noise, 1 sigma per axis and sample [m/s]", minimum=0.0, default=0.0
                 ),
                 "local_position_noise_m": number(
-                    "local trajectory: position white noise, 1 sigma per axis and control period [m]", minimum=0.0
+                    "local trajectory: position white noise, 1 sigma per axis and control period [m]",
+                    minimum=0.0,
+                    default=0.0,
                 ),
                 "local_velocity_noise_m_s": number(
-                    "local trajectory: velocity white noise, 1 sigma per axis and control period [m/s]", minimum=0.0
+                    "local trajectory: velocity white noise, 1 sigma per axis and control period [m/s]",
+                    minimum=0.0,
+                    default=0.0,
                 ),
                 "tank_pressure_noise_pa": number(
                     "local trajectory: the translation law's tank-pressure transducer, white noise 1 sigma [Pa]",
                     minimum=0.0,
+                    default=0.0,
                 ),
             },
             optional=(
@@ -1181,7 +1198,9 @@ CAMPAIGN = obj(
             },
         ),
         "run_time_limit_s": number(
-            "wall-clock limit of one run [s]; a run that exceeds it is recorded as an error", exclusive_minimum=0.0
+            "wall-clock limit of one run [s]; a run that exceeds it is recorded as an error",
+            exclusive_minimum=0.0,
+            default=DEFAULT_RUN_TIME_LIMIT_S,
         ),
         "output": obj(
             "what is stored",

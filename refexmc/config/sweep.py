@@ -26,10 +26,9 @@ import numpy as np
 
 from refexmc.config import dispersions
 from refexmc.config.errors import ConfigError
+from refexmc.config.parameters import MISSION_ROOTS  # paths under these are mission keys
 from refexmc.config.schema import SWEPT_DISTRIBUTION_PARAMETERS
 
-# paths under these are mission keys (dispersions._schema_node); entry_flight: an entry mission's
-MISSION_ROOTS = ("separation", "navigation", "entry_flight")
 DEFAULT_METRICS = ("fuel_remaining", "theta_t_handover_deg", "rcs_propellant_kg")  # those the runs table has
 
 
