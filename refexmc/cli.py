@@ -473,6 +473,56 @@ def _inspect_torque(vehicle, text, level, as_json):
 
 
 def format_design(name, info):
+    """``refexmc inspect``'s text: the attitude design, then an entry vehicle's entry part."""
+    text = _format_attitude_design(name, info)
+    if "entry" not in info:
+        return text
+    return text + "\n" + "\n".join(_format_entry(info["entry"]))
+
+
+def _format_entry(entry):
+    def vec(values, fmt):
+        return "  ".join(format(v, fmt) for v in values)
+
+    control, flaps = entry["control"], entry["flaps"]
+    lines = [
+        "  entry flight (missions with entry_flight; docs/x38.md): entry_control and surfaces fly it; the",
+        "  controller, gains and PWPF above are those of attitude missions",
+        f"    RCS pure moment [N m]       {vec(entry['rcs_capacity_n_m'], '10.1f')}   x y z, every thruster at "
+        "full thrust",
+        f"    propellant [g/s per kN m]   {vec([w * 1e6 for w in entry['propellant_kg_s_per_n_m']], '10.3f')}   "
+        "b_th K per axis, what the blending minimises (003 eq. 5)",
+        f"    body flaps [deg]            {flaps['min_deg']:g} .. {flaps['max_deg']:g}, "
+        f"rate {flaps['rate_max_deg_s']:g} deg/s, lag {entry['time_constant_s']:g} s",
+    ]
+    if "flap_hinge_reach_deg" in entry:
+        reach = entry["flap_hinge_reach_deg"]
+        pairs = ", ".join(
+            f"{q / 1e3:g} kPa: {d:.1f}" for q, d in zip(reach["qbar_pa"], reach["deflection_deg"], strict=True)
+        )
+        lines.append(
+            f"      hinge moment limits the flap above q {reach['binds_above_qbar_pa'] / 1e3:.1f} kPa at alpha "
+            f"{reach['alpha_deg']:g} deg; reach [deg]: {pairs}"
+        )
+    if "blocked" in flaps:
+        blocked = flaps["blocked"]
+        lines.append(f"      {blocked['flap']} flap blocked at {blocked['deflection_deg']:g} deg (vehicle file)")
+    if "rudders" in entry:
+        rudders = entry["rudders"]
+        lines.append(
+            f"    rudders [deg]               {rudders['min_deg']:g} .. {rudders['max_deg']:g}, rate "
+            f"{rudders['rate_max_deg_s']:g} deg/s, usable below Mach {rudders['usable_below_mach']:g}"
+        )
+    lines.append(
+        f"    control at {entry['control_rate_hz']:g} Hz: angle gains {vec(control['angle_gain_1_s'], 'g')} 1/s "
+        f"(alpha, beta, bank), rate gain {control['rate_gain_1_s']:g} 1/s, integral "
+        f"{control['integral_gain_1_s']:g} 1/s, alignment {control['align_gain_1_s']:g} 1/s "
+        f"within {control['align_limit_deg']:g} deg"
+    )
+    return lines
+
+
+def _format_attitude_design(name, info):
     from refexmc.config.derived import CORRECTION_WARNING_MS
 
     def vec(values, fmt):

@@ -2,6 +2,7 @@
 generator prints, they pack into the arrays core.entry flies, and bad entry input is exit 2 with
 file, line and key path."""
 
+import json
 import math
 import re
 import sys
@@ -221,3 +222,52 @@ def test_propellant_weights_are_the_least_thrust_per_moment_over_isp_g0():
         assert weights[axis] == pytest.approx(least / (220.0 * 9.80665), rel=1e-9)
     # pitch: a down-firing pair 4 m aft gives 8 N m for 2 N, rolls cancelling: 1/4 N per N m
     assert weights[1] * 220.0 * 9.80665 == pytest.approx(0.25, rel=1e-12)
+
+
+def test_inspect_shows_what_the_entry_flies():
+    """``refexmc inspect`` of an entry vehicle prints its entry part: the RCS's pure moment and the
+    propellant per N m that the blending weighs, checked against scipy's linprog on the thrusters
+    written out here (HiGHS optimum: 1e-9 relative), and the flap's hinge-limited reach, checked
+    against the hinge moment 2 q S_f c sin^2(alpha + delta) of 003 Table 1's limit (1e-9)."""
+    from scipy.optimize import linprog
+
+    result = CliRunner().invoke(main, ["inspect", str(X38), "--json"])
+    assert result.exit_code == 0, result.output
+    shown = json.loads(result.output)["entry"]
+    vehicle = load_vehicle(X38)
+    rcs = vehicle["rcs"]
+    moments = (
+        np.array(
+            [
+                np.cross(t["position_m"], np.asarray(t["direction"]) / np.linalg.norm(t["direction"]))
+                for t in rcs["thrusters"]
+            ]
+        ).T
+        - np.cross(vehicle["com_offset_m"], np.zeros(3))[:, None]
+    )
+    thrust = max(rcs["thrust_n"].values())
+    for axis in range(3):
+        others = [k for k in range(3) if k != axis]
+        most = linprog(-moments[axis], A_eq=moments[others], b_eq=[0.0, 0.0], bounds=[(0.0, thrust)] * moments.shape[1])
+        assert shown["rcs_capacity_n_m"][axis] == pytest.approx(-most.fun, rel=1e-9)
+        unit = np.eye(3)[axis]
+        least = linprog(np.ones(moments.shape[1]), A_eq=moments, b_eq=unit, bounds=[(0.0, None)] * moments.shape[1])
+        assert shown["propellant_kg_s_per_n_m"][axis] == pytest.approx(least.fun / (rcs["isp_s"] * 9.80665), rel=1e-9)
+    flaps = vehicle["surfaces"]["body_flaps"]
+    reach = shown["flap_hinge_reach_deg"]
+    alpha = math.radians(reach["alpha_deg"])
+
+    def hinge_moment(q, deflection_deg):
+        return 2.0 * q * flaps["hinge_area_arm_m3"] * math.sin(alpha + math.radians(deflection_deg)) ** 2
+
+    q_bind = reach["binds_above_qbar_pa"]
+    assert hinge_moment(q_bind, flaps["max_deg"]) == pytest.approx(flaps["hinge_moment_max_n_m"], rel=1e-9)
+    for q, deflection in zip(reach["qbar_pa"], reach["deflection_deg"], strict=True):
+        if q <= q_bind:
+            assert deflection == flaps["max_deg"]
+        else:
+            assert deflection < flaps["max_deg"]
+            assert hinge_moment(q, deflection) == pytest.approx(flaps["hinge_moment_max_n_m"], rel=1e-9)
+    text = CliRunner().invoke(main, ["inspect", str(X38)]).output
+    assert "entry flight" in text and f"{q_bind / 1e3:.1f} kPa" in text
+    assert "entry flight" not in CliRunner().invoke(main, ["inspect", "configs/vehicles/refex.yaml"]).output

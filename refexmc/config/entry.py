@@ -355,3 +355,46 @@ def entry_flight_from_mission(vehicle, mission, *, blocked=None, **keywords):
         initial[ef.ENTRY_STATE_SIZE : ef.ENTRY_STATE_SIZE + 4],
     )
     return flown, initial
+
+
+HINGE_CHECK_QBAR_PA = (10_000.0, 20_000.0, 40_000.0, 80_000.0)  # inspect: the flap's reach at these q
+HINGE_CHECK_ALPHA_DEG = 40.0  # 003's hypersonic angle of attack
+
+
+def design(vehicle):
+    """What ``refexmc inspect`` shows of an entry vehicle (one with ``entry_control``): the RCS's
+    pure moment per axis, the propellant rate per N m that the blending weighs (003 eq. 5), the
+    surfaces' limits and the flap's hinge-limited reach (003 Table 1), and the entry controller."""
+    from refexmc.core import entry_flight as ef
+
+    flaps = vehicle["surfaces"]["body_flaps"]
+    out = {
+        "rcs_capacity_n_m": rcs_capacity(vehicle).tolist(),
+        "propellant_kg_s_per_n_m": propellant_weights(vehicle).tolist(),
+        "flaps": {key: flaps[key] for key in ("min_deg", "max_deg", "rate_max_deg_s") if key in flaps},
+        "time_constant_s": vehicle["surfaces"]["time_constant_s"],
+        "control": dict(vehicle["entry_control"]),
+        "control_rate_hz": vehicle["flight_software"]["control_rate_hz"],
+    }
+    if "hinge_moment_max_n_m" in flaps:
+        alpha = math.radians(HINGE_CHECK_ALPHA_DEG)
+        reach = [
+            math.degrees(ef.hinge_limit(q, alpha, flaps["hinge_moment_max_n_m"], flaps["hinge_area_arm_m3"]))
+            for q in HINGE_CHECK_QBAR_PA
+        ]
+        # the hinge moment 2 q S_f c sin^2(alpha + delta) reaches its limit at the largest deflection
+        # (or at alpha + delta = 90 deg) from this q on
+        worst = min(alpha + math.radians(flaps["max_deg"]), 0.5 * math.pi)
+        out["flap_hinge_reach_deg"] = {
+            "alpha_deg": HINGE_CHECK_ALPHA_DEG,
+            "qbar_pa": list(HINGE_CHECK_QBAR_PA),
+            "deflection_deg": [min(r, flaps["max_deg"]) for r in reach],
+            "binds_above_qbar_pa": flaps["hinge_moment_max_n_m"]
+            / (2.0 * flaps["hinge_area_arm_m3"] * math.sin(worst) ** 2),
+        }
+    if "blocked" in flaps:
+        out["flaps"]["blocked"] = dict(flaps["blocked"])
+    rudders = vehicle["surfaces"].get("rudders")
+    if rudders is not None:
+        out["rudders"] = dict(rudders)
+    return out
