@@ -124,6 +124,9 @@ def test_history_batches_read_ahead_yield_the_parts_in_order_and_report_a_bad_pa
         joined = pa.Table.from_batches(batches)
         assert joined.column_names == ["t_s", "run_id"]
         assert joined.equals(pa.concat_tables(tables).select(["t_s", "run_id"]))
+    # a function of each batch runs on the reading threads; its results come in the batches' order
+    sizes = list(data.map_history_batches(campaign, ["run_id"], lambda b: b.num_rows, batch_rows=4, read_ahead=3))
+    assert sizes == [size for k in range(7) for size in ([4] * ((k + 3) // 4) + [(k + 3) % 4] * ((k + 3) % 4 > 0))]
     with pytest.raises(ConfigError, match="histories part lacks columns mode") as error:
         list(data.history_batches(campaign, ["run_id", "mode"], read_ahead=2))
     assert "part-00000" in str(error.value)

@@ -25,7 +25,7 @@ class BinnedQuantiles:
     the counts array is paid per million samples, not per part file (a 100-run part has ~46,000).
     The value bin of a sample is the one ``np.searchsorted(edges, value, side="right")`` gives,
     found from the edges' even spacing (in log for ``log``) and corrected to the exact edge:
-    ~4 times faster than the binary search.
+    ~3.5 times faster than the binary search on a history's values.
     """
 
     FLUSH_SAMPLES = 1 << 20
@@ -44,7 +44,8 @@ class BinnedQuantiles:
         self._origin = math.log(first) if log and first > 0 else first
         self._per_step = (n - 1) / spread if spread > 0 else 0.0
         self._guess_log = bool(log and first > 0)
-        self._padded = np.concatenate([[-np.inf], self.edges, [np.inf]])  # _padded[i] = edges[i - 1]
+        self._previous_edge = np.concatenate([[-np.inf], self.edges])  # [i]: edges[i - 1]
+        self._next_edge = np.concatenate([self.edges, [np.nan]])  # [i]: edges[i]; no value is >= NaN
 
     @property
     def counts(self):
@@ -71,12 +72,21 @@ class BinnedQuantiles:
         return cell
 
     def add_cells(self, cells, values):
-        """Add samples by their :meth:`cells` (of a histogram with the same groups and time bins); the
-        samples of cell -1 or of a value that is not finite are left out."""
+        """Add samples by their :meth:`cells` (of a histogram with the same groups and time bins)."""
+        self.add_flat(self.flat_indices(cells, values))
+
+    def flat_indices(self, cells, values):
+        """Flat index into the counts of each sample given by its :meth:`cells`, without the samples
+        of cell -1 or of a value that is not finite. Changes nothing: may run on several threads."""
         keep = np.isfinite(values) & (cells >= 0)
         if not keep.all():
             cells, values = cells[keep], values[keep]
-        flat = cells * self.value_bins + self.value_bin(values)
+        flat = cells * self.value_bins
+        flat += self.value_bin(values)
+        return flat
+
+    def add_flat(self, flat):
+        """Count samples by their :meth:`flat_indices`."""
         self._pending.append(flat)
         self._pending_samples += len(flat)
         if self._pending_samples >= self._flush_samples:
@@ -96,8 +106,8 @@ class BinnedQuantiles:
         index = guess.astype(np.int64)
         index += 1  # edges[index - 1] <= value < edges[index], or close: corrected to exactly that
         while True:
-            down = values < self._padded[index]
-            up = values >= self._padded[index + 1]
+            down = values < self._previous_edge[index]
+            up = values >= self._next_edge[index]
             if not (down.any() or up.any()):
                 return index
             index -= down
@@ -244,8 +254,9 @@ def aggregate_histories(campaign):
     rows = 0
     columns = ["run_id", "t_s", "mode", "theta_t_deg", "omega_m_deg_s", "fuel_remaining", "valves_open"]
     starts = starts.ravel()  # [run position * modes + mode]
-    for batch in data.history_batches(campaign, columns):
-        rows += batch.num_rows
+
+    def samples(batch):  # on the reading threads: nothing shared is changed
+        read = batch.num_rows
         rid = batch.column("run_id").to_numpy(zero_copy_only=False)
         position = run_positions(run_ids, rid)
         if (position < 0).any():  # rows of errored runs: not in the statistics
@@ -259,20 +270,32 @@ def aggregate_histories(campaign):
         propellant = batch.column("fuel_remaining").to_numpy(zero_copy_only=False)
         known = mode >= 0
         valves = batch.column("valves_open").to_numpy(zero_copy_only=False)
-        valve_samples += np.bincount(mode[known & (valves != 0)], minlength=len(modes))
+        valve_counts = np.bincount(mode[known & (valves != 0)], minlength=len(modes))
         if known.all():
             tau = t - starts[position * len(modes) + mode]
         else:
             tau = np.full(len(t), np.nan)
             tau[known] = t[known] - starts[position[known] * len(modes) + mode[known]]
         cells = angle.cells(mode, tau)  # the rate's too: the same modes, time bins and dt
-        angle.add_cells(cells, theta)
-        rate.add_cells(cells, omega)
-        fuel.add(np.zeros(len(t), dtype=np.int64), t, propellant)
+        flats = (
+            angle.flat_indices(cells, theta),
+            rate.flat_indices(cells, omega),
+            fuel.flat_indices(fuel.cells(np.zeros(len(t), dtype=np.int64), t), propellant),
+        )
+        nominal_part = None
         if nominal_id is not None:
             mine = rid == nominal_id
             if mine.any():
-                nominal_parts.append((t[mine], mode[mine], tau[mine], theta[mine], omega[mine], propellant[mine]))
+                nominal_part = (t[mine], mode[mine], tau[mine], theta[mine], omega[mine], propellant[mine])
+        return read, valve_counts, flats, nominal_part
+
+    for batch_rows, valve_counts, flats, nominal_part in data.map_history_batches(campaign, columns, samples):
+        rows += batch_rows
+        valve_samples += valve_counts
+        for binned, flat in zip((angle, rate, fuel), flats, strict=True):
+            binned.add_flat(flat)
+        if nominal_part is not None:
+            nominal_parts.append(nominal_part)
     nominal = None
     if nominal_parts:
         arrays = [np.concatenate(column) for column in zip(*nominal_parts, strict=True)]

@@ -135,7 +135,8 @@ READ_THREADS = 8  # at most; pyarrow reads without the GIL, so parts are read on
 
 def _read_group(parts):
     """One table of the runs ``parts``, each column in one chunk."""
-    tables = [pq.ParquetFile(part).read(use_threads=False) for part in parts]
+    # pre_buffer (coalesced reads on pyarrow's I/O threads, made for object stores) only adds waiting here
+    tables = [pq.ParquetFile(part, pre_buffer=False).read(use_threads=False) for part in parts]
     return pa.concat_tables(tables, promote_options="default").combine_chunks()
 
 
@@ -279,37 +280,48 @@ def mode_codes(column, modes):
     return mode_codes(column.dictionary_encode(), modes)
 
 
-HISTORY_READ_AHEAD = 2  # parts read on threads ahead of the one being used (pyarrow decodes without the GIL)
+HISTORY_READ_AHEAD = 2  # parts read (and mapped) on threads ahead of the one being used
 
 
-def _history_part_batches(part, columns, batch_rows):
-    parquet = pq.ParquetFile(part)
+def _history_part_batches(part, columns, batch_rows, function=None):
+    parquet = pq.ParquetFile(part, pre_buffer=False)
     present = [c for c in columns if c in parquet.schema_arrow.names]
     if len(present) < len(columns):
         missing = sorted(set(columns) - set(present))
         raise ConfigError(f"histories part lacks columns {', '.join(missing)}", file=part)
-    return list(parquet.iter_batches(batch_size=batch_rows, columns=columns, use_threads=False))
+    batches = parquet.iter_batches(batch_size=batch_rows, columns=columns, use_threads=False)
+    return [batch if function is None else function(batch) for batch in batches]
 
 
-def history_batches(campaign, columns, batch_rows=HISTORY_BATCH_ROWS, read_ahead=HISTORY_READ_AHEAD):
-    """Yield record batches of ``columns`` from every histories part, part by part, in order.
+def map_history_batches(campaign, columns, function=None, batch_rows=HISTORY_BATCH_ROWS, read_ahead=HISTORY_READ_AHEAD):
+    """Yield ``function(batch)`` (the batch itself without a function) for the record batches of
+    ``columns`` of every histories part, part by part, in order.
 
-    The next ``read_ahead`` parts are read on threads while the caller works on this one: the
-    reading (zstd, ~36 bytes a sample) is half of the envelopes' cost and overlaps the binning.
-    At most ``read_ahead + 1`` parts are held: a part is what one worker held when it flew.
+    The next ``read_ahead`` parts are read, and mapped, on threads while the caller uses this
+    one's results: pyarrow decodes and numpy computes on arrays without holding the GIL, so a
+    2-core machine reads and bins the histories on both cores. ``function`` must not change
+    shared state. At most ``read_ahead + 1`` parts' results are held: a part is what one worker
+    held when it flew.
     """
     parts = iter(campaign.history_parts)
     if read_ahead < 1:
         for part in parts:
-            yield from _history_part_batches(part, columns, batch_rows)
+            yield from _history_part_batches(part, columns, batch_rows, function)
         return
     with ThreadPoolExecutor(read_ahead) as pool:
         queue = deque(
-            pool.submit(_history_part_batches, part, columns, batch_rows) for part in islice(parts, read_ahead)
+            pool.submit(_history_part_batches, part, columns, batch_rows, function)
+            for part in islice(parts, read_ahead)
         )
         while queue:
-            batches = queue.popleft().result()
+            results = queue.popleft().result()
             part = next(parts, None)
             if part is not None:
-                queue.append(pool.submit(_history_part_batches, part, columns, batch_rows))
-            yield from batches
+                queue.append(pool.submit(_history_part_batches, part, columns, batch_rows, function))
+            yield from results
+
+
+def history_batches(campaign, columns, batch_rows=HISTORY_BATCH_ROWS, read_ahead=HISTORY_READ_AHEAD):
+    """Yield record batches of ``columns`` from every histories part, part by part, in order
+    (read ahead on threads: :func:`map_history_batches`)."""
+    return map_history_batches(campaign, columns, batch_rows=batch_rows, read_ahead=read_ahead)
