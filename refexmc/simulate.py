@@ -274,6 +274,8 @@ ENTRY_HISTORY = {  # an entry campaign's history column -> (core.entry_flight HI
     "rudder_deg": ("HI_RUDDER", 180.0 / np.pi),
     "rcs_propellant_kg": ("HI_PROPELLANT", 1.0),
     "qbar_pa": ("HI_QBAR", 1.0),
+    "load_factor_g": ("HI_LOAD", 1.0),
+    "heat_flux_w_m2": ("HI_HEAT_FLUX", 1.0),
 }
 
 

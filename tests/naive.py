@@ -826,3 +826,207 @@ def time_optimal_u(x1, x2, x3, x3_min, bang_bang=False):
             s0 = x3 / x2**2 * (x1 + (x3 + a) / (x3 - a) * x2 - sign(x2) * (x3 + a) * log)
         return -0.5 * float(sign(s0) + sign(s2))
     return -0.5 * float(sign(x2) + sign(s2))
+
+
+# --------------------------------------------------------------------------------------------
+# Entry attitude, guidance alignment and control (core.entry_attitude, core.entry_flight):
+# 003 eq. 4 and its "successive dynamic inversion ... additional feedback control provides
+# tracking of the commands alpha_c, beta_c and mu_c"; the free flap aligned with the blocked one
+# ("the commanded angle of attack has to be increased"); the surfaces' moments of eq. 6 and 10.
+# Written from the textbook frames (trajectory axes from gamma and chi, wind axes by the bank
+# about the velocity, body axes by alpha and beta), with matrices, a linear solve for the
+# kinematics and scipy's interpolator for the tables; nothing shared with refexmc.core.
+# --------------------------------------------------------------------------------------------
+
+
+def entry_trajectory_axes(state, t, rotation):
+    """Columns: the trajectory axes x_k (along the Earth-relative velocity), y_k (horizontal, to
+    the right), z_k = x_k x y_k in inertial axes, the Earth turned by ``rotation`` t."""
+    _h, lon, lat, _v, gamma, chi = state
+    lon = lon + rotation * t
+    north = np.array([-math.sin(lat) * math.cos(lon), -math.sin(lat) * math.sin(lon), math.cos(lat)])
+    east = np.array([-math.sin(lon), math.cos(lon), 0.0])
+    down = np.array([-math.cos(lat) * math.cos(lon), -math.cos(lat) * math.sin(lon), -math.sin(lat)])
+    ned = np.column_stack([north, east, down])
+    x_k = ned @ [math.cos(gamma) * math.cos(chi), math.cos(gamma) * math.sin(chi), -math.sin(gamma)]
+    y_k = ned @ [-math.sin(chi), math.cos(chi), 0.0]
+    return np.column_stack([x_k, y_k, np.cross(x_k, y_k)])
+
+
+def body_from_wind(alpha, beta):
+    """Matrix taking wind-axis components to body-axis components (rotate by -beta about z_w, then
+    by alpha about y_b)."""
+    ca, sa, cb, sb = math.cos(alpha), math.sin(alpha), math.cos(beta), math.sin(beta)
+    return np.array([[ca * cb, -ca * sb, -sa], [sb, cb, 0.0], [sa * cb, -sa * sb, ca]])
+
+
+def entry_aerodynamic_angles(state, t, rotation, quaternion):
+    """(alpha, beta, bank) of the body attitude (scalar-last body-to-inertial quaternion): the
+    velocity in body axes gives alpha and beta; the bank turns the wind z axis about the velocity
+    from z_k, positive with the lift (-z_w) to the right: z_w = -sin(mu) y_k + cos(mu) z_k."""
+    axes = entry_trajectory_axes(state, t, rotation)
+    body = quaternion_matrix(quaternion)
+    u, v, w = body.T @ axes[:, 0]
+    alpha, beta = math.atan2(w, u), math.asin(max(-1.0, min(1.0, v)))
+    z_wind = body @ body_from_wind(alpha, beta)[:, 2]
+    return alpha, beta, math.atan2(-z_wind @ axes[:, 1], z_wind @ axes[:, 2])
+
+
+def entry_body_axes(state, t, rotation, alpha, beta, bank):
+    """Body-to-inertial matrix flying ``state`` at (alpha, beta, bank): wind axes = trajectory
+    axes turned by the bank about x_k, body axes from them by alpha and beta."""
+    axes = entry_trajectory_axes(state, t, rotation)
+    cm, sm = math.cos(bank), math.sin(bank)
+    wind = np.column_stack([axes[:, 0], cm * axes[:, 1] + sm * axes[:, 2], -sm * axes[:, 1] + cm * axes[:, 2]])
+    return wind @ body_from_wind(alpha, beta).T
+
+
+def entry_coefficient(model, slot, alpha, mach):
+    """A coefficient table of ``model`` (core.entry.EntryModel) at (alpha rad, Mach): scipy's
+    bilinear interpolation, held at the table's edges."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    alphas, machs = np.asarray(model.alpha_axis), np.asarray(model.mach_axis)
+    table = RegularGridInterpolator((alphas, machs), np.asarray(model.coefficients[slot]), method="linear")
+    point = [min(max(alpha, alphas[0]), alphas[-1]), min(max(mach, machs[0]), machs[-1])]
+    return float(table([point])[0])
+
+
+def entry_trim_alpha(model, slots, mach, deflection, fallback):
+    """The lowest alpha on the table's axis where the flaps trim at ``deflection``:
+    C_m + deflection C_m_delta_e = 0 (003 eq. 6, delta_trim = -C_m / C_m_delta_e), by brentq on
+    the first cell of the alpha axis where it changes sign; ``fallback`` where none does.
+    ``slots``: (pitch, pitch per elevon) table indices."""
+    from scipy.optimize import brentq
+
+    def moment(alpha):
+        return entry_coefficient(model, slots[0], alpha, mach) + deflection * entry_coefficient(
+            model, slots[1], alpha, mach
+        )
+
+    axis = np.asarray(model.alpha_axis)
+    for a, b in zip(axis[:-1], axis[1:], strict=True):
+        if moment(a) == 0.0:
+            return float(a)
+        if moment(a) * moment(b) < 0.0:
+            return brentq(moment, a, b, xtol=1e-15, rtol=1e-15)
+    return float(axis[-1]) if moment(axis[-1]) == 0.0 else fallback
+
+
+def entry_alignment_bias(model, slots, mach, alpha, free_deflection, blocked_deflection, bias, gain, period, limit):
+    """The next alpha bias of the alignment feedback: alpha moves towards where the free flap's
+    trim deflection equals the blocked one, at ``gain`` per second of the misalignment divided
+    by d(delta_trim)/d(alpha) (central difference over +-0.01 rad), within +-``limit``."""
+
+    def trim(a):
+        return -entry_coefficient(model, slots[0], a, mach) / entry_coefficient(model, slots[1], a, mach)
+
+    slope = (trim(alpha + 0.01) - trim(alpha - 0.01)) / 0.02
+    if slope == 0.0:
+        return bias
+    return min(max(bias - gain * period * (free_deflection - blocked_deflection) / slope, -limit), limit)
+
+
+def entry_hinge_limit(qbar, alpha, hinge_moment_max, area_arm):
+    """Largest flap deflection whose Newtonian hinge moment 2 q S_f c sin^2(alpha + delta) is within
+    the limit (003 Table 1), found by brentq; pi/2 - alpha where every deflection is."""
+    from scipy.optimize import brentq
+
+    top = 0.5 * math.pi - alpha
+    if hinge_moment_max <= 0.0 or qbar <= 0.0 or 2.0 * qbar * area_arm <= hinge_moment_max:
+        return top
+    return brentq(
+        lambda d: 2.0 * qbar * area_arm * math.sin(alpha + d) ** 2 - hinge_moment_max, -alpha, top, xtol=1e-15
+    )
+
+
+def angle_rates_to_body_rates(alpha, beta, rates):
+    """Body rates (p, q, r) giving the rates of (alpha, beta, bank), flight-path terms neglected:
+    alpha' = q - tan(b)(p cos a + r sin a), beta' = p sin a - r cos a, mu' = (p cos a + r sin a) / cos b,
+    solved as a linear system."""
+    ca, sa, tb, cb = math.cos(alpha), math.sin(alpha), math.tan(beta), math.cos(beta)
+    kinematics = np.array([[-tb * ca, 1.0, -tb * sa], [sa, 0.0, -ca], [ca / cb, 0.0, sa / cb]])
+    return np.linalg.solve(kinematics, rates)
+
+
+def entry_control(vehicle, state, t, deflection, integral, alpha_cmd, bank_cmd, qbar, mach, slots):
+    """One control period of the entry flight software, from 003 (see the block comment):
+
+    - outer loop: errors of alpha, beta (commanded 0) and bank, plus ``integral_gain`` times their
+      integrals (accumulated below the RCS-only altitude, clamped), times the angle gains, are the
+      commanded angle rates, turned into body rates by :func:`angle_rates_to_body_rates`;
+    - inner loop, eq. 4 inverted: M_c = J k (omega_c - omega) + omega x J omega, less the static
+      sideslip moments q S L (C_l_beta beta, 0, C_n_beta beta) (the pitch moment goes to the
+      allocation through delta_trim, eq. 6);
+    - the mode program and the surfaces' bounds; the surfaces' moments B d + offset of eq. 6 and 10.
+
+    ``qbar``, ``mach``: the flight software's air data (core.atmosphere, tested on its own);
+    ``slots``: dict of the coefficient table indices. Returns a dict."""
+    from refexmc.core import entry_flight as ef
+
+    ct, sf, model = vehicle.control, vehicle.surfaces, vehicle.fsw_model
+    rotation = model.planet[2]
+    translation, quaternion, omega = state[:6], state[6:10], np.asarray(state[10:13], dtype=float)
+    alpha, beta, bank = entry_aerodynamic_angles(translation, t, rotation, quaternion)
+    qsl = qbar * model.reference[0] * model.reference[1]
+
+    def c(name):
+        return entry_coefficient(model, slots[name], alpha, mach)
+
+    errors = np.array([alpha_cmd - alpha, -beta, (bank_cmd - bank + math.pi) % (2 * math.pi) - math.pi])
+    integral = np.array(integral, dtype=float)
+    aero_mode = translation[0] < ct[ef.CT_RCS_ONLY_ABOVE_M]
+    if aero_mode and ct[ef.CT_INTEGRAL_GAIN] > 0.0:
+        limits = ct[ef.CT_INTEGRAL_LIMIT : ef.CT_INTEGRAL_LIMIT + 3]
+        integral = np.clip(integral + errors * ct[ef.CT_PERIOD], -limits, limits)
+    angle_rates = ct[ef.CT_ANGLE_GAIN : ef.CT_ANGLE_GAIN + 3] * (errors + ct[ef.CT_INTEGRAL_GAIN] * integral)
+    omega_cmd = angle_rates_to_body_rates(alpha, beta, angle_rates)
+    inertia = np.asarray(vehicle.inertia)
+    moment = inertia @ (ct[ef.CT_RATE_GAIN] * (omega_cmd - omega)) + np.cross(omega, inertia @ omega)
+    moment -= qsl * beta * np.array([c("roll_per_beta_rad"), 0.0, c("yaw_per_beta_rad")])
+    rudders = sf[ef.SF_HAS_RUDDERS] > 0.0 and mach < sf[ef.SF_RUDDER_MACH]
+    flap_top = min(
+        sf[ef.SF_FLAP_MAX], entry_hinge_limit(qbar, alpha, sf[ef.SF_HINGE_MOMENT_MAX], sf[ef.SF_HINGE_AREA_ARM])
+    )
+    lower, upper = np.zeros(3), np.zeros(3)
+    for i in range(2):
+        lower[i], upper[i] = (
+            (sf[ef.SF_FLAP_MIN], max(flap_top, sf[ef.SF_FLAP_MIN])) if aero_mode else (deflection[i],) * 2
+        )
+    blocked = int(sf[ef.SF_BLOCKED_FLAP])
+    if blocked >= 0 and sf[ef.SF_BLOCKED_KNOWN] > 0.0:
+        lower[blocked] = upper[blocked] = sf[ef.SF_BLOCKED_DEFLECTION]
+    if rudders and aero_mode:
+        lower[2], upper[2] = sf[ef.SF_RUDDER_MIN], sf[ef.SF_RUDDER_MAX]
+    roll_a, pitch_e, yaw_a = c("roll_per_aileron_rad"), c("pitch_per_elevon_rad"), c("yaw_per_aileron_rad")
+    roll_r, yaw_r = c("roll_per_rudder_rad"), c("yaw_per_rudder_rad")
+    effectiveness = qsl * np.array(
+        [[roll_a / 2, -roll_a / 2, roll_r], [pitch_e / 2, pitch_e / 2, 0.0], [yaw_a / 2, -yaw_a / 2, yaw_r]]
+    )
+    trim = -c("pitch") / pitch_e if pitch_e != 0.0 else 0.0
+    offset = np.array([0.0, -qsl * pitch_e * trim, 0.0])  # C_m_de (delta_e - delta_trim), eq. 6
+    return {
+        "angles": (alpha, beta, bank),
+        "integral": integral,
+        "body_rates_cmd": omega_cmd,
+        "moment": moment,
+        "lower": lower,
+        "upper": upper,
+        "mode": 0 if not aero_mode else (2 if rudders else 1),
+        "effectiveness": effectiveness,
+        "offset": offset,
+    }
+
+
+def entry_actuate(command, deflection, blocked, blocked_deflection, rates, time_constant, dt):
+    """Surfaces after one period: each moves by the first-order lag's share 1 - exp(-dt / T) of
+    its command error, at most rate dt; the blocked flap stays where it is."""
+    share = 1.0 - math.exp(-dt / time_constant) if time_constant > 0.0 else 1.0
+    out = []
+    for i in range(3):
+        if i == blocked:
+            out.append(blocked_deflection)
+            continue
+        step = (command[i] - deflection[i]) * share
+        out.append(deflection[i] + max(-rates[i] * dt, min(rates[i] * dt, step)))
+    return np.array(out)

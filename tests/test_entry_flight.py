@@ -233,3 +233,31 @@ def test_schedule_is_numpys_interp_held_at_the_ends():
     table = np.array([[2.0, 5.0, 10.0, 30.0], [0.35, 0.52, 0.70, 0.70]])
     for x in np.linspace(0.0, 40.0, 81):
         assert ef.schedule(table, x) == pytest.approx(np.interp(x, table[0], table[1]), rel=1e-15, abs=1e-15)
+
+
+def test_the_history_has_the_load_factor_and_heat_flux_of_the_peaks(nominal):
+    """HI_LOAD and HI_HEAT_FLUX are the quantities whose peaks the summary holds, sampled each
+    second: the heat flux is Sutton-Graves of the row's q and speed (rho = 2 q / V^2) to rounding,
+    the sampled peaks at most the control-rate peaks and within 2 % of them (a 1 s sample of
+    peaks lasting minutes); the load factor is |L + D + Y| / (m g0) of the row's flight condition."""
+    summary, history = nominal
+    speed, qbar = history[:, ef.HI_SPEED], history[:, ef.HI_QBAR]
+    expected = 1.7415e-4 * np.sqrt(2.0 * qbar / speed**2 / 0.8) * speed**3  # x38.yaml's nose radius 0.8 m
+    assert np.allclose(history[:, ef.HI_HEAT_FLUX], expected, rtol=1e-12, atol=0.0)
+    load = history[:, ef.HI_LOAD]
+    assert load.max() <= summary[ef.SU_PEAK_LOAD] <= 1.02 * load.max()
+    assert (
+        history[:, ef.HI_HEAT_FLUX].max() <= summary[ef.SU_PEAK_HEAT_FLUX] <= 1.02 * history[:, ef.HI_HEAT_FLUX].max()
+    )
+    # the load factor from the row's alpha, beta, Mach and q through the true tables (scipy's
+    # interpolation, tests/naive.py): the same float64 quantities by another route, 1e-9
+    from naive import entry_coefficient
+
+    model = prepare()[0].model
+    slots = config_entry.coefficient_slots()
+    for row in history[:: max(1, len(history) // 200)]:
+        alpha, beta, mach = row[ef.HI_ALPHA], row[ef.HI_BETA], row[ef.HI_MACH]
+        lift, drag = (entry_coefficient(model, slots[name], alpha, mach) for name in ("lift", "drag"))
+        side = entry_coefficient(model, slots["side_force_per_beta_rad"], alpha, mach) * beta
+        force = row[ef.HI_QBAR] * 22.7 * math.sqrt(lift**2 + drag**2 + side**2)  # 003 Table 1's S
+        assert row[ef.HI_LOAD] == pytest.approx(force / (11_340.0 * 9.80665), rel=1e-9, abs=1e-12)

@@ -1,7 +1,7 @@
 """The report of every shipped mission is built from that mission: its requirements, its outputs, its words.
 
 Each shipped campaign (ReFEx smoke, SPORE deorbit, IRASSI fine pointing, generic slew, the cold-gas
-surveyor hop, the X-38 entry with a blocked flap) flies a few runs in-process and is reported; the
+surveyor hop, the X-38 entry nominal and with a blocked flap) flies a few runs in-process and is reported; the
 tests check, per mission, what a reader of another mission's report complained about (issue 25):
 no other mission's words, a statistics row, a figure and a worst-case list for every requirement
 metric, no figure axis without data, and the failure header as the runs table has it. The
@@ -29,6 +29,7 @@ MISSIONS = {  # campaign file: runs flown here (enough for every requirement sta
     "generic-slew.yaml": 8,
     "surveyor-hop.yaml": 8,
     "x38-blocked-flap.yaml": 8,
+    "x38-nominal.yaml": 8,
 }
 REFEX_ONLY = re.compile(r"hand-over|handover angle|\bseparation\b(?!\.)|000 (Fig|Table|sec)\.?", re.I)
 
@@ -176,12 +177,23 @@ def test_failure_header_matches_the_runs_table(mission):
             count = int((runs[column].fillna("").astype(str) != "").sum())
             if count:
                 expected[kind] = count
+    blocked = "p.entry_flight.blocked_flap.deflection_deg"
+    if blocked in runs:  # an entry with a blocked flap: every run flies with it
+        expected["body flap"] = int(np.isfinite(runs[blocked].to_numpy(dtype=float)).sum())
     kinds = {k["kind"]: k["runs_with_failure"] for k in report["summary"]["campaign"]["failure_kinds"]}
     assert {k: v for k, v in kinds.items() if v} == expected
     header = report["summary"]["campaign"]["failures"]
     if name == "irassi-fine-pointing.yaml":
         assert expected.get("wheel", 0) > 0, "the test campaign must fail some wheels"
         assert f"wheels random, undetected ({expected['wheel']} of {len(runs)} runs with a failed wheel)" == header
+        assert f"failures: {header}" in page and f"failures: {header}" in report["text"]
+    elif name == "x38-blocked-flap.yaml":
+        drawn = runs[blocked].to_numpy(dtype=float)
+        assert header == (
+            "right body flap blocked, dispersed (uniform low 10, high 20), "
+            f"drawn {drawn.min():.4g}-{drawn.max():.4g}°, nominal 14°, known to the flight software "
+            f"({len(runs)} of {len(runs)} runs with a blocked flap)"
+        )
         assert f"failures: {header}" in page and f"failures: {header}" in report["text"]
     elif not expected:
         assert header == "none"
@@ -258,3 +270,153 @@ def test_no_table_wider_than_the_page_in_chromium(mission, tmp_path):
     assert result["inner"] == PAGE_WIDTH and result["tables"], result
     assert max(result["tables"]) <= result["inner"], f"{name}: a table overflows the page: {result}"
     assert result["scroll"] <= result["inner"], f"{name}: the page scrolls sideways: {result}"
+
+
+ENTRY_FIGURES = {  # title -> the panels (history signals) it must draw, each with data
+    "Attitude tracking: α, β and bank μ against their commands": (
+        "alpha_deg",
+        "bank_deg",
+        "alpha_error_deg",
+        "beta_deg",
+        "bank_error_deg",
+    ),
+    "Dynamic pressure, load factor, heat flux and the altitude-velocity corridor": (
+        "qbar_pa",
+        "load_factor_g",
+        "heat_flux_w_m2",
+        "altitude_over_speed_m",
+    ),
+    "Surface deflections and RCS propellant": ("flap_left_deg", "flap_right_deg", "rudder_deg", "rcs_propellant_kg"),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mission", ["x38-blocked-flap.yaml", "x38-nominal.yaml"], indirect=True)
+def test_the_entry_report_draws_the_histories_with_bands_that_hold_the_nominal(mission):
+    """Issue 24: an entry's report shows α, β, μ against their commands, q̄, load factor, heat flux,
+    altitude-velocity, the surfaces and the RCS propellant over time, from the OUT's history
+    columns; every band holds every flown run (the nominal run 0 included) and the blocked flap
+    shows as a flat band at the drawn deflections."""
+    import pyarrow.parquet as pq
+
+    from refexmc.report import data, entry_histories
+
+    name, out, report, recorded, page = mission
+    summary = report["summary"]
+    for title, panels in ENTRY_FIGURES.items():
+        assert title in summary["figures"], f"{name}: no figure {title!r}"
+        figure = recorded[summary["figures"].index(title)]
+        assert not figure["empty"] and len(figure["ylabels"]) == len(panels)
+        assert "time since the entry interface [s]" in figure["xlabels"]
+        assert f"<h2>{title}</h2>" in page
+    assert summary["entry_panels"]["shown"] == [p for panels in ENTRY_FIGURES.values() for p in panels]
+    tracking = recorded[summary["figures"].index(next(iter(ENTRY_FIGURES)))]
+    if name == "x38-blocked-flap.yaml":  # its alpha transients reach the 1 deg bound (the nominal's stay far below)
+        assert 1.0 in tracking["hlines"] and -1.0 in tracking["hlines"]  # alpha_error_max_deg.max < 1, drawn at +-1
+    # the envelopes against the history read whole, run by run (the few runs of this test)
+    campaign = data.load(out)
+    aggregate = entry_histories.aggregate_entry_histories(campaign)
+    history = pq.read_table(sorted((out / "histories").glob("*.parquet"))).to_pandas()
+    assert aggregate["rows"] == len(history)
+    for signal in ("alpha_error_deg", "qbar_pa", "flap_right_deg", "rcs_propellant_kg"):
+        envelope, q = aggregate["signals"][signal]
+        columns = entry_histories.ENTRY_SIGNALS[signal][0]
+        compute = entry_histories.ENTRY_SIGNALS[signal][1]
+        frame = {c: history[c].to_numpy(dtype=float) for c in columns}
+        values = compute(frame) if compute else frame[columns[0]]
+        bins = envelope.bin_of(history["t_s"].to_numpy())  # centred on multiples of dx
+        for b in np.unique(bins)[:: max(1, len(np.unique(bins)) // 50)]:
+            here = values[bins == b]
+            # min and max are exact; the percentiles lie between them
+            assert q[b, 0] == here.min() and q[b, 4] == here.max(), (signal, b)
+            assert q[b, 0] <= q[b, 1] <= q[b, 2] <= q[b, 3] <= q[b, 4]
+        nominal = aggregate["nominal"]
+        mine = envelope.bin_of(nominal["t_s"])
+        assert (q[mine, 0] <= nominal[signal]).all() and (nominal[signal] <= q[mine, 4]).all()
+    right = aggregate["signals"]["flap_right_deg"][1]
+    runs = read_runs(out)
+    if name == "x38-blocked-flap.yaml":  # the blocked flap: a flat band over the drawn deflections
+        drawn = runs["p.entry_flight.blocked_flap.deflection_deg"].to_numpy(dtype=float)
+        all_flying = np.arange(len(right)) * aggregate["signals"]["flap_right_deg"][0].dx < runs["t_end_s"].min() - 5
+        assert all_flying.sum() > 100
+        assert (right[all_flying, 0] == np.float32(drawn.min())).all()  # the history is float32
+        assert (right[all_flying, 4] == np.float32(drawn.max())).all()
+        assert "The right body flap blocked, dispersed (uniform low 10, high 20), drawn" in page
+    else:  # both flaps free: they leave 0 together once below the RCS-only altitude
+        assert summary["campaign"]["failures"] == "none"
+        left = aggregate["signals"]["flap_left_deg"][1]
+        assert np.nanmax(left[:, 4]) > 1.0 and np.nanmax(right[:, 4]) > 1.0
+        assert np.nanmin(left[:, 0]) == 0.0 and np.nanmin(right[:, 0]) == 0.0  # held at 0 above 90 km
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mission", ["x38-blocked-flap.yaml", "x38-nominal.yaml"], indirect=True)
+def test_the_entry_figures_render_in_chromium(mission, tmp_path):
+    """Chromium loads and draws every figure of the entry report, the history figures among them."""
+    from test_report_render import figures_drawn, probe
+
+    binary = shutil.which("chromium")
+    if binary is None:
+        pytest.skip("needs Debian's chromium (apt-get install chromium)")
+    name, out, report, _, _ = mission
+    titles = report["summary"]["figures"]
+    result = probe(binary, (out / "report" / "index.html").read_text(), tmp_path)
+    assert result["alts"] == titles and set(ENTRY_FIGURES) <= set(result["h2"])
+    assert figures_drawn(result) == [True] * len(titles), (name, result)
+    assert all(w > 100 and h > 100 for w, h in result["shown"]), result["shown"]
+
+
+@pytest.mark.parametrize(
+    ("where", "blocked", "dispersion", "expected"),
+    [
+        (
+            "mission",
+            {"flap": "right", "deflection_deg": 14.0, "known_to_flight_software": True},
+            {"dist": "uniform", "low": 10.0, "high": 20.0},
+            "right body flap blocked, dispersed (uniform low 10, high 20), drawn 10.5-19.5°, nominal 14°, "
+            "known to the flight software (3 of 3 runs with a blocked flap)",
+        ),
+        (
+            "mission",
+            {"flap": "left", "deflection_deg": 12.0, "known_to_flight_software": False},
+            None,
+            "left body flap blocked, fixed at 12°, unknown to the flight software (3 of 3 runs with a blocked flap)",
+        ),
+        (
+            "vehicle",
+            {"flap": "right", "deflection_deg": 16.0},
+            None,
+            "right body flap blocked, fixed at 16°, known to the flight software (3 of 3 runs with a blocked flap)",
+        ),
+        ("none", None, None, None),
+    ],
+)
+def test_the_failure_header_names_the_blocked_flap(tmp_path, where, blocked, dispersion, expected):
+    """Which flap, fixed or dispersed (with the range the runs drew), known to the flight software
+    or not; from the mission's entry_flight.blocked_flap or the vehicle file's body_flaps.blocked."""
+    import pandas as pd
+
+    from refexmc.report import data, summary
+
+    runs = pd.DataFrame({"run_id": [0, 1, 2], "status": "ok", "success": True})
+    mission = {"entry_flight": {"state": {}}}
+    vehicle = {"surfaces": {"body_flaps": {"min_deg": -20.0, "max_deg": 30.0}}}
+    resolved = {"mission": mission, "vehicle": vehicle, "failures": {"mode": "none"}}
+    if where == "mission":
+        mission["entry_flight"]["blocked_flap"] = blocked
+    elif where == "vehicle":
+        vehicle["surfaces"]["body_flaps"]["blocked"] = blocked
+    if dispersion:
+        resolved["dispersions"] = {"entry_flight.blocked_flap.deflection_deg": dispersion}
+        runs["p.entry_flight.blocked_flap.deflection_deg"] = [14.0, 10.5, 19.5]
+    campaign = data.Campaign(out=tmp_path, runs=runs, resolved=resolved, resolved_lines={})
+    kinds = summary.failures_section(campaign)
+    if expected is None:
+        assert kinds == []
+        return
+    (kind,) = kinds
+    assert kind["text"] == expected
+    assert kind["kind"] == "body flap" and kind["flap"] == blocked["flap"]
+    assert kind["mode"] == ("dispersed" if dispersion else "fixed")
+    assert kind["detected"] == blocked.get("known_to_flight_software", True)
+    assert kind["drawn_deg"] == ([10.5, 19.5] if dispersion else None)

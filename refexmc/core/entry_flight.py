@@ -95,7 +95,9 @@ STATUS_TERMINAL_MACH, STATUS_FLOOR, STATUS_TIME_LIMIT = 1, 2, 3
 HI_TIME, HI_ALTITUDE, HI_SPEED, HI_MACH, HI_ALPHA, HI_BETA, HI_BANK = 0, 1, 2, 3, 4, 5, 6
 HI_ALPHA_CMD, HI_BANK_CMD, HI_LEFT, HI_RIGHT, HI_RUDDER, HI_PROPELLANT, HI_QBAR = 7, 8, 9, 10, 11, 12, 13
 HI_MODE = 14  # the mode program's mode: 0 RCS alone, 1 flaps and RCS, 2 flaps, rudders and RCS
-HISTORY_COLUMNS = 15  # the mode names: config.entry.MODE_NAMES
+HI_LOAD = 15  # aerodynamic load factor |L + D + Y| / (m g0)
+HI_HEAT_FLUX = 16  # stagnation-point heat flux (Sutton-Graves), W/m^2; NaN without a nose radius
+HISTORY_COLUMNS = 17  # the mode names: config.entry.MODE_NAMES
 
 
 class EntryVehicle(NamedTuple):
@@ -471,6 +473,16 @@ def fly(vehicle, wk, initial, history, summary):
             summary[SU_BETA_ERROR] = max(summary[SU_BETA_ERROR], abs(beta))
             summary[SU_BANK_ERROR] = max(summary[SU_BANK_ERROR], abs(_wrap(bank_cmd - bank)))
         summary[SU_PEAK_QBAR] = max(summary[SU_PEAK_QBAR], qbar)
+        c = wk.coefficients  # true, at the control period's condition
+        force = qbar * vehicle.model.reference[REF_AREA]
+        lift, drag, side = force * c[AC_LIFT], force * c[AC_DRAG], force * c[AC_SIDE_BETA] * beta
+        load = math.sqrt(lift * lift + drag * drag + side * side) / (ct[CT_MASS] * 9.80665)
+        summary[SU_PEAK_LOAD] = max(summary[SU_PEAK_LOAD], load)
+        heat = math.nan
+        if ct[CT_NOSE_RADIUS_M] > 0.0:
+            rho = 2.0 * qbar / (speed * speed)
+            heat = SUTTON_GRAVES_EARTH * math.sqrt(rho / ct[CT_NOSE_RADIUS_M]) * speed * speed * speed
+            summary[SU_PEAK_HEAT_FLUX] = max(summary[SU_PEAK_HEAT_FLUX], heat)
         if t >= next_row and rows < history.shape[0]:
             h = history[rows]
             h[HI_TIME], h[HI_ALTITUDE], h[HI_SPEED], h[HI_MACH] = t, wk.state[entry.EN_ALTITUDE], speed, mach
@@ -478,17 +490,9 @@ def fly(vehicle, wk, initial, history, summary):
             h[HI_ALPHA_CMD], h[HI_BANK_CMD] = alpha_cmd, bank_cmd
             h[HI_LEFT], h[HI_RIGHT], h[HI_RUDDER] = wk.deflection[0], wk.deflection[1], wk.deflection[2]
             h[HI_PROPELLANT], h[HI_QBAR], h[HI_MODE] = propellant, qbar, mode
+            h[HI_LOAD], h[HI_HEAT_FLUX] = load, heat
             rows += 1
             next_row += 1.0
-        c = wk.coefficients  # true, at the control period's condition
-        force = qbar * vehicle.model.reference[REF_AREA]
-        lift, drag, side = force * c[AC_LIFT], force * c[AC_DRAG], force * c[AC_SIDE_BETA] * beta
-        load = math.sqrt(lift * lift + drag * drag + side * side) / (ct[CT_MASS] * 9.80665)
-        summary[SU_PEAK_LOAD] = max(summary[SU_PEAK_LOAD], load)
-        if ct[CT_NOSE_RADIUS_M] > 0.0:
-            rho = 2.0 * qbar / (speed * speed)
-            heat = SUTTON_GRAVES_EARTH * math.sqrt(rho / ct[CT_NOSE_RADIUS_M]) * speed * speed * speed
-            summary[SU_PEAK_HEAT_FLUX] = max(summary[SU_PEAK_HEAT_FLUX], heat)
         actuate(vehicle, wk, dt)
         rk4_step(vehicle, wk, t, dt)
         propellant += rate * dt  # 003 eq. 5 over the period

@@ -158,7 +158,7 @@ def _modes_caption(campaign, summary, histories, left_out, unit):
 
 def render_figures(campaign, summary):
     """[(title, caption, png bytes, file stem)] of every figure the campaign has data for."""
-    from refexmc.report import aggregate, figures
+    from refexmc.report import aggregate, entry_histories, figures
 
     result = []
     plan = summary["outputs"]
@@ -196,6 +196,10 @@ def render_figures(campaign, summary):
     summary["metric_figures"] = {p["column"]: "metrics" for p in panels}
     summary["metric_figures_too_few"] = too_few
     histories = aggregate.aggregate_histories(campaign)
+    if entry_histories.is_entry(campaign):  # an entry's signals over time (issue 24)
+        from refexmc.report import entry_figures
+
+        result += entry_figures.figures_of(campaign, summary, bounds_of)
     if histories is not None:
         shown, left_out = aggregate.modes_with_samples(histories, len(campaign.ok))
         arcsec = any(plan["units"].get(c) == "arcsec" for c in plan["requirement_columns"])

@@ -5,7 +5,7 @@ import shlex
 
 import numpy as np
 
-from refexmc.report import data, outputs, published, stats
+from refexmc.report import data, entry_histories, outputs, published, stats
 from refexmc.report import requirements as requirements_module
 from refexmc.report.requirements import campaign_metric_covers
 
@@ -540,6 +540,22 @@ def failures_section(campaign):
                 "runs": len(runs),
                 "text": f"{what}s {mode}, {'detected' if detected else 'undetected'} "
                 f"({with_failure} of {len(runs)} runs with a failed {what})",
+            }
+        )
+    flap = entry_histories.blocked_flap(campaign)
+    if flap is not None:  # an entry's blocked body flap (issue 24): every run flies with it
+        kinds.append(
+            {
+                "kind": "body flap",
+                "mode": "dispersed" if flap["dispersed"] else "fixed",
+                "detected": flap["known_to_flight_software"],
+                "flap": flap["flap"],
+                "deflection_deg": flap["deflection_deg"],
+                "drawn_deg": list(flap["drawn"]) if flap["drawn"] else None,
+                "runs_with_failure": len(runs),
+                "runs": len(runs),
+                "text": f"{entry_histories.blocked_flap_text(flap)} "
+                f"({len(runs)} of {len(runs)} runs with a blocked flap)",
             }
         )
     return kinds
