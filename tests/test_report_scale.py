@@ -47,6 +47,8 @@ def awkward_values(edges, rng, n=3000, dtype=np.float64):
         (aggregate.log_edges(1e-7, 1e1), True),
         (np.linspace(0.0, 1.0, 1001), False),
         (np.array([0.5]), False),
+        (np.concatenate([-aggregate.log_edges(1e-3, 1e1)[::-1], [0.0], aggregate.log_edges(1e-3, 1e1)]), False),
+        (np.array([0.0, 0.1, 0.15, 2.0, 2.5]), True),  # not evenly spaced: the binary search
     ],
 )
 def test_value_bin_is_the_searchsorted_bin_for_every_value(edges, log, dtype):

@@ -17,6 +17,9 @@ MAX_TIME_BINS = 600
 ENVELOPE_PERCENTS = (0.0, 1.0, 50.0, 99.0, 100.0)
 
 
+EVEN_SPACING = 1e-6  # edges whose steps differ by less than this fraction are evenly spaced: a guess within 1e-3 bin
+
+
 class BinnedQuantiles:
     """Streaming histogram of values per (group, time bin) on fixed value edges (increasing).
 
@@ -38,12 +41,15 @@ class BinnedQuantiles:
         self._counts = np.zeros((groups, time_bins, self.value_bins), dtype=np.int64)
         self._pending, self._pending_samples = [], 0
         self._flush_samples = max(self.FLUSH_SAMPLES, self._counts.size)
-        # edges[i] = first * step**i (log) or first + i * step: the bin's guess from the value
-        first, last, n = self.edges[0], self.edges[-1], len(self.edges)
-        spread = (math.log(last / first) if log and first > 0 else last - first) if n > 1 else 0.0
-        self._origin = math.log(first) if log and first > 0 else first
-        self._per_step = (n - 1) / spread if spread > 0 else 0.0
+        # edges[i] = first * step**i (log) or first + i * step: the bin's guess from the value; for
+        # edges spaced otherwise (an entry's signed log edges, issue 24) the binary search
+        first, n = self.edges[0], len(self.edges)
         self._guess_log = bool(log and first > 0)
+        scaled = np.log(self.edges) if self._guess_log else self.edges
+        steps = np.diff(scaled)
+        even = n > 1 and steps.min() > 0 and steps.max() - steps.min() <= EVEN_SPACING * steps.mean()
+        self._origin = scaled[0]
+        self._per_step = (n - 1) / (scaled[-1] - scaled[0]) if even else 0.0
         self._previous_edge = np.concatenate([[-np.inf], self.edges])  # [i]: edges[i - 1]
         self._next_edge = np.concatenate([self.edges, [np.nan]])  # [i]: edges[i]; no value is >= NaN
 
