@@ -164,6 +164,12 @@ def test_a_campaign_repeated_three_times_reports_the_same_envelopes(tmp_path):
     assert np.array_equal(three["propellant"][1], one["propellant"][1], equal_nan=True)
     assert three["rows"] == 3 * one["rows"]
     assert make_report(tmp_path / "big", html=False)["summary"]["counts"]["runs"] == 120
+    # --no-histories: the runs table alone, still complete (no histories part is expected then)
+    tool.make_big_out(src, tmp_path / "runs_only", 2, histories=False)
+    runs_only = data.load(tmp_path / "runs_only")
+    assert len(runs_only.runs) == 80 and not runs_only.history_parts and data.completeness(runs_only)["complete"]
+    with pytest.raises(SystemExit, match="exists"):
+        tool.make_big_out(src, tmp_path / "runs_only", 2)
     with pytest.raises(SystemExit, match="not a multiple"):
         manifest.update(chunk_size=7)
         storage.write_manifest(src, manifest)
