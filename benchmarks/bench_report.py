@@ -9,7 +9,9 @@ its own). With ``--stages`` one more subprocess times the stages of ``make_repor
 Usage: .venv/bin/python benchmarks/bench_report.py OUT [--no-html] [--repeats 3] [--stages] [--json PATH]
 
 Make a 10,000-run OUT first, e.g.
-``.venv/bin/refexmc run campaigns/refex-mc100.yaml --runs 10000 -j 2 -o /tmp/mc10k --overwrite --no-progress``.
+``.venv/bin/refexmc run campaigns/refex-mc100.yaml --runs 10000 -j 2 -o /tmp/mc10k --overwrite --no-progress``,
+and from it a 100,000-run OUT with histories: ``benchmarks/make_big_out.py /tmp/mc10k /tmp/mc100k``
+(``--no-histories`` for the runs table alone).
 """
 
 import argparse

@@ -17,24 +17,116 @@ MAX_TIME_BINS = 600
 ENVELOPE_PERCENTS = (0.0, 1.0, 50.0, 99.0, 100.0)
 
 
+EVEN_SPACING = 1e-6  # edges whose steps differ by less than this fraction are evenly spaced: a guess within 1e-3 bin
+
+
 class BinnedQuantiles:
-    """Streaming histogram of values per (group, time bin) on fixed value edges."""
+    """Streaming histogram of values per (group, time bin) on fixed value edges (increasing).
+
+    Samples are counted in bulk: their flat cell indices wait until a quarter of ``counts.size``
+    (at least ``FLUSH_SAMPLES``) have come, then one ``np.bincount`` adds them, so that the cost
+    of the counts array is paid per ~250,000 samples, not per part file (a 100-run part has ~46,000).
+    The value bin of a sample is the one ``np.searchsorted(edges, value, side="right")`` gives,
+    found from the edges' even spacing (in log for ``log``) and corrected to the exact edge:
+    ~3.5 times faster than the binary search on a history's values.
+    """
+
+    # Each flush also costs bincount's output and its addition, ~counts.size: flushing every
+    # counts.size / 4 samples rather than every counts.size took ~0.1 s more CPU at 100,000 ReFEx
+    # runs (3.5 s for the envelopes) and held 20 MiB less of pending indices at 10,000 runs.
+    FLUSH_SAMPLES = 1 << 18
 
     def __init__(self, groups, time_bins, dt, edges, log=False):
         self.groups, self.time_bins, self.dt = groups, time_bins, float(dt)
         self.edges = np.asarray(edges, dtype=float)
         self.log = log
         self.value_bins = len(self.edges) + 1  # below the first edge, between edges, above the last
-        self.counts = np.zeros((groups, time_bins, self.value_bins), dtype=np.int64)
+        self._counts = np.zeros((groups, time_bins, self.value_bins), dtype=np.int64)
+        self._pending, self._pending_samples = [], 0
+        self._flush_samples = max(self.FLUSH_SAMPLES, self._counts.size // 4)
+        # edges[i] = first * step**i (log) or first + i * step: the bin's guess from the value; for
+        # edges spaced otherwise (an entry's signed log edges, issue 24) the binary search
+        first, n = self.edges[0], len(self.edges)
+        self._guess_log = bool(log and first > 0)
+        scaled = np.log(self.edges) if self._guess_log else self.edges
+        steps = np.diff(scaled)
+        even = n > 1 and steps.min() > 0 and steps.max() - steps.min() <= EVEN_SPACING * steps.mean()
+        self._origin = scaled[0]
+        self._per_step = (n - 1) / (scaled[-1] - scaled[0]) if even else 0.0
+        self._previous_edge = np.concatenate([[-np.inf], self.edges])  # [i]: edges[i - 1]
+        self._next_edge = np.concatenate([self.edges, [np.nan]])  # [i]: edges[i]; no value is >= NaN
+
+    @property
+    def counts(self):
+        """Samples per [group, time bin, value bin]."""
+        self._flush()
+        return self._counts
 
     def add(self, group, tau, values):
         """Add samples: ``group`` int array, ``tau`` time since the group's start [s], ``values``."""
-        keep = np.isfinite(values) & np.isfinite(tau) & (group >= 0) & (group < self.groups)
-        group, tau, values = group[keep], tau[keep], values[keep]
-        tbin = np.clip((np.maximum(tau, 0.0) / self.dt).astype(np.int64), 0, self.time_bins - 1)
-        vbin = np.searchsorted(self.edges, values, side="right")
-        flat = (group.astype(np.int64) * self.time_bins + tbin) * self.value_bins + vbin
-        self.counts += np.bincount(flat, minlength=self.counts.size).reshape(self.counts.shape)
+        self.add_cells(self.cells(group, tau), values)
+
+    def cells(self, group, tau):
+        """Flat (group, time bin) index of each sample; -1 where the group is out of range or tau is not finite.
+
+        Histograms with the same groups, time bins and dt share these (:meth:`add_cells`).
+        """
+        tbin = np.maximum(tau, 0.0)
+        tbin /= self.dt
+        with np.errstate(invalid="ignore"):  # NaN tau: its cell is -1 below
+            tbin = np.clip(tbin.astype(np.int64), 0, self.time_bins - 1)
+        cell = group.astype(np.int64) * self.time_bins + tbin
+        bad = ~np.isfinite(tau) | (group < 0) | (group >= self.groups)
+        cell[bad] = -1
+        return cell
+
+    def add_cells(self, cells, values):
+        """Add samples by their :meth:`cells` (of a histogram with the same groups and time bins)."""
+        self.add_flat(self.flat_indices(cells, values))
+
+    def flat_indices(self, cells, values):
+        """Flat index into the counts of each sample given by its :meth:`cells`, without the samples
+        of cell -1 or of a value that is not finite. Changes nothing: may run on several threads."""
+        keep = np.isfinite(values) & (cells >= 0)
+        if not keep.all():
+            cells, values = cells[keep], values[keep]
+        flat = cells * self.value_bins
+        flat += self.value_bin(values)
+        return flat
+
+    def add_flat(self, flat):
+        """Count samples by their :meth:`flat_indices`."""
+        self._pending.append(flat)
+        self._pending_samples += len(flat)
+        if self._pending_samples >= self._flush_samples:
+            self._flush()
+
+    def value_bin(self, values):
+        """``np.searchsorted(self.edges, values, side="right")`` of finite ``values``, as int64."""
+        n = len(self.edges)
+        if self._per_step == 0.0:
+            return np.searchsorted(self.edges, values, side="right").astype(np.int64)
+        with np.errstate(divide="ignore", invalid="ignore"):  # log of 0 or of a negative: below every edge
+            guess = np.log(values) if self._guess_log else np.array(values, dtype=float)
+            guess -= self._origin
+            guess *= self._per_step
+            guess = np.floor(guess, out=guess)
+        guess = np.fmin(np.fmax(guess, -1.0), n - 1.0)  # fmax: NaN (log of a negative) -> -1
+        index = guess.astype(np.int64)
+        index += 1  # edges[index - 1] <= value < edges[index], or close: corrected to exactly that
+        while True:
+            down = values < self._previous_edge[index]
+            up = values >= self._next_edge[index]
+            if not (down.any() or up.any()):
+                return index
+            index -= down
+            index += up
+
+    def _flush(self):
+        if self._pending:
+            flat = self._pending[0] if len(self._pending) == 1 else np.concatenate(self._pending)
+            self._pending, self._pending_samples = [], 0
+            self._counts += np.bincount(flat, minlength=self._counts.size).reshape(self._counts.shape)
 
     def bin_values(self):
         """A representative value per value bin (geometric or arithmetic centre; the edge outside)."""
@@ -68,27 +160,41 @@ DEFAULT_RANGES = {"theta_t_deg": (1e-4, 1e3), "omega_m_deg_s": (1e-5, 1e3)}
 
 
 def history_range(campaign, column):
-    """Decade-rounded (low, high) of a history column's positive values, read from the Parquet
-    row-group statistics (no data read): the log axes and their bins follow the data, so a
-    fine-pointing mission's arcsec errors are not cut at a floor made for degrees. At most
-    ``MAX_DECADES`` decades; ``DEFAULT_RANGES`` when the parts carry no statistics."""
+    """Decade-rounded (low, high) of a history column's positive values (:func:`history_ranges`)."""
+    return history_ranges(campaign, [column])[column]
+
+
+def history_ranges(campaign, columns):
+    """{column: decade-rounded (low, high) of its positive values}, read from the Parquet
+    row-group statistics (no data read; each part's footer once): the log axes and their bins
+    follow the data, so a fine-pointing mission's arcsec errors are not cut at a floor made for
+    degrees. At most ``MAX_DECADES`` decades; ``DEFAULT_RANGES`` when the parts carry no statistics."""
     import pyarrow.parquet as pq
 
-    low, high = math.inf, -math.inf
+    low, high = dict.fromkeys(columns, math.inf), dict.fromkeys(columns, -math.inf)
+    no_statistics = set()
     for part in campaign.history_parts:
         metadata = pq.ParquetFile(part).metadata
         names = [metadata.schema.column(i).name for i in range(metadata.num_columns)]
-        if column not in names:
-            continue
-        index = names.index(column)
-        for group in range(metadata.num_row_groups):
-            statistics = metadata.row_group(group).column(index).statistics
-            if statistics is None or not statistics.has_min_max:
-                return DEFAULT_RANGES[column]
-            low, high = (
-                min(low, abs(float(statistics.min)) if float(statistics.min) > 0 else 0.0),
-                max(high, abs(float(statistics.max)), abs(float(statistics.min))),
-            )
+        for column in columns:
+            if column not in names or column in no_statistics:
+                continue
+            index = names.index(column)
+            for group in range(metadata.num_row_groups):
+                statistics = metadata.row_group(group).column(index).statistics
+                if statistics is None or not statistics.has_min_max:
+                    no_statistics.add(column)
+                    break
+                smallest, largest = float(statistics.min), float(statistics.max)
+                low[column] = min(low[column], abs(smallest) if smallest > 0 else 0.0)
+                high[column] = max(high[column], abs(largest), abs(smallest))
+    return {
+        column: DEFAULT_RANGES[column] if column in no_statistics else _decades(low[column], high[column], column)
+        for column in columns
+    }
+
+
+def _decades(low, high, column):
     if not math.isfinite(high) or high <= 0.0:
         return DEFAULT_RANGES[column]
     top = 10.0 ** math.ceil(math.log10(high))
@@ -102,6 +208,22 @@ def mode_starts(runs, mode_time_columns):
     times = runs[mode_time_columns].to_numpy(dtype=float)
     times = np.nan_to_num(times, nan=0.0)
     return np.concatenate([np.zeros((len(runs), 1)), np.cumsum(times, axis=1)[:, :-1]], axis=1)
+
+
+def run_positions(run_ids, rid):
+    """Index of each of ``rid`` in the sorted ``run_ids``; -1 where it is not there.
+
+    Looked up once per stretch of equal ids (a history part holds each run's rows together).
+    """
+    if len(rid) == 0:
+        return np.zeros(0, dtype=np.int64)
+    first = np.flatnonzero(np.concatenate([[True], rid[1:] != rid[:-1]]))
+    ids = rid[first]
+    position = np.searchsorted(run_ids, ids)
+    found = position < len(run_ids)
+    found[found] = run_ids[position[found]] == ids[found]
+    position[~found] = -1
+    return np.repeat(position, np.diff(np.append(first, len(rid))))
 
 
 def aggregate_histories(campaign):
@@ -131,27 +253,25 @@ def aggregate_histories(campaign):
     mode_bins = int(longest_mode / mode_dt) + 2
     fuel_dt = max(sample_dt, t_end / MAX_TIME_BINS)
     fuel_bins = int(t_end / fuel_dt) + 2
-    angle = BinnedQuantiles(
-        len(modes), mode_bins, mode_dt, log_edges(*history_range(campaign, "theta_t_deg")), log=True
-    )
-    rate = BinnedQuantiles(
-        len(modes), mode_bins, mode_dt, log_edges(*history_range(campaign, "omega_m_deg_s")), log=True
-    )
+    ranges = history_ranges(campaign, ["theta_t_deg", "omega_m_deg_s"])
+    angle = BinnedQuantiles(len(modes), mode_bins, mode_dt, log_edges(*ranges["theta_t_deg"]), log=True)
+    rate = BinnedQuantiles(len(modes), mode_bins, mode_dt, log_edges(*ranges["omega_m_deg_s"]), log=True)
     fuel = BinnedQuantiles(1, fuel_bins, fuel_dt, np.linspace(0.0, 1.0, 1001))
     valve_samples = np.zeros(len(modes), dtype=np.int64)
     nominal_id = campaign.nominal_run_id
     nominal_parts = []
     rows = 0
     columns = ["run_id", "t_s", "mode", "theta_t_deg", "omega_m_deg_s", "fuel_remaining", "valves_open"]
-    for batch in data.history_batches(campaign, columns):
-        rows += batch.num_rows
+    starts = starts.ravel()  # [run position * modes + mode]
+
+    def samples(batch):  # on the reading threads: nothing shared is changed
+        read = batch.num_rows
         rid = batch.column("run_id").to_numpy(zero_copy_only=False)
-        position = np.searchsorted(run_ids, rid)
-        position_ok = position < len(run_ids)
-        position_ok[position_ok] = run_ids[position[position_ok]] == rid[position_ok]
-        if not position_ok.all():  # rows of errored runs: not in the statistics
-            batch = batch.filter(position_ok)
-            rid, position = rid[position_ok], position[position_ok]
+        position = run_positions(run_ids, rid)
+        if (position < 0).any():  # rows of errored runs: not in the statistics
+            flown = position >= 0
+            batch = batch.filter(flown)
+            rid, position = rid[flown], position[flown]
         t = batch.column("t_s").to_numpy(zero_copy_only=False)
         mode = data.mode_codes(batch.column("mode"), modes).astype(np.int64)
         theta = batch.column("theta_t_deg").to_numpy(zero_copy_only=False)
@@ -159,16 +279,32 @@ def aggregate_histories(campaign):
         propellant = batch.column("fuel_remaining").to_numpy(zero_copy_only=False)
         known = mode >= 0
         valves = batch.column("valves_open").to_numpy(zero_copy_only=False)
-        valve_samples += np.bincount(mode[known & (valves != 0)], minlength=len(modes))
-        tau = np.full(len(t), np.nan)
-        tau[known] = t[known] - starts[position[known], mode[known]]
-        angle.add(mode, tau, theta)
-        rate.add(mode, tau, omega)
-        fuel.add(np.zeros(len(t), dtype=np.int64), t, propellant)
+        valve_counts = np.bincount(mode[known & (valves != 0)], minlength=len(modes))
+        if known.all():
+            tau = t - starts[position * len(modes) + mode]
+        else:
+            tau = np.full(len(t), np.nan)
+            tau[known] = t[known] - starts[position[known] * len(modes) + mode[known]]
+        cells = angle.cells(mode, tau)  # the rate's too: the same modes, time bins and dt
+        flats = (
+            angle.flat_indices(cells, theta),
+            rate.flat_indices(cells, omega),
+            fuel.flat_indices(fuel.cells(np.zeros(len(t), dtype=np.int64), t), propellant),
+        )
+        nominal_part = None
         if nominal_id is not None:
             mine = rid == nominal_id
             if mine.any():
-                nominal_parts.append((t[mine], mode[mine], tau[mine], theta[mine], omega[mine], propellant[mine]))
+                nominal_part = (t[mine], mode[mine], tau[mine], theta[mine], omega[mine], propellant[mine])
+        return read, valve_counts, flats, nominal_part
+
+    for batch_rows, valve_counts, flats, nominal_part in data.map_history_batches(campaign, columns, samples):
+        rows += batch_rows
+        valve_samples += valve_counts
+        for binned, flat in zip((angle, rate, fuel), flats, strict=True):
+            binned.add_flat(flat)
+        if nominal_part is not None:
+            nominal_parts.append(nominal_part)
     nominal = None
     if nominal_parts:
         arrays = [np.concatenate(column) for column in zip(*nominal_parts, strict=True)]

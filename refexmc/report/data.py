@@ -6,9 +6,13 @@ figure needs, part file by part file, so memory stays bounded whatever the campa
 """
 
 import json
+import os
 import re
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
@@ -125,6 +129,33 @@ class Campaign:
         return float((self.resolved.get("output") or {}).get("history_rate_hz", 2.0))
 
 
+RUNS_PARTS_PER_GROUP = 64  # runs parts read and joined into one table by one thread
+READ_THREADS = 8  # at most; pyarrow reads without the GIL, so parts are read on every core
+
+
+def _read_group(parts):
+    """One table of the runs ``parts``, each column in one chunk."""
+    # pre_buffer (coalesced reads on pyarrow's I/O threads, made for object stores) only adds waiting here
+    tables = [pq.ParquetFile(part, pre_buffer=False).read(use_threads=False) for part in parts]
+    return pa.concat_tables(tables, promote_options="default").combine_chunks()
+
+
+def read_runs_parts(parts):
+    """The runs table of the part files ``parts``, in their order (as ``pq.read_table`` of each, joined).
+
+    A large campaign has a thousand parts of 100 rows and ~140 columns: read one by one
+    (``pq.read_table``) they took 9 s at 100,000 runs, and holding a thousand small tables costs
+    ~2.7 times their data in Arrow's per-array objects (a 111 MB table held 300 MB). Groups of
+    parts are read on threads and each joined into contiguous columns as soon as it is read.
+    """
+    groups = [parts[k : k + RUNS_PARTS_PER_GROUP] for k in range(0, len(parts), RUNS_PARTS_PER_GROUP)]
+    if len(groups) == 1:
+        return _read_group(groups[0])
+    with ThreadPoolExecutor(min(READ_THREADS, os.cpu_count() or 1, len(groups))) as pool:
+        tables = list(pool.map(_read_group, groups))
+    return pa.concat_tables(tables, promote_options="default")
+
+
 def load(out):
     """Read OUT for the report; ConfigError when OUT is not a campaign output with runs."""
     out = Path(out)
@@ -139,9 +170,9 @@ def load(out):
     resolved, lines = read_yaml(resolved_path)
     manifest_path = out / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {}
-    tables = [pq.read_table(part) for part in parts]
-    runs = pa.concat_tables(tables, promote_options="default").to_pandas()
-    runs = runs.sort_values("run_id", kind="stable").reset_index(drop=True)
+    runs = read_runs_parts(parts).to_pandas(self_destruct=True)
+    if not runs["run_id"].is_monotonic_increasing:  # parts in chunk order hold their runs in order
+        runs = runs.sort_values("run_id", kind="stable").reset_index(drop=True)
     pulse_columns = [c for c in runs.columns if c.startswith("pulses_") and c[7:].isdigit()]
     if pulse_columns:
         runs["pulses_total"] = runs[pulse_columns].sum(axis=1)
@@ -249,12 +280,48 @@ def mode_codes(column, modes):
     return mode_codes(column.dictionary_encode(), modes)
 
 
-def history_batches(campaign, columns, batch_rows=HISTORY_BATCH_ROWS):
-    """Yield record batches of ``columns`` from every histories part, part by part."""
-    for part in campaign.history_parts:
-        parquet = pq.ParquetFile(part)
-        present = [c for c in columns if c in parquet.schema_arrow.names]
-        if len(present) < len(columns):
-            missing = sorted(set(columns) - set(present))
-            raise ConfigError(f"histories part lacks columns {', '.join(missing)}", file=part)
-        yield from parquet.iter_batches(batch_size=batch_rows, columns=columns)
+HISTORY_READ_AHEAD = 2  # parts read (and mapped) on threads ahead of the one being used
+
+
+def _history_part_batches(part, columns, batch_rows, function=None):
+    parquet = pq.ParquetFile(part, pre_buffer=False)
+    present = [c for c in columns if c in parquet.schema_arrow.names]
+    if len(present) < len(columns):
+        missing = sorted(set(columns) - set(present))
+        raise ConfigError(f"histories part lacks columns {', '.join(missing)}", file=part)
+    batches = parquet.iter_batches(batch_size=batch_rows, columns=columns, use_threads=False)
+    return [batch if function is None else function(batch) for batch in batches]
+
+
+def map_history_batches(campaign, columns, function=None, batch_rows=HISTORY_BATCH_ROWS, read_ahead=HISTORY_READ_AHEAD):
+    """Yield ``function(batch)`` (the batch itself without a function) for the record batches of
+    ``columns`` of every histories part, part by part, in order.
+
+    The next ``read_ahead`` parts are read, and mapped, on threads while the caller uses this
+    one's results: pyarrow decodes and numpy computes on arrays without holding the GIL, so a
+    2-core machine reads and bins the histories on both cores. ``function`` must not change
+    shared state. At most ``read_ahead + 1`` parts' results are held: a part is what one worker
+    held when it flew.
+    """
+    parts = iter(campaign.history_parts)
+    if read_ahead < 1:
+        for part in parts:
+            yield from _history_part_batches(part, columns, batch_rows, function)
+        return
+    with ThreadPoolExecutor(read_ahead) as pool:
+        queue = deque(
+            pool.submit(_history_part_batches, part, columns, batch_rows, function)
+            for part in islice(parts, read_ahead)
+        )
+        while queue:
+            results = queue.popleft().result()
+            part = next(parts, None)
+            if part is not None:
+                queue.append(pool.submit(_history_part_batches, part, columns, batch_rows, function))
+            yield from results
+
+
+def history_batches(campaign, columns, batch_rows=HISTORY_BATCH_ROWS, read_ahead=HISTORY_READ_AHEAD):
+    """Yield record batches of ``columns`` from every histories part, part by part, in order
+    (read ahead on threads: :func:`map_history_batches`)."""
+    return map_history_batches(campaign, columns, batch_rows=batch_rows, read_ahead=read_ahead)
