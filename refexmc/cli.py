@@ -426,6 +426,10 @@ def inspect(file, as_json, torque, level, strict):
         _inspect_torque(vehicle, torque, level, as_json)
         return
     info = design(vehicle)
+    if "entry_control" in vehicle:  # an entry vehicle (docs/x38.md): what its entry flight uses
+        from refexmc.config import entry
+
+        info["entry"] = entry.design(vehicle)
     if as_json:
         click.echo(json.dumps(info, indent=2))
         return

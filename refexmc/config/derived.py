@@ -352,10 +352,6 @@ def design(vehicle):
                 out["feed"]["set_pressure_pa"] = {
                     level: config_feed.set_pressure(vehicle, level) for level in vehicle["rcs"]["thrust_n"]
                 }
-    if "entry_control" in vehicle:  # an entry vehicle (docs/x38.md): what its entry flight uses
-        from refexmc.config import entry
-
-        out["entry"] = entry.design(vehicle)
     return out
 
 
