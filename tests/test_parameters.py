@@ -210,3 +210,26 @@ def test_packed_fields_hold_the_file_values_in_si_units(flown):
         assert packed.tobytes() == np.ascontiguousarray(expected).tobytes(), path
         checked += 1
     assert checked
+
+
+def _defaults(node, path=()):
+    """(key path, required?) of every schema key that declares a ``default``."""
+    for key, child in node.get("properties", {}).items():
+        if "default" in child:
+            yield ".".join((*path, key)), key in node.get("required", ())
+        yield from _defaults(child, (*path, key))
+    for child in (node.get("items"), node.get("additionalProperties")):
+        if isinstance(child, dict):
+            yield from _defaults(child, (*path, "*"))
+
+
+def test_a_schema_default_is_declared_only_on_optional_keys():
+    """A default is the value a file that omits the key has: a required key cannot have one, and the
+    defaults the packers read are found (the walk sees them)."""
+    found = {}
+    for root in (schema.VEHICLE, schema.MISSION, schema.ENTRY_MISSION):
+        found.update(dict(_defaults(root)))
+    assert "rcs.feed.ambient_pressure_pa" in found and "flight_software.burn_guidance.law" in found
+    assert "navigation.gps_velocity_noise_m_s" in found
+    required = sorted(key for key, is_required in found.items() if is_required)
+    assert required == [], f"required keys with a default: {required}"

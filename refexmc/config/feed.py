@@ -8,7 +8,10 @@ exhaust velocity, blow-down time constant, thrusts and total impulse.
 
 import math
 
+from refexmc.config import schema
+
 MODELS = {"constant": 0, "blow_down": 1, "regulated": 2}
+AMBIENT_PRESSURE_DEFAULT_PA = schema.FEED["properties"]["ambient_pressure_pa"]["default"]  # declared in the schema
 
 
 def area_ratio(mach, gamma):
@@ -56,7 +59,7 @@ def design(feed):
     gamma, eps = feed["heat_capacity_ratio"], feed["expansion_ratio"]
     rt = feed["gas_constant_j_kg_k"] * feed["temperature_k"]
     area, volume = feed["throat_area_m2"], feed["tank_volume_m3"]
-    p0, ambient = feed["initial_pressure_pa"], feed.get("ambient_pressure_pa", 0.0)
+    p0, ambient = feed["initial_pressure_pa"], feed.get("ambient_pressure_pa", AMBIENT_PRESSURE_DEFAULT_PA)
     c_f = thrust_coefficient(eps, gamma)
     factor = flow_factor(gamma)
     exhaust = c_f * math.sqrt(rt) / factor
@@ -89,7 +92,7 @@ def set_pressure(vehicle, level):
     if feed.get("model") != "regulated" or level not in rcs.get("thrust_n", {}):
         return math.inf
     area = feed["throat_area_m2"]
-    ambient_force = feed["expansion_ratio"] * feed.get("ambient_pressure_pa", 0.0) * area
+    ambient_force = feed["expansion_ratio"] * feed.get("ambient_pressure_pa", AMBIENT_PRESSURE_DEFAULT_PA) * area
     return (rcs["thrust_n"][level] + ambient_force) / (
         thrust_coefficient(feed["expansion_ratio"], feed["heat_capacity_ratio"]) * area
     )

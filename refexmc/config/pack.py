@@ -13,6 +13,7 @@ import numpy as np
 
 from refexmc.config import deorbit, derived, parameters, schema
 from refexmc.config import feed as config_feed
+from refexmc.config.feed import AMBIENT_PRESSURE_DEFAULT_PA
 from refexmc.core import layout as L
 from refexmc.core import modes as core_modes
 from refexmc.core.inputs import RunInputs
@@ -160,7 +161,7 @@ def _pack_feed(out, feed):
     for key in schema.FEED_TANK_KEYS:
         if f"rcs.feed.{key}" not in parameters.PARAMETERS:  # else packed with the parameters
             _put(out, L.VEHICLE, "feed_" + key, feed[key])
-    _put(out, L.VEHICLE, "feed_ambient_pressure_pa", feed.get("ambient_pressure_pa", 0.0))
+    _put(out, L.VEHICLE, "feed_ambient_pressure_pa", feed.get("ambient_pressure_pa", AMBIENT_PRESSURE_DEFAULT_PA))
     _put(out, L.VEHICLE, "feed_thrust_coefficient", design["thrust_coefficient"])
     _put(out, L.VEHICLE, "feed_flow_factor", design["flow_factor"])
 
@@ -226,7 +227,12 @@ def pack_fsw(vehicle):
     _put(out, L.FSW, "guidance_period_s", 1.0 / burn["rate_hz"])
     _put(out, L.FSW, "guidance_position_gain_s2", burn["position_gain_s2"])
     _put(out, L.FSW, "guidance_velocity_gain_s", burn["velocity_gain_s"])
-    _put(out, L.FSW, "guidance_law_id", GUIDANCE_LAWS[burn.get("law", "pd")])
+    _put(
+        out,
+        L.FSW,
+        "guidance_law_id",
+        GUIDANCE_LAWS[burn.get("law", parameters.schema_default("flight_software.burn_guidance.law"))],
+    )
     _put(out, L.FSW, "smc_slope_s", smc["slope_s"])
     _put(out, L.FSW, "smc_gain_rad_s2", smc["gain_rad_s2"])
     _put(out, L.FSW, "smc_boundary_layer_rad_s", smc["boundary_layer_rad_s"])

@@ -48,8 +48,10 @@ def vector(doc, length=3, default=None, **limits):
     return s
 
 
-def string(doc, enum=None):
+def string(doc, enum=None, default=None):
     s = {"type": "string", "description": doc}
+    if default is not None:
+        s["default"] = default
     if enum is not None:
         s["enum"] = list(enum)
     return s
@@ -225,7 +227,9 @@ FEED = obj(
         "initial_pressure_pa": number("tank pressure at t = 0 [Pa]", **POSITIVE),
         "throat_area_m2": number("nozzle throat area A_t of each thruster (times its thrust scale) [m^2]", **POSITIVE),
         "expansion_ratio": number("nozzle area ratio epsilon = A_e / A_t (002 eq. 6) [-]", minimum=1.0),
-        "ambient_pressure_pa": number("ambient pressure P_a of 002 eq. 15 (default 0: vacuum) [Pa]", minimum=0.0),
+        "ambient_pressure_pa": number(
+            "ambient pressure P_a of 002 eq. 15 (default 0: vacuum) [Pa]", minimum=0.0, default=0.0
+        ),
     },
     optional=(
         "tank_volume_m3",
@@ -577,6 +581,7 @@ VEHICLE = obj(
                             "no feedback) or open_loop_planned (the nominal's thrust direction at t, no feedback); "
                             "the burn time is the plan's in each",
                             enum=["pd", "open_loop_retrograde", "open_loop_planned"],
+                            default="pd",
                         ),
                     },
                     optional=("law",),
