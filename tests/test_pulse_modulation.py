@@ -359,6 +359,24 @@ def test_zero_command_opens_nothing(inputs):
     assert desired == 0 and not pulse.any()
 
 
+@pytest.mark.parametrize("actuation", [layout.ACTUATION_LP_PWM, layout.ACTUATION_WHEELS])
+def test_only_the_pwpf_table_actuation_opens_valves_from_the_table(inputs, actuation):
+    """A full torque command on every axis opens the Table 3 row of the PWPF actuation; any other
+    actuation (LP + PWM, wheels) opens nothing through the table and leaves the modulators."""
+    row_masks = np.empty(inputs.allocation.shape[0], dtype=np.int64)
+    allocation.table_masks(inputs.allocation, row_masks)
+    level = inputs.levels[0]
+    torque = 2.0 * level[layout.LV_TORQUE_MAX : layout.LV_TORQUE_MAX + 3]
+    args = (inputs.fsw, level, torque, new_state(3), row_masks, 0.0, np.zeros(3))
+    assert allocation.thruster_commands(layout.ACTUATION_PWPF_TABLE, *args) == row_masks[-1] != 0
+    pulse = np.zeros(3)
+    state = new_state(3)
+    untouched = state.copy()
+    assert allocation.thruster_commands(actuation, inputs.fsw, level, torque, state, row_masks, 0.0, pulse) == 0
+    assert not pulse.any()
+    np.testing.assert_array_equal(state, untouched)
+
+
 def test_naive_shaped_command_matches_kernel():
     for tau in np.linspace(-2.5, 2.5, 101):
         assert pulse_modulation.shaped_command(tau, 2.0, 0.7) == pwpf_shaped_command(tau, 2.0, 0.7)
