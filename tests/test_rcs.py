@@ -310,6 +310,24 @@ def test_derating_by_number_of_open_valves(vehicle, thrusters, n_open, thrust_le
     assert rcs.derating_factor(vehicle, 0) == 1.0
 
 
+def test_each_thruster_scales_its_thrust_and_torque(vehicle, thrusters):
+    """Thrust scales 0.8, 1.25 and 0.9 (a dispersed or mixed set) on three ideal valves open for
+    one period: impulse F 0.73 (0.8 + 1.25 + 0.9) dt and angular impulse F 0.73 dt times the sum
+    of s_i r_i x d_i (000 sec. 2.1's derating for three open; the shipped vehicles all have
+    scale 1, where a scale that divides passes)."""
+    thr = set_times(thrusters, LOW, IDEAL)
+    scales = {0: 0.8, 1: 1.25, 6: 0.9}
+    for i, scale in scales.items():
+        thr[i, layout.T_SCALE] = scale
+    commands = {0: [(i, True) for i in scales]}
+    impulse, angular, _, _ = fly_valves(thr, vehicle, commands, DT, LOW)
+    force = nominal_thrust(vehicle, LOW) * 0.73
+    assert impulse == pytest.approx(force * sum(scales.values()) * DT, rel=REL)
+    arms = arms_of(thr, vehicle)
+    expected = force * DT * sum(scale * arms[i] for i, scale in scales.items())
+    np.testing.assert_allclose(angular, expected, rtol=REL, atol=1e-15)
+
+
 def test_derating_with_table_2_transients(vehicle, thrusters):
     """Steady state with Table 2 valves: three open give 3 x 0.73 F after the rise."""
     commands = {0: [(0, True), (1, True), (6, True)]}
