@@ -185,3 +185,14 @@ def test_inertial_targets_from_euler_angles_equal_scipy():
     q2 = target_quaternion({"type": "inertial", "quaternion": [0.0, 0.0, 2.0, 2.0]})
     assert np.allclose(q2, [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-15)
     assert quaternion.angle_between(q, expected) < 1e-7
+
+
+def test_only_the_profiled_kinds_report_a_transition_time():
+    """has_profile (the kinds whose guidance has a transition time t1, reported per mode): rate
+    damping's cubic (000 eq. 15-19), the slew's quintic (eq. 4-14), the spin-up's quartic
+    (eq. 20-27) and the burn from ignition to cut-off; locked, hold, track and translate have
+    none. Every kind the module declares is asked."""
+    kinds = {name: value for name, value in vars(modes).items() if name.startswith("KIND_")}
+    assert len(set(kinds.values())) == len(kinds) == 8
+    profiled = {name for name, kind in kinds.items() if modes.has_profile(kind)}
+    assert profiled == {"KIND_RATE_DAMPING", "KIND_SLEW", "KIND_SPIN_UP", "KIND_BURN"}
