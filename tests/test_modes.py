@@ -196,3 +196,26 @@ def test_only_the_profiled_kinds_report_a_transition_time():
     assert len(set(kinds.values())) == len(kinds) == 8
     profiled = {name for name, kind in kinds.items() if modes.has_profile(kind)}
     assert profiled == {"KIND_RATE_DAMPING", "KIND_SLEW", "KIND_SPIN_UP", "KIND_BURN"}
+
+
+@pytest.mark.parametrize("has_final", [False, True])
+def test_target_attitude_inertial_previous_and_none(has_final):
+    """modes.target_attitude without a trajectory: an inertial target is the mode's quaternion;
+    the previous target (or none) keeps q_final when a previous mode set one, else holds the
+    measured attitude. Exact copies: nothing is computed."""
+    q_meas = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_quat()
+    q_mode = Rotation.from_rotvec([-0.4, 0.5, 0.05]).as_quat()
+    q_previous = Rotation.from_rotvec([0.7, 0.0, -0.1]).as_quat()
+    mission, traj, rotations = np.zeros(L.MISSION_SIZE), np.zeros(16), np.zeros((3, 4))  # not read here
+    for target in (modes.TARGET_INERTIAL, modes.TARGET_PREVIOUS, modes.TARGET_NONE):
+        mode = np.zeros(L.MODE_SIZE)
+        mode[L.MD_TARGET] = target
+        mode[L.MD_QUATERNION : L.MD_QUATERNION + 4] = q_mode
+        q_final = np.append(q_previous.copy(), np.nan)  # a fifth slot that must stay untouched
+        modes.target_attitude(mode, mission, traj, q_meas, q_final[:4], has_final, rotations, np.zeros((6, 4)))
+        if target == modes.TARGET_INERTIAL:
+            expected = q_mode
+        else:
+            expected = q_previous if has_final else q_meas
+        np.testing.assert_array_equal(q_final[:4], expected)
+        assert np.isnan(q_final[4])
