@@ -328,6 +328,28 @@ def test_each_thruster_scales_its_thrust_and_torque(vehicle, thrusters):
     np.testing.assert_allclose(angular, expected, rtol=REL, atol=1e-15)
 
 
+def test_open_mask_is_the_thrusters_with_thrust_at_each_instant(thrusters):
+    """rcs.open_mask (what the history records as open valves) against the naive valve profile
+    (Table 2 delays and ramps): thrusters 2 and 7 opened at 0 and closed at 0.1 s, thruster 3
+    opened at 0.05 s; bit i-1 is set exactly while thruster i's level is above zero (not before
+    the on-delay, not after the fall, never for a thruster not commanded)."""
+    times = TABLE_2[LOW]
+    thr = set_times(thrusters, LOW, times)
+    n = thr.shape[0]
+    commands = {0: [(1, True), (6, True)], 10: [(2, True)], 20: [(1, False), (6, False)]}  # steps of 5 ms
+    knots = {i: valve_knots(naive_commands(commands, i, dt=0.005), times) for i in (1, 2, 6)}
+    valve_state = np.zeros((n, rcs.VALVE_STATE_SIZE))
+    rcs.reset(valve_state)
+    for step in range(80):  # the ramps after the closes end before 0.4 s
+        t = step * 0.005
+        for i, is_open in commands.get(step, ()):
+            rcs.command(valve_state, thr, i, is_open, t, LOW)
+        for i in range(n):
+            rcs.apply_reactions(valve_state, thr, i, t, LOW)
+        expected = sum(1 << i for i, k in knots.items() if level(k, t) > 0.0)
+        assert rcs.open_mask(valve_state, n, t) == expected, f"at {t} s"
+
+
 def test_derating_with_table_2_transients(vehicle, thrusters):
     """Steady state with Table 2 valves: three open give 3 x 0.73 F after the rise."""
     commands = {0: [(0, True), (1, True), (6, True)]}
