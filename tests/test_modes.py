@@ -219,3 +219,39 @@ def test_target_attitude_inertial_previous_and_none(has_final):
             expected = q_previous if has_final else q_meas
         np.testing.assert_array_equal(q_final[:4], expected)
         assert np.isnan(q_final[4])
+
+
+def test_each_predicate_at_its_threshold_as_docs_missions_states():
+    """modes.predicate_holds against docs/missions.md's table, at the threshold itself and on
+    either side: "below" is strict, "at most" and "since t = 0 >= T" include it; every body
+    axis counts on its own for rates_below, every axis of the rate error counts in the norm.
+    Thresholds at the tie are the values the kernel computes (same operations, same bits)."""
+    q_meas = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_quat()
+    q_target = Rotation.from_rotvec([0.15, -0.1, 0.25]).as_quat()
+    zero3 = np.zeros(3)
+
+    def holds(predicate, value, now=None, rate_meas=zero3, rate_ref=zero3):
+        now = np.zeros(modes.NOW_SIZE) if now is None else now
+        return bool(modes.predicate_holds(predicate, value, now, 0.0, rate_meas, rate_ref, q_meas, q_target))
+
+    for axis in range(3):  # one axis at the threshold, the others well below: not below
+        rates = np.full(3, 0.001)
+        rates[axis] = -0.02
+        assert not holds(modes.PREDICATE_RATES_BELOW, 0.02, rate_meas=rates)
+        assert holds(modes.PREDICATE_RATES_BELOW, 0.0201, rate_meas=rates)
+    rate_meas, rate_ref = np.array([0.01, 0.3, -0.02]), np.array([0.0, 0.0, 0.01])
+    norm = math.sqrt((0.01 - 0.0) ** 2 + (0.3 - 0.0) ** 2 + (-0.02 - 0.01) ** 2)
+    for value, expected in ((norm, False), (norm * (1 + 1e-12), True), (0.9 * norm, False)):
+        assert holds(modes.PREDICATE_RATE_ERROR_BELOW, value, rate_meas=rate_meas, rate_ref=rate_ref) is expected
+    angle = quaternion.angle_between(q_meas, q_target)
+    assert not holds(modes.PREDICATE_ANGLE_ERROR_BELOW, angle)
+    assert holds(modes.PREDICATE_ANGLE_ERROR_BELOW, angle * (1 + 1e-12))
+    at_most = ((modes.PREDICATE_MISSION_TIME, modes.NOW_TIME, True), (modes.PREDICATE_POSITION_ERROR_BELOW,
+               modes.NOW_POSITION_ERROR, False), (modes.PREDICATE_SPEED_BELOW, modes.NOW_SPEED, False))  # fmt: skip
+    for predicate, slot, at_least in at_most:
+        now = np.zeros(modes.NOW_SIZE)
+        now[slot] = 2.5
+        assert holds(predicate, 2.5, now)  # the threshold itself holds
+        assert holds(predicate, 2.0, now) is at_least
+        assert holds(predicate, 3.0, now) is not at_least
+    assert not holds(99, 0.0)  # no such predicate: never holds
