@@ -169,6 +169,35 @@ def quartic_spin_up(t, t1):
 
 
 # --------------------------------------------------------------------------------------------
+# Per-thruster switching check, 000 sec. 5
+# --------------------------------------------------------------------------------------------
+
+
+class NaiveSwitching:
+    """Each valve keeps a state for at least its hardware minimum (``min_on`` open, ``min_off``
+    closed) and follows the wanted state as soon as that minimum has passed (000 sec. 5).
+    ``slack`` absorbs the roundoff of times computed as step * dt."""
+
+    def __init__(self, n, min_on, min_off, slack=1e-9):
+        self.is_open = [False] * n
+        self.last_change = [-math.inf] * n
+        self.min_on, self.min_off, self.slack = min_on, min_off, slack
+
+    def step(self, wanted, t):
+        """``wanted``: the set of thrusters to be open; returns (opened, closed) as sets."""
+        opened, closed = set(), set()
+        for i, was_open in enumerate(self.is_open):
+            if (i in wanted) == was_open:
+                continue
+            minimum = self.min_on if was_open else self.min_off
+            if t - self.last_change[i] >= minimum - self.slack:
+                self.is_open[i] = not was_open
+                self.last_change[i] = t
+                (closed if was_open else opened).add(i)
+        return opened, closed
+
+
+# --------------------------------------------------------------------------------------------
 # Valve thrust profile (000 Fig. 6, Table 2; reference-model sec. 2) and its exact integral
 # --------------------------------------------------------------------------------------------
 

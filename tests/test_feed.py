@@ -393,3 +393,72 @@ def test_dispersing_a_regulated_level_scales_its_set_pressure():
     assert "blow-down tank" in dispersions._undeclared(
         "rcs.thrust_n.high", blow_down, load_mission(ROOT / "configs/missions/generic-slew.yaml")
     )
+
+
+def test_segment_torque_and_impulse_with_ambient_pressure_and_thrust_scales_eq15():
+    """Two ideal valves (thrust scales 1 and 0.7, distinct arms) open on a blow-down tank in an
+    ambient pressure: each thruster's force is s_i (C_F A_t P - epsilon P_a A_t) (002 eq. 15) at
+    both ends of a segment, the tank falls as P0 exp(-1.7 h / tau) (eq. 16 with S = 1.7), and
+    the impulse is C_F A_t P0 tau (1 - exp(-1.7 h / tau)) - 1.7 epsilon P_a A_t h, the integral
+    of the sum. Below C_F P = epsilon P_a a nozzle gives no thrust (not a negative one).
+    1e-12: one closed-form segment against the closed forms written out here."""
+    f = dict(NITROGEN, ambient_pressure_pa=0.3e5)
+    area, p0, eps, p_a = f["throat_area_m2"], f["initial_pressure_pa"], f["expansion_ratio"], 0.3e5
+    c_f = naive.textbook_thrust_coefficient(eps, f["heat_capacity_ratio"])
+    rt = f["gas_constant_j_kg_k"] * f["temperature_k"]
+    mdot_per_pa = naive.choked_mass_flow(
+        area, 1.0, f["heat_capacity_ratio"], f["gas_constant_j_kg_k"], f["temperature_k"]
+    )
+    tau = f["tank_volume_m3"] / (rt * mdot_per_pa)
+    tank = _tank(f)
+    thrusters = _thrusters([1.0, 0.7])
+    valve_state = np.zeros((2, rcs.VALVE_STATE_SIZE))
+    for i in range(2):
+        rcs.command(valve_state, thrusters, i, True, 0.0, 0)
+    active = rcs.update(valve_state, thrusters, 2, 0.0, 0, 0b11)
+    arms = np.array([[0.3, -0.2, 0.5], [-0.1, 0.4, 0.25]])
+    tau0, tau1 = np.zeros(3), np.zeros(3)
+    h = 2.0
+    feed.segment(valve_state, thrusters, NO_DERATING, arms, tank, 0.0, h, tau0, tau1, active)
+    p1 = p0 * math.exp(-1.7 * h / tau)
+    assert tank.state[feed.TK_PRESSURE] == pytest.approx(p1, rel=1e-12)
+
+    def force(pressure):  # eq. 15 per unit of level and thrust scale
+        return c_f * area * pressure - eps * p_a * area
+
+    for torque, pressure in ((tau0, p0), (tau1, p1)):
+        expected = force(pressure) * (1.0 * arms[0] + 0.7 * arms[1])
+        np.testing.assert_allclose(torque, expected, rtol=1e-12, atol=0.0)
+    impulse = c_f * area * p0 * tau * (1.0 - math.exp(-1.7 * h / tau)) - 1.7 * eps * p_a * area * h
+    assert tank.state[feed.TK_IMPULSE] == pytest.approx(impulse, rel=1e-12)
+    assert feed.thrust_per_level(tank, p0) == pytest.approx(force(p0), rel=1e-12)
+    assert feed.thrust_per_level(tank, 0.5 * eps * p_a / c_f) == 0.0
+
+
+@pytest.mark.parametrize("opening", [True, False])
+def test_a_regulated_segment_derates_by_the_valves_open_within_it(opening):
+    """A regulated tank far above its derated set pressure, valve 0 open and valve 1 ramping
+    (rising 20 ms after it opens at 5 s, or falling 30 ms after it closes at 5 s): within the
+    segment [5, 5.01] s both valves are open, so the set pressure is derated for two
+    (000 sec. 2.1, 0.91) at both ends; the torque is each thruster's level (rcs ramps, written
+    out here) times the derated 4 N. 1e-12: one segment, closed forms."""
+    vehicle = _vehicle(dict(NITROGEN, model="regulated", initial_pressure_pa=20e6))
+    vehicle["rcs"]["derating"] = [1.0, 0.91]
+    inputs = pack(vehicle, load_mission(ROOT / "configs/missions/generic-slew.yaml"))
+    tank = feed.tank()
+    feed.start(inputs.vehicle, tank)
+    tank.state[feed.TK_REGULATOR] = inputs.levels[1, L.LV_REGULATOR_PRESSURE]  # high: 4 N
+    thrusters = _thrusters([1.0, 1.0], rise_fall_s=(0.02, 0.03))
+    valve_state = np.zeros((2, rcs.VALVE_STATE_SIZE))
+    rcs.command(valve_state, thrusters, 0, True, 0.0, 0)
+    if not opening:
+        rcs.command(valve_state, thrusters, 1, True, 0.0, 0)
+    active = rcs.update(valve_state, thrusters, 2, 0.0, 0, 0b11 if not opening else 0b01)
+    rcs.command(valve_state, thrusters, 1, opening, 5.0, 0)
+    active = rcs.update(valve_state, thrusters, 2, 5.0, 0, active | 0b10)
+    arms = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    tau0, tau1 = np.zeros(3), np.zeros(3)
+    feed.segment(valve_state, thrusters, inputs.vehicle, arms, tank, 5.0, 5.01, tau0, tau1, active)
+    level1 = (0.0, 0.5) if opening else (1.0, 1.0 - 0.01 / 0.03)
+    np.testing.assert_allclose(tau0[:2], [4.0 * 0.91, 4.0 * 0.91 * level1[0]], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(tau1[:2], [4.0 * 0.91, 4.0 * 0.91 * level1[1]], rtol=1e-12, atol=1e-15)

@@ -217,6 +217,8 @@ def test_inspect_torque_bad_options_are_bad_input(args, words):
         (0.1, 1.0, 0.010, 0.0),  # 2.5 ms < 5 ms: nothing
         (0.0, 1.0, 0.0, 0.0),
         (0.5, 0.0, 0.0, 0.0),  # a thruster with no thrust never fires
+        (0.5, 2.0, 0.0, 0.00625),  # a quarter of the thruster's thrust: a quarter of the period
+        (0.2, 1.0, 2.0 * (0.025 * 0.2), 2.0 * (0.025 * 0.2)),  # exactly min_on / 2: rounded up
     ],
 )
 def test_pulse_width_is_the_thrust_share_of_the_period(u, u_max, min_on, expected):
@@ -224,6 +226,23 @@ def test_pulse_width_is_the_thrust_share_of_the_period(u, u_max, min_on, expecte
 
     on = allocation.pwm_on_time(u, u_max, 0.025, min_on)
     assert on == pytest.approx(expected, abs=1e-15)
+
+
+def test_nominal_arms_are_r_cross_d_for_any_geometry():
+    """core.allocation.nominal_arms against numpy's cross product for random positions and
+    directions (the vehicles' thrusters sit on axes, where half the products vanish); 1e-15
+    absolute for arms of order 1 m."""
+    from refexmc.core import allocation
+    from refexmc.core import layout as L
+
+    rng = np.random.default_rng(26)
+    thrusters = np.zeros((7, L.T_TIME_CONSTANTS))
+    thrusters[:, L.T_POSITION : L.T_POSITION + 3] = rng.uniform(-1.0, 1.0, (7, 3))
+    thrusters[:, L.T_DIRECTION : L.T_DIRECTION + 3] = rng.uniform(-1.0, 1.0, (7, 3))
+    out = np.full((3, 7), np.nan)
+    allocation.nominal_arms(thrusters, out)
+    expected = np.cross(thrusters[:, L.T_POSITION : L.T_POSITION + 3], thrusters[:, L.T_DIRECTION : L.T_DIRECTION + 3])
+    np.testing.assert_allclose(out, expected.T, rtol=0, atol=1e-15)
 
 
 def test_lp_pwm_flies_the_generic_mission(tmp_path):

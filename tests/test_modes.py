@@ -185,3 +185,73 @@ def test_inertial_targets_from_euler_angles_equal_scipy():
     q2 = target_quaternion({"type": "inertial", "quaternion": [0.0, 0.0, 2.0, 2.0]})
     assert np.allclose(q2, [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-15)
     assert quaternion.angle_between(q, expected) < 1e-7
+
+
+def test_only_the_profiled_kinds_report_a_transition_time():
+    """has_profile (the kinds whose guidance has a transition time t1, reported per mode): rate
+    damping's cubic (000 eq. 15-19), the slew's quintic (eq. 4-14), the spin-up's quartic
+    (eq. 20-27) and the burn from ignition to cut-off; locked, hold, track and translate have
+    none. Every kind the module declares is asked."""
+    kinds = {name: value for name, value in vars(modes).items() if name.startswith("KIND_")}
+    assert len(set(kinds.values())) == len(kinds) == 8
+    profiled = {name for name, kind in kinds.items() if modes.has_profile(kind)}
+    assert profiled == {"KIND_RATE_DAMPING", "KIND_SLEW", "KIND_SPIN_UP", "KIND_BURN"}
+
+
+@pytest.mark.parametrize("has_final", [False, True])
+def test_target_attitude_inertial_previous_and_none(has_final):
+    """modes.target_attitude without a trajectory: an inertial target is the mode's quaternion;
+    the previous target (or none) keeps q_final when a previous mode set one, else holds the
+    measured attitude. Exact copies: nothing is computed."""
+    q_meas = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_quat()
+    q_mode = Rotation.from_rotvec([-0.4, 0.5, 0.05]).as_quat()
+    q_previous = Rotation.from_rotvec([0.7, 0.0, -0.1]).as_quat()
+    mission, traj, rotations = np.zeros(L.MISSION_SIZE), np.zeros(16), np.zeros((3, 4))  # not read here
+    for target in (modes.TARGET_INERTIAL, modes.TARGET_PREVIOUS, modes.TARGET_NONE):
+        mode = np.zeros(L.MODE_SIZE)
+        mode[L.MD_TARGET] = target
+        mode[L.MD_QUATERNION : L.MD_QUATERNION + 4] = q_mode
+        q_final = np.append(q_previous.copy(), np.nan)  # a fifth slot that must stay untouched
+        modes.target_attitude(mode, mission, traj, q_meas, q_final[:4], has_final, rotations, np.zeros((6, 4)))
+        if target == modes.TARGET_INERTIAL:
+            expected = q_mode
+        else:
+            expected = q_previous if has_final else q_meas
+        np.testing.assert_array_equal(q_final[:4], expected)
+        assert np.isnan(q_final[4])
+
+
+def test_each_predicate_at_its_threshold_as_docs_missions_states():
+    """modes.predicate_holds against docs/missions.md's table, at the threshold itself and on
+    either side: "below" is strict, "at most" and "since t = 0 >= T" include it; every body
+    axis counts on its own for rates_below, every axis of the rate error counts in the norm.
+    Thresholds at the tie are the values the kernel computes (same operations, same bits)."""
+    q_meas = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_quat()
+    q_target = Rotation.from_rotvec([0.15, -0.1, 0.25]).as_quat()
+    zero3 = np.zeros(3)
+
+    def holds(predicate, value, now=None, rate_meas=zero3, rate_ref=zero3):
+        now = np.zeros(modes.NOW_SIZE) if now is None else now
+        return bool(modes.predicate_holds(predicate, value, now, 0.0, rate_meas, rate_ref, q_meas, q_target))
+
+    for axis in range(3):  # one axis at the threshold, the others well below: not below
+        rates = np.full(3, 0.001)
+        rates[axis] = -0.02
+        assert not holds(modes.PREDICATE_RATES_BELOW, 0.02, rate_meas=rates)
+        assert holds(modes.PREDICATE_RATES_BELOW, 0.0201, rate_meas=rates)
+    rate_meas, rate_ref = np.array([0.01, 0.3, -0.02]), np.array([0.0, 0.0, 0.01])
+    norm = math.sqrt((0.01 - 0.0) ** 2 + (0.3 - 0.0) ** 2 + (-0.02 - 0.01) ** 2)
+    for value, expected in ((norm, False), (norm * (1 + 1e-12), True), (0.9 * norm, False)):
+        assert holds(modes.PREDICATE_RATE_ERROR_BELOW, value, rate_meas=rate_meas, rate_ref=rate_ref) is expected
+    angle = quaternion.angle_between(q_meas, q_target)
+    assert not holds(modes.PREDICATE_ANGLE_ERROR_BELOW, angle)
+    assert holds(modes.PREDICATE_ANGLE_ERROR_BELOW, angle * (1 + 1e-12))
+    at_most = ((modes.PREDICATE_MISSION_TIME, modes.NOW_TIME, True), (modes.PREDICATE_POSITION_ERROR_BELOW,
+               modes.NOW_POSITION_ERROR, False), (modes.PREDICATE_SPEED_BELOW, modes.NOW_SPEED, False))  # fmt: skip
+    for predicate, slot, at_least in at_most:
+        now = np.zeros(modes.NOW_SIZE)
+        now[slot] = 2.5
+        assert holds(predicate, 2.5, now)  # the threshold itself holds
+        assert holds(predicate, 2.0, now) is at_least
+        assert holds(predicate, 3.0, now) is not at_least
+    assert not holds(99, 0.0)  # no such predicate: never holds

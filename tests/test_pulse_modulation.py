@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from naive import NaivePWPF, pwpf_f_min, pwpf_pulse, pwpf_shaped_command
+from naive import NaivePWPF, NaiveSwitching, pwpf_f_min, pwpf_pulse, pwpf_shaped_command
 
 from refexmc.core import allocation, layout, pulse_modulation, switching
 
@@ -289,8 +289,64 @@ def test_switching_check_enforces_min_pulse_and_rest(inputs, segments, thrust_le
                 elif bool(desired[i]) != is_open[i]:  # held back: only while the limit forbids it
                     limit = min_on if is_open[i] else min_off
                     assert t - last_change[i] < limit + SLACK
-                assert bool(switch_state[i, switching.SW_OPEN]) == is_open[i]
+                assert switch_state[i, switching.SW_OPEN] == (1.0 if is_open[i] else 0.0)
             k += 1
+
+
+@settings(deadline=None, max_examples=100)
+@given(
+    st.integers(min_value=1, max_value=8),
+    st.integers(min_value=1, max_value=6),
+    st.integers(min_value=1, max_value=9),
+    st.integers(min_value=0, max_value=4000),
+    st.lists(st.tuples(st.integers(min_value=0, max_value=255), st.integers(min_value=1, max_value=9)), max_size=30),
+)
+def test_switching_enforce_matches_naive_twin(n, on_periods, off_periods, first_step, wanted_holds):
+    """switching.enforce against NaiveSwitching (000 sec. 5) for any wanted sets, with minimum
+    pulses and rests of one or more control periods (min_on > dt is never binding in the
+    modulator test above: there it is one period). Times are step * dt, so a valve reopens
+    after exactly min_off (and closes after exactly min_on) although t - t_closed is ~1e-15 s
+    off: that must count as met, as the flight software's 25 ms pulse does. Started at an
+    arbitrary step: the roundoff grows with t."""
+    min_on, min_off = on_periods * DT, off_periods * DT
+    state = np.empty((n, switching.SWITCH_STATE_SIZE))
+    switching.reset(state)
+    twin = NaiveSwitching(n, min_on, min_off, slack=SLACK)
+    open_mask = 0
+    step = first_step
+    for wanted_bits, hold in wanted_holds:
+        wanted_bits &= (1 << n) - 1
+        wanted = {i for i in range(n) if (wanted_bits >> i) & 1}
+        for _ in range(hold):
+            t = step * DT
+            opened, closed = switching.enforce(state, wanted_bits, open_mask, t, min_on, min_off)
+            twin_opened, twin_closed = twin.step(wanted, t)
+            assert opened == sum(1 << i for i in twin_opened), f"opened at {t} s"
+            assert closed == sum(1 << i for i in twin_closed), f"closed at {t} s"
+            open_mask = (open_mask | opened) & ~closed
+            for i in range(n):
+                assert state[i, switching.SW_OPEN] == (1.0 if twin.is_open[i] else 0.0)
+            step += 1
+
+
+@pytest.mark.parametrize("k0", [123457, 123460])
+def test_switching_meets_the_limits_with_equality(k0):
+    """000 sec. 5: a valve may close exactly min_on after it opened and reopen exactly min_off
+    after it closed; one period earlier it may not. Times as the loop computes them (step * dt,
+    far from 0): at k0 = 123457 the pulse, at 123460 the rest, is ~2e-13 s short of its limit
+    in float64, which must not hold the valve back."""
+    min_on, min_off = 3 * DT, 7 * DT
+    short = ((k0 + 3) * DT - k0 * DT < min_on) or ((k0 + 10) * DT - (k0 + 3) * DT < min_off)
+    assert short  # the roundoff this test is about
+    state = np.empty((1, switching.SWITCH_STATE_SIZE))
+    switching.reset(state)
+    assert switching.enforce(state, 1, 0, k0 * DT, min_on, min_off) == (1, 0)  # long rested: opens
+    assert state[0, switching.SW_T_OPENED] == k0 * DT
+    assert switching.enforce(state, 0, 1, (k0 + 2) * DT, min_on, min_off) == (0, 0)  # held open
+    assert switching.enforce(state, 0, 1, (k0 + 3) * DT, min_on, min_off) == (0, 1)  # exactly min_on
+    assert state[0, switching.SW_T_CLOSED] == (k0 + 3) * DT
+    assert switching.enforce(state, 1, 0, (k0 + 9) * DT, min_on, min_off) == (0, 0)  # held closed
+    assert switching.enforce(state, 1, 0, (k0 + 10) * DT, min_on, min_off) == (1, 0)  # exactly min_off
 
 
 def test_zero_command_opens_nothing(inputs):
@@ -301,6 +357,24 @@ def test_zero_command_opens_nothing(inputs):
         layout.ACTUATION_PWPF_TABLE, inputs.fsw, inputs.levels[0], np.zeros(3), new_state(3), row_masks, 0.0, pulse
     )
     assert desired == 0 and not pulse.any()
+
+
+@pytest.mark.parametrize("actuation", [layout.ACTUATION_LP_PWM, layout.ACTUATION_WHEELS])
+def test_only_the_pwpf_table_actuation_opens_valves_from_the_table(inputs, actuation):
+    """A full torque command on every axis opens the Table 3 row of the PWPF actuation; any other
+    actuation (LP + PWM, wheels) opens nothing through the table and leaves the modulators."""
+    row_masks = np.empty(inputs.allocation.shape[0], dtype=np.int64)
+    allocation.table_masks(inputs.allocation, row_masks)
+    level = inputs.levels[0]
+    torque = 2.0 * level[layout.LV_TORQUE_MAX : layout.LV_TORQUE_MAX + 3]
+    args = (inputs.fsw, level, torque, new_state(3), row_masks, 0.0, np.zeros(3))
+    assert allocation.thruster_commands(layout.ACTUATION_PWPF_TABLE, *args) == row_masks[-1] != 0
+    pulse = np.zeros(3)
+    state = new_state(3)
+    untouched = state.copy()
+    assert allocation.thruster_commands(actuation, inputs.fsw, level, torque, state, row_masks, 0.0, pulse) == 0
+    assert not pulse.any()
+    np.testing.assert_array_equal(state, untouched)
 
 
 def test_naive_shaped_command_matches_kernel():

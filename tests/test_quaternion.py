@@ -178,6 +178,20 @@ def test_from_axes_every_branch(angle, axis):
     assert same_rotation(out, r.as_quat(), atol=1e-10)
 
 
+@pytest.mark.parametrize("angle", [math.pi - 0.3, math.pi])
+@pytest.mark.parametrize("axis", [[1e-6, 1, 5e-7], [5e-7, 1e-6, 1], [1e-6, 5e-7, 1], [5e-7, 1, 1e-6], [1, 1e-6, 5e-7]])
+def test_from_axes_divides_by_the_largest_component(angle, axis):
+    """Near a half turn about an axis a hair off a body axis, one quaternion component is ~1 and
+    two are ~1e-6. Each branch of from_axes divides by 4 times one component; only the largest
+    keeps the result exact (dividing by the 1e-6 one loses ~1e-5). 1e-12 against scipy's
+    rotation (the matrices are exact to rounding)."""
+    r = Rotation.from_rotvec(angle * np.array(axis) / np.linalg.norm(axis))
+    m = r.as_matrix()
+    out = np.empty(4)
+    quaternion.from_axes(m[:, 0].copy(), m[:, 1].copy(), m[:, 2].copy(), out)
+    assert same_rotation(out, r.as_quat(), atol=1e-12)
+
+
 @settings(deadline=None)
 @given(unit_quaternions(), unit_quaternions(), st.floats(min_value=0.0, max_value=1.0))
 def test_slerp_matches_scipy_and_takes_shortest_arc(q0, q1, h):

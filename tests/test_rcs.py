@@ -310,6 +310,46 @@ def test_derating_by_number_of_open_valves(vehicle, thrusters, n_open, thrust_le
     assert rcs.derating_factor(vehicle, 0) == 1.0
 
 
+def test_each_thruster_scales_its_thrust_and_torque(vehicle, thrusters):
+    """Thrust scales 0.8, 1.25 and 0.9 (a dispersed or mixed set) on three ideal valves open for
+    one period: impulse F 0.73 (0.8 + 1.25 + 0.9) dt and angular impulse F 0.73 dt times the sum
+    of s_i r_i x d_i (000 sec. 2.1's derating for three open; the shipped vehicles all have
+    scale 1, where a scale that divides passes)."""
+    thr = set_times(thrusters, LOW, IDEAL)
+    scales = {0: 0.8, 1: 1.25, 6: 0.9}
+    for i, scale in scales.items():
+        thr[i, layout.T_SCALE] = scale
+    commands = {0: [(i, True) for i in scales]}
+    impulse, angular, _, _ = fly_valves(thr, vehicle, commands, DT, LOW)
+    force = nominal_thrust(vehicle, LOW) * 0.73
+    assert impulse == pytest.approx(force * sum(scales.values()) * DT, rel=REL)
+    arms = arms_of(thr, vehicle)
+    expected = force * DT * sum(scale * arms[i] for i, scale in scales.items())
+    np.testing.assert_allclose(angular, expected, rtol=REL, atol=1e-15)
+
+
+def test_open_mask_is_the_thrusters_with_thrust_at_each_instant(thrusters):
+    """rcs.open_mask (what the history records as open valves) against the naive valve profile
+    (Table 2 delays and ramps): thrusters 2 and 7 opened at 0 and closed at 0.1 s, thruster 3
+    opened at 0.05 s; bit i-1 is set exactly while thruster i's level is above zero (not before
+    the on-delay, not after the fall, never for a thruster not commanded)."""
+    times = TABLE_2[LOW]
+    thr = set_times(thrusters, LOW, times)
+    n = thr.shape[0]
+    commands = {0: [(1, True), (6, True)], 10: [(2, True)], 20: [(1, False), (6, False)]}  # steps of 5 ms
+    knots = {i: valve_knots(naive_commands(commands, i, dt=0.005), times) for i in (1, 2, 6)}
+    valve_state = np.zeros((n, rcs.VALVE_STATE_SIZE))
+    rcs.reset(valve_state)
+    for step in range(80):  # the ramps after the closes end before 0.4 s
+        t = step * 0.005
+        for i, is_open in commands.get(step, ()):
+            rcs.command(valve_state, thr, i, is_open, t, LOW)
+        for i in range(n):
+            rcs.apply_reactions(valve_state, thr, i, t, LOW)
+        expected = sum(1 << i for i, k in knots.items() if level(k, t) > 0.0)
+        assert rcs.open_mask(valve_state, n, t) == expected, f"at {t} s"
+
+
 def test_derating_with_table_2_transients(vehicle, thrusters):
     """Steady state with Table 2 valves: three open give 3 x 0.73 F after the rise."""
     commands = {0: [(0, True), (1, True), (6, True)]}

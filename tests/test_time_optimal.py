@@ -180,3 +180,60 @@ def test_the_physical_plant_through_the_scaling_switches_at_the_same_scaled_time
     np.testing.assert_array_equal(commands, normalised[:-1, to.TO_U])
     x1, x2, x3 = to.scale(y[0], y[1], accel_per_pa, y[2], tau, 1.0)
     assert (x1, x2, x3) == pytest.approx(tuple(normalised[-1, 1:4]), rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize("length", [0.01, 1.0, 7.3])
+@pytest.mark.parametrize("u", [-1.0, 0.0, 1.0])
+def test_scaling_maps_the_physical_plant_onto_eq21_for_any_length(length, u):
+    """core.time_optimal.scale (module doc): X1 = x1 / L, X2 = x2 tau / L, X3 = k P tau^2 / L
+    carries eq. 18-20 in vacuum onto eq. 21 for any L. The physical plant integrated by scipy
+    over 0.3 tau, scaled at both ends, against eq. 21's closed form over 0.3 (advance): 1e-9
+    relative (DOP853 at rtol 1e-13; terms of order 1). L = 1 alone would not see an L put on
+    the wrong side of any of the three."""
+    tau, accel_per_pa = 9.8, 1.7e-7  # s, m/s^2 per Pa: the 2 kg vehicle of the test above
+    y0 = [0.4, -0.03, 2.5e5]  # m, m/s, Pa
+
+    def rhs(_t, y):  # eq. 18 with eq. 19, 20 in vacuum
+        return [y[1], u * accel_per_pa * y[2], -abs(u) * y[2] / tau]
+
+    y1 = solve_ivp(rhs, (0.0, 0.3 * tau), y0, method="DOP853", rtol=1e-13, atol=1e-15).y[:, -1]
+    start = to.scale(y0[0], y0[1], accel_per_pa, y0[2], tau, length)
+    end = to.scale(y1[0], y1[1], accel_per_pa, y1[2], tau, length)
+    assert to.advance(*start, u, 0.3) == pytest.approx(end, rel=1e-9, abs=1e-12 / length)
+    # and the law, homogeneous in the scaled state, gives the same command at every L
+    assert to.command(*start, 0.1 * start[2], False) == to.command(
+        *to.scale(y0[0], y0[1], accel_per_pa, y0[2], tau, 1.0), 0.1 * (start[2] * length), False
+    )
+
+
+@pytest.mark.parametrize("x2", [0.5, -0.5, 2.0, -2.0])
+@pytest.mark.parametrize("x3_over_speed", [1.0, 0.5])
+def test_each_surface_says_brake_where_the_origin_is_out_of_reach_eq46(x2, x3_over_speed):
+    """002 eq. 46: with x3 <= |x2| the thrust left cannot stop the vehicle; sigma0 and sigma2
+    then have the sign of x2, so eq. 44 and bang-bang brake (u = -sign x2), x3 = |x2| included
+    (there the logarithms of eq. 41, 43 are undefined). The naive twin says the same."""
+    x3 = x3_over_speed * abs(x2)
+    for x1 in (-1.0, 0.0, 1.0):
+        assert to._sign(to.sigma0(x1, x2, x3)) == math.copysign(1.0, x2)
+        assert to._sign(to.sigma2(x1, x2, x3)) == math.copysign(1.0, x2)
+        for bang_bang in (False, True):
+            u = to.command(x1, x2, x3, 0.0, bang_bang)
+            assert u == -math.copysign(1.0, x2) == naive.time_optimal_u(x1, x2, x3, 0.0, bang_bang)
+
+
+def test_fly_normalised_records_every_step_and_stops_the_law_on_arrival():
+    """fly_normalised's contract: row k is the state at t = k dt (the time as k * dt, no sum of
+    steps) with the command then held; the row at arrival has u = 0; a history shorter than the
+    flight keeps its first rows and changes nothing else; a flight cut at max_steps reports that
+    it did not arrive."""
+    full, arrived = _fly(FIG8)
+    assert arrived
+    steps = full.shape[0] - 1
+    np.testing.assert_array_equal(full[:, to.TO_T], np.arange(steps + 1) * DT)
+    assert full[-1, to.TO_U] == 0.0 and full[-2, to.TO_U] != 0.0
+    short = np.full((10, to.TO_HISTORY_SIZE), np.nan)
+    assert to.fly_normalised(*FIG8, X3_MIN, DT, False, TOLERANCE, 200_000, short) == (steps, True)
+    np.testing.assert_array_equal(short, full[:10])
+    cut = np.zeros((200_000, to.TO_HISTORY_SIZE))
+    assert to.fly_normalised(*FIG8, X3_MIN, DT, False, TOLERANCE, steps // 2, cut) == (steps // 2, False)
+    np.testing.assert_array_equal(cut[: steps // 2], full[: steps // 2])
