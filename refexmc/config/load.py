@@ -924,17 +924,17 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
             line=lines.get(("output", "history_rate_hz")),
             path=("output", "history_rate_hz"),
         )
-    period_ms = 1000.0 / vehicle["flight_software"]["control_rate_hz"]
-    delay = mission["entry_flight"].get("rcs_delay_ms", 0.0)
-    if delay >= period_ms:
+    limits = _entry_limits(vehicle)
+    delay, delay_limit = mission["entry_flight"].get("rcs_delay_ms", 0.0), limits["entry_flight.rcs_delay_ms"]
+    if not delay_limit.holds(delay):
         fail_mission(
-            f"expected an RCS delay below the control period of vehicle {vehicle['name']} ({period_ms:g} ms), "
-            f"got {delay:g}",
+            f"expected an RCS delay below the control period of vehicle {vehicle['name']} "
+            f"({delay_limit.high:g} ms), got {delay:g}",
             "entry_flight",
             "rcs_delay_ms",
         )
     specs = dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
-    for key, limit in _entry_limits(vehicle).items():
+    for key, limit in limits.items():
         _check_entry_draws(specs.get(key), key, limit, vehicle, mission, path, lines.get(("dispersions", key)))
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     columns = requirements.entry_metric_columns(parameter_columns)

@@ -164,34 +164,44 @@ def history_range(campaign, column):
     return history_ranges(campaign, [column])[column]
 
 
-def history_ranges(campaign, columns):
-    """{column: decade-rounded (low, high) of its positive values}, read from the Parquet
-    row-group statistics (no data read; each part's footer once): the log axes and their bins
-    follow the data, so a fine-pointing mission's arcsec errors are not cut at a floor made for
-    degrees. At most ``MAX_DECADES`` decades; ``DEFAULT_RANGES`` when the parts carry no statistics."""
+def statistics_min_max(parts, columns):
+    """{column: (min, max)} over the Parquet row-group statistics of ``parts`` (no data read; each
+    part's footer once); a column that no part has, or without statistics in some row group, is left out."""
     import pyarrow.parquet as pq
 
-    low, high = dict.fromkeys(columns, math.inf), dict.fromkeys(columns, -math.inf)
-    no_statistics = set()
-    for part in campaign.history_parts:
+    low, high, missing = {}, {}, set()
+    for part in parts:
         metadata = pq.ParquetFile(part).metadata
         names = [metadata.schema.column(i).name for i in range(metadata.num_columns)]
         for column in columns:
-            if column not in names or column in no_statistics:
+            if column not in names or column in missing:
                 continue
             index = names.index(column)
             for group in range(metadata.num_row_groups):
                 statistics = metadata.row_group(group).column(index).statistics
                 if statistics is None or not statistics.has_min_max:
-                    no_statistics.add(column)
+                    missing.add(column)
                     break
-                smallest, largest = float(statistics.min), float(statistics.max)
-                low[column] = min(low[column], abs(smallest) if smallest > 0 else 0.0)
-                high[column] = max(high[column], abs(largest), abs(smallest))
-    return {
-        column: DEFAULT_RANGES[column] if column in no_statistics else _decades(low[column], high[column], column)
-        for column in columns
-    }
+                low[column] = min(low.get(column, math.inf), float(statistics.min))
+                high[column] = max(high.get(column, -math.inf), float(statistics.max))
+    return {c: (low[c], high[c]) for c in low if c not in missing}
+
+
+def history_ranges(campaign, columns):
+    """{column: decade-rounded (low, high) of its positive values}, from the Parquet row-group
+    statistics (:func:`statistics_min_max`): the log axes and their bins follow the data, so a
+    fine-pointing mission's arcsec errors are not cut at a floor made for degrees. At most
+    ``MAX_DECADES`` decades; ``DEFAULT_RANGES`` when the parts carry no statistics."""
+    ranges = statistics_min_max(campaign.history_parts, columns)
+    out = {}
+    for column in columns:
+        if column not in ranges:
+            out[column] = DEFAULT_RANGES[column]
+            continue
+        smallest, largest = ranges[column]
+        positive_low = smallest if smallest > 0 else 0.0  # the smallest positive bound seen, else 0
+        out[column] = _decades(positive_low, max(abs(largest), abs(smallest)), column)
+    return out
 
 
 def _decades(low, high, column):

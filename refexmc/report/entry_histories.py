@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from refexmc.report import data
-from refexmc.report.aggregate import ENVELOPE_PERCENTS, BinnedQuantiles
+from refexmc.report.aggregate import ENVELOPE_PERCENTS, BinnedQuantiles, statistics_min_max
 
 MAX_X_BINS = 400
 LINEAR_VALUE_BINS = 400  # 0.25 % of the column's range (Parquet statistics) per value bin
@@ -56,27 +56,6 @@ NOMINAL_COLUMNS = ("alpha_command_deg", "bank_command_deg", "speed_m_s", "altitu
 def is_entry(campaign):
     """Does the campaign fly an entry mission (``core.entry_flight``)?"""
     return ENTRY_MISSION_KEY in (campaign.resolved.get("mission") or {})
-
-
-def _statistics_ranges(parts, columns):
-    """{column: (min, max)} over the row-group statistics of ``parts`` (no data read); a column
-    without statistics in some row group is left out."""
-    low, high, missing = {}, {}, set()
-    for part in parts:
-        metadata = pq.ParquetFile(part).metadata
-        names = [metadata.schema.column(i).name for i in range(metadata.num_columns)]
-        for column in columns:
-            if column not in names:
-                continue
-            index = names.index(column)
-            for group in range(metadata.num_row_groups):
-                statistics = metadata.row_group(group).column(index).statistics
-                if statistics is None or not statistics.has_min_max:
-                    missing.add(column)
-                    continue
-                low[column] = min(low.get(column, math.inf), float(statistics.min))
-                high[column] = max(high.get(column, -math.inf), float(statistics.max))
-    return {c: (low[c], high[c]) for c in low if c not in missing and math.isfinite(low[c]) and math.isfinite(high[c])}
 
 
 def signed_log_edges(low=ERROR_DECADES[0], high=ERROR_DECADES[1], per_decade=ERROR_BINS_PER_DECADE):
@@ -158,7 +137,11 @@ def aggregate_entry_histories(campaign):
     if not wanted or not {"run_id", "t_s", "mode"} <= present:
         return None
     plain = sorted({spec[0][0] for spec in wanted.values() if spec[1] is None and not spec[5]})
-    ranges = _statistics_ranges(campaign.history_parts, plain + ["speed_m_s"])
+    ranges = {
+        column: (low, high)
+        for column, (low, high) in statistics_min_max(campaign.history_parts, plain + ["speed_m_s"]).items()
+        if math.isfinite(low) and math.isfinite(high)
+    }
     t_end = float(np.nanmax(ok["t_end_s"].to_numpy(dtype=float))) if "t_end_s" in ok else 0.0
     t_end = max(t_end, 1.0 / campaign.history_rate_hz)
     dt = max(1.0 / campaign.history_rate_hz, t_end / MAX_X_BINS)
