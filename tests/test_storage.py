@@ -208,3 +208,20 @@ def test_a_worker_imports_neither_pandas_nor_the_validator(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_an_exception_in_the_middle_of_a_write_leaves_no_temporary_file(tmp_path):
+    """A signal stops a campaign by raising in the parent (run.CampaignInterrupted), possibly while
+    it writes a part: neither the part nor its temporary file may stay (seen once in CI after SIGINT)."""
+
+    class Interrupted(BaseException):  # not an Exception, as KeyboardInterrupt
+        pass
+
+    def write(tmp):
+        tmp.write_bytes(b"half a part")
+        raise Interrupted
+
+    target = tmp_path / "runs" / "part-00002.parquet"
+    with pytest.raises(Interrupted):
+        storage._write_atomic(target, write)
+    assert list(tmp_path.rglob("*")) == [tmp_path / "runs"]

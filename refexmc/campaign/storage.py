@@ -56,7 +56,8 @@ def _write_atomic(path, write):
     """Call ``write(tmp)`` for a temporary name beside ``path``, then rename: readers never see a partial file.
 
     An OSError (disk full, read-only file system) removes the temporary file and is raised again naming
-    ``path`` (a failed ``write`` names no file).
+    ``path`` (a failed ``write`` names no file); any other exception, such as the signal that stops
+    a campaign (``run.CampaignInterrupted``) in the middle of a write, removes it too.
     """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
@@ -68,6 +69,10 @@ def _write_atomic(path, write):
         with suppress(OSError):
             tmp.unlink(missing_ok=True)
         raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+    except BaseException:
+        with suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_bytes_atomic(data, path):
