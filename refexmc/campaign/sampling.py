@@ -22,6 +22,7 @@ from refexmc.campaign import saltelli
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem, level_names, thruster_count, unphysical_inertias, wheel_count
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
+from refexmc.smallmatrix import symmetric_eigen  # the nominal inertia's principal axes
 
 _TINY = dispersions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
 _DESIGN_TAG = {"lhs": 1, "sobol": 2}
@@ -91,44 +92,6 @@ def so3_rotation_vectors_deg(u):
     angle_deg = (2.0 * crmath.atan2(norm, np.abs(w))) * (180.0 / math.pi)
     scale = np.divide(angle_deg, norm, out=np.zeros_like(norm), where=norm > 0.0)
     return vector * scale[:, np.newaxis]
-
-
-def symmetric_eigen(matrix):
-    """(eigenvalues ascending, unit eigenvectors as columns) of a symmetric 3 x 3 matrix.
-
-    Cyclic Jacobi rotations (Golub & Van Loan, *Matrix Computations*, 4th ed., Algorithms 8.5.1
-    and 8.5.3) in Python floats: + - * / and sqrt only, so the same bits on every CPU (LAPACK's
-    eigh runs the BLAS kernels of the CPU, FMA or not). A diagonal matrix keeps its axes.
-    """
-    a = [[float(value) for value in row] for row in np.asarray(matrix, dtype=float)]
-    v = [[1.0 if i == k else 0.0 for k in range(3)] for i in range(3)]
-    for _sweep in range(64):
-        rotated = False
-        for p, q in ((0, 1), (0, 2), (1, 2)):
-            if abs(a[p][q]) <= 2.0**-60 * (abs(a[p][p]) + abs(a[q][q])):
-                a[p][q] = a[q][p] = 0.0
-                continue
-            rotated = True
-            tau = (a[q][q] - a[p][p]) / (2.0 * a[p][q])
-            t = (1.0 if tau >= 0.0 else -1.0) / (abs(tau) + math.sqrt(1.0 + tau * tau))
-            c = 1.0 / math.sqrt(1.0 + t * t)
-            s = t * c
-            for k in range(3):  # A J: columns p and q
-                akp, akq = a[k][p], a[k][q]
-                a[k][p], a[k][q] = c * akp - s * akq, s * akp + c * akq
-            for k in range(3):  # J^T (A J): rows p and q
-                apk, aqk = a[p][k], a[q][k]
-                a[p][k], a[q][k] = c * apk - s * aqk, s * apk + c * aqk
-            a[p][q] = a[q][p] = 0.0
-            for k in range(3):
-                vkp, vkq = v[k][p], v[k][q]
-                v[k][p], v[k][q] = c * vkp - s * vkq, s * vkp + c * vkq
-        if not rotated:
-            break
-    order = sorted(range(3), key=lambda i: (a[i][i], -i))  # equal moments: the later axis first, as LAPACK's eigh
-    values = np.array([a[i][i] for i in order])
-    vectors = np.array([[v[k][i] for i in order] for k in range(3)])
-    return values, vectors
 
 
 def rotation_matrices(rotvec_rad):

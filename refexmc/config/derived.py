@@ -9,6 +9,7 @@ import itertools
 
 import numpy as np
 
+from refexmc import crmath, smallmatrix
 from refexmc.config.schema import DEFAULT_TRAJECTORY, WHEELS_LEVEL
 
 
@@ -46,18 +47,19 @@ def wheel_count(vehicle):
 def wheel_axes(vehicle):
     """001's W: 3 x N, column i the unit spin axis of wheel i in body axes (001 sec. 8.1)."""
     axes = np.array([unit["axis"] for unit in vehicle["wheels"]["units"]], dtype=float).reshape(-1, 3)
-    return (axes / np.linalg.norm(axes, axis=1, keepdims=True)).T
+    return smallmatrix.unit_rows(axes).T
 
 
 def wheel_distribution(vehicle, excluded=()):
     """The flight software's distribution matrix D (N x 3, wheel torques = D body torque): the
     pseudo-inverse W^+ = W^T (W W^T)^-1 of the wheels it uses (001 sec. 9.1); the rows of the
-    ``excluded`` wheels (1-based ids: failures it knows of) are zero."""
+    ``excluded`` wheels (1-based ids: failures it knows of) are zero. In closed form, not LAPACK's
+    SVD (``smallmatrix.pseudo_inverse``): it feeds every run, the same bits on any CPU."""
     w = wheel_axes(vehicle)
     used = [i for i in range(w.shape[1]) if (i + 1) not in set(excluded)]
     out = np.zeros((w.shape[1], 3))
     if used:
-        out[used] = np.linalg.pinv(w[:, used])
+        out[used] = smallmatrix.pseudo_inverse(w[:, used])
     return out
 
 
@@ -78,34 +80,28 @@ def wheel_accel_max(vehicle, excluded=()):
 
 
 def wheel_null_space(vehicle):
-    """Orthonormal basis (N x (N - 3)) of the wheel torques that make no body torque (001 sec. 8.1: n_4)."""
-    w = wheel_axes(vehicle)
-    _, _, vt = np.linalg.svd(w)
-    basis = vt[np.linalg.matrix_rank(w) :]
-    for row in basis:  # the sign SVD happens to give is arbitrary: make the first clear entry positive
-        if row[np.argmax(np.abs(row) > 1e-9)] < 0.0:
-            row *= -1.0
-    return basis.T
+    """Orthonormal basis (N x (N - 3)) of the wheel torques that make no body torque (001 sec. 8.1:
+    n_4), each vector's first clear entry positive (``smallmatrix.null_space``)."""
+    return smallmatrix.null_space(wheel_axes(vehicle))
 
 
 def wheel_problem(vehicle):
     """Why the wheel axes cannot control the attitude (they do not span three dimensions), or None."""
-    w = wheel_axes(vehicle)
-    rank = np.linalg.matrix_rank(w)
+    rank = smallmatrix.rank(wheel_axes(vehicle))
     if rank < 3:
         return f"expected wheel axes that span the three body axes, got rank {rank}"
     return None
 
 
 def unit_directions(vehicle):
-    d = np.array([t["direction"] for t in vehicle["rcs"]["thrusters"]], dtype=float)
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
+    """Unit force direction of each thruster (n x 3)."""
+    return smallmatrix.unit_rows(np.array([t["direction"] for t in vehicle["rcs"]["thrusters"]], dtype=float))
 
 
 def torque_arms(vehicle):
     """Torque per newton of each thruster about the nominal CoM: r x F / |F| (N m / N)."""
     r = np.array([t["position_m"] for t in vehicle["rcs"]["thrusters"]], dtype=float)
-    return np.cross(r, unit_directions(vehicle))
+    return np.array([smallmatrix.cross(p, d) for p, d in zip(r, unit_directions(vehicle), strict=True)]).reshape(-1, 3)
 
 
 def lever_arms(vehicle):
@@ -131,7 +127,8 @@ def gains(vehicle, level):
     """Kp = |tau_min_fraction omega_dot_max / sin(phi_db / 2)| (eq. 38), Kd = 2 zeta sqrt(Kp) (eq. 34)."""
     fsw = vehicle["flight_software"]
     phi_db = np.radians(fsw["deadband_angle_deg"])
-    kp = np.abs(fsw["pwpf"]["tau_min_fraction"] * omega_dot_max(vehicle, level) / np.sin(0.5 * phi_db))
+    # crmath: numpy's sin is SIMD code chosen per CPU, and the gains feed every run
+    kp = np.abs(fsw["pwpf"]["tau_min_fraction"] * omega_dot_max(vehicle, level) / crmath.sin(0.5 * phi_db))
     kd = 2.0 * fsw["damping_ratio"] * np.sqrt(kp)
     return kp, kd
 
@@ -435,7 +432,11 @@ def _inertia_checks(tensors):
     j = np.where(finite[:, None, None], j, np.eye(3))
     atol = 1e-9 * np.maximum(1.0, np.abs(j).max(axis=(1, 2)))
     symmetric = finite & np.isclose(j, np.swapaxes(j, 1, 2), rtol=0.0, atol=atol[:, None, None]).all(axis=(1, 2))
-    return symmetric, np.linalg.eigvalsh(np.where(symmetric[:, None, None], j, np.eye(3)))
+    tensors = np.where(symmetric[:, None, None], j, np.eye(3))
+    tensors = np.tril(tensors) + np.swapaxes(np.tril(tensors, -1), 1, 2)  # the lower triangle, as eigvalsh
+    # Jacobi, not LAPACK's eigvalsh: the verdict decides a campaign's redraws, the same on any CPU
+    eigenvalues = np.array([smallmatrix.symmetric_eigen(tensor)[0] for tensor in tensors]).reshape(-1, 3)
+    return symmetric, eigenvalues
 
 
 def _triangle_violated(eig):
@@ -501,7 +502,7 @@ def allocate_torque(vehicle, torque, level=None):
             "level": level,
             "torque_n_m": torque.tolist(),
             "commands": u.tolist(),
-            "realised_torque_n_m": (arms.T @ u).tolist(),
+            "realised_torque_n_m": smallmatrix.matmul(arms.T, u).tolist(),
             "attained_share": share,
             "derating": factor,
         },
@@ -518,7 +519,7 @@ def _distribute_torque(vehicle, torque):
     out), each limited to the wheels' torque limit, and the body torque that realises."""
     torque = np.asarray(torque, dtype=float)
     limit = vehicle["wheels"]["torque_max_n_m"]
-    commands = -wheel_distribution(vehicle) @ torque
+    commands = -smallmatrix.matmul(wheel_distribution(vehicle), torque)
     limited = np.clip(commands, -limit, limit)
     return {
         "allocation": {
@@ -527,7 +528,7 @@ def _distribute_torque(vehicle, torque):
             "torque_n_m": torque.tolist(),
             "commands": commands.tolist(),
             "limited_commands": limited.tolist(),
-            "realised_torque_n_m": (-wheel_axes(vehicle) @ limited).tolist(),
+            "realised_torque_n_m": (-smallmatrix.matmul(wheel_axes(vehicle), limited)).tolist(),
         },
         "wheels": [
             {"axis": axis.tolist(), "max_torque_n_m": limit, "name": unit.get("name")}
@@ -553,20 +554,22 @@ def separation_rotation_vector(separation):
 
 
 def rotate_by_rotation_vector(vector, rotvec_deg):
-    """``vector`` rotated by the rotation vector ``rotvec_deg`` (deg; Rodrigues' formula)."""
+    """``vector`` rotated by the rotation vector ``rotvec_deg`` (deg; Rodrigues' formula); it
+    feeds runs (an engine's misalignment, drawn per run): no BLAS, correctly rounded sin and cos."""
     v = np.asarray(vector, dtype=float)
     r = np.radians(np.asarray(rotvec_deg, dtype=float))
-    angle = float(np.linalg.norm(r))
+    angle = smallmatrix.norm(r)
     if angle == 0.0:
         return v.copy()
     k = r / angle
-    return v * np.cos(angle) + np.cross(k, v) * np.sin(angle) + k * np.dot(k, v) * (1.0 - np.cos(angle))
+    cos, sin = float(crmath.cos(angle)), float(crmath.sin(angle))
+    return v * cos + smallmatrix.cross(k, v) * sin + k * (smallmatrix.dot(k, v) * (1.0 - cos))
 
 
 def engine_direction(engine, misalignment_deg=(0.0, 0.0, 0.0)):
     """The main engine's unit force direction in body axes, turned by a misalignment rotation vector."""
     direction = np.asarray(engine["direction"], dtype=float)
-    return rotate_by_rotation_vector(direction / np.linalg.norm(direction), misalignment_deg)
+    return rotate_by_rotation_vector(smallmatrix.unit(direction), misalignment_deg)
 
 
 def burn_start_attitude(vehicle, plan):
@@ -579,7 +582,7 @@ def burn_start_attitude(vehicle, plan):
     accel = row[L.NM_THRUST_ACCEL : L.NM_THRUST_ACCEL + 3]
     q = np.zeros(4)
     deorbit.thrust_attitude(
-        accel / np.linalg.norm(accel),
+        smallmatrix.unit(accel),
         row[L.NM_POSITION : L.NM_POSITION + 3].copy(),
         row[L.NM_VELOCITY : L.NM_VELOCITY + 3].copy(),
         engine_direction(vehicle["main_engine"]),

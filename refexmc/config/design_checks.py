@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from refexmc import smallmatrix
 from refexmc.config import derived
 from refexmc.config.errors import ConfigError
 
@@ -86,7 +87,7 @@ def check_vehicle(vehicle, fail):
 def _check_directions(vehicle, fail):
     for i, thruster in enumerate(vehicle["rcs"]["thrusters"]):
         direction = np.asarray(thruster["direction"], dtype=float)
-        norm = float(np.linalg.norm(direction))
+        norm = float(smallmatrix.norm(direction))
         if norm > 0.0 and abs(norm - 1.0) > DIRECTION_NORM_TOLERANCE:
             fail(
                 f"expected a unit force direction (norm 1 within {DIRECTION_NORM_TOLERANCE:g}), got "

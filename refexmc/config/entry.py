@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from refexmc import smallmatrix
 from refexmc.config import schema
 
 # The core (numba) is imported only where arrays are packed: validating a file stays numba-free.
@@ -279,7 +280,7 @@ def entry_vehicle(
         for key, factor in (coefficient_factors or {}).items():
             coefficients[slots[key]] *= factor
         truth = nominal._replace(atmosphere=atmosphere, coefficients=coefficients)
-    return ef.EntryVehicle(truth, inertia, np.linalg.inv(inertia), sf, ct, alpha, bank, nominal, fsw_inertia)
+    return ef.EntryVehicle(truth, inertia, smallmatrix.inverse(inertia), sf, ct, alpha, bank, nominal, fsw_inertia)
 
 
 def rcs_capacity(vehicle):

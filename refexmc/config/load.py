@@ -12,6 +12,7 @@ import jsonschema
 import numpy as np
 import yaml
 
+from refexmc import smallmatrix
 from refexmc.config import design_checks, entry, published, requirements, schema
 from refexmc.config import feed as config_feed
 from refexmc.config.derived import (
@@ -286,7 +287,7 @@ def _check_rcs(vehicle, fail):
     thrusters = vehicle["rcs"]["thrusters"]
     _check_numbering(thrusters, "thruster", ("rcs", "thrusters"), fail)
     for i, thruster in enumerate(thrusters):
-        if np.linalg.norm(thruster["direction"]) == 0.0:
+        if smallmatrix.norm(thruster["direction"]) == 0.0:
             fail("expected a non-zero force direction", "rcs", "thrusters", i, "direction")
     if vehicle["flight_software"]["actuation"] == "lp_pwm" and vehicle["rcs"]["switching_limits_ms"]["min_off"] != 0.0:
         fail(
@@ -350,7 +351,7 @@ def _check_wheels(vehicle, fail):
     units = wheels["units"]
     _check_numbering(units, "wheel", ("wheels", "units"), fail)
     for i, unit in enumerate(units):
-        if np.linalg.norm(unit["axis"]) == 0.0:
+        if smallmatrix.norm(unit["axis"]) == 0.0:
             fail("expected a non-zero spin axis", "wheels", "units", i, "axis")
         momentum = unit.get("initial_momentum_n_m_s", 0.0)
         if abs(momentum) > wheels["momentum_max_n_m_s"]:
@@ -418,7 +419,7 @@ def check_modes(modes, fail):
             has_q, has_euler = "quaternion" in target, "euler_deg" in target or "sequence" in target
             if has_q == has_euler or (has_euler and not ("euler_deg" in target and "sequence" in target)):
                 fail("expected either 'quaternion' or both 'euler_deg' and 'sequence'", "modes", m, "target")
-            if has_q and np.linalg.norm(target["quaternion"]) == 0.0:
+            if has_q and smallmatrix.norm(target["quaternion"]) == 0.0:
                 fail("expected a non-zero quaternion", "modes", m, "target", "quaternion")
         for g, group in enumerate(mode["exit"]):
             for predicate in group:
@@ -445,7 +446,7 @@ def check_mission(mission, file, lines, prefix=()):
             fail("'euler_sequence' goes with 'attitude_euler_deg'", "separation", "euler_sequence")
         fail("'attitude_euler_deg' needs 'euler_sequence' (e.g. ZYX)", "separation", "attitude_euler_deg")
     gravity = mission.get("disturbances", {}).get("gravity_gradient")
-    if gravity is not None and np.linalg.norm(gravity["direction"]) == 0.0:
+    if gravity is not None and smallmatrix.norm(gravity["direction"]) == 0.0:
         fail("expected a non-zero vector", "disturbances", "gravity_gradient", "direction")
     start = mission.get("pointing_statistics_from_s")
     if start is not None and start >= mission["max_flight_time_s"]:
@@ -461,7 +462,7 @@ def check_mission(mission, file, lines, prefix=()):
             line=lines.get(("atmosphere",)),
             path=prefix + ("atmosphere",),
         )
-    if "sun_direction" in mission and np.linalg.norm(mission["sun_direction"]) == 0.0:
+    if "sun_direction" in mission and smallmatrix.norm(mission["sun_direction"]) == 0.0:
         raise ConfigError(
             "expected a non-zero vector",
             file=file,

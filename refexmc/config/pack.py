@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from refexmc import smallmatrix
 from refexmc.config import deorbit, derived, parameters, schema
 from refexmc.config import feed as config_feed
 from refexmc.config.feed import AMBIENT_PRESSURE_DEFAULT_PA
@@ -295,7 +296,7 @@ def pack_mission(mission, trajectory=schema.DEFAULT_TRAJECTORY, plan=None):
     parameters.pack_nominal(out, "mission", mission)
     values = {
         "separation_attitude_rotvec_rad": derived.separation_rotation_vector(sep),  # or from Euler angles
-        "sun_direction": sun / np.linalg.norm(sun),
+        "sun_direction": smallmatrix.unit(sun),
         "earth_radius_m": earth["radius_m"],
         "earth_mu_m3_s2": earth["mu_m3_s2"],
         "handover_max_angle_rad": math.inf if handover is None else rad(handover),
@@ -305,7 +306,7 @@ def pack_mission(mission, trajectory=schema.DEFAULT_TRAJECTORY, plan=None):
         "trajectory_model_id": TRAJECTORY_MODELS[trajectory],
         "earth_rotation_rate_rad_s": earth.get("rotation_rate_rad_s", 0.0),
         "gravity_gradient_coefficient_s2": derived.gravity_gradient_coefficient(gravity["bodies"]),
-        "gravity_gradient_direction": gravity_direction / np.linalg.norm(gravity_direction),
+        "gravity_gradient_direction": smallmatrix.unit(gravity_direction),
         "constant_torque_n_m": disturbances.get("constant_torque_n_m", [0.0, 0.0, 0.0]),
         "pointing_statistics_from_s": mission.get("pointing_statistics_from_s", math.inf),
     }
@@ -333,7 +334,7 @@ def target_quaternion(target):
     """Inertial target quaternion (scalar last, unit) of an ``inertial`` target."""
     if "quaternion" in target:
         q = np.asarray(target["quaternion"], dtype=float)
-        return q / np.linalg.norm(q)
+        return smallmatrix.unit(q)
     from scipy.spatial.transform import Rotation  # only for Euler targets: scipy costs 0.4 s to import
 
     return Rotation.from_euler(target["sequence"], target["euler_deg"], degrees=True).as_quat()
