@@ -20,6 +20,30 @@ def plural(count, word):
     return f"{count} {word}{'' if count == 1 else 's'}"
 
 
+def residue_free(values, fmt):
+    """``values`` (a vector quantity) with each component below the printed rounding of ``fmt``
+    set to 0: below half the last decimal of an ``f`` format, or, for ``g``/``e``, below half the
+    last significant digit of the largest component. A torque of 1.1e-16 N m beside 20.5 N m is a
+    rounding residue, not a torque (issue 32), and a -0.0000 has no sign. None stays None."""
+    kind = fmt[-1]
+    if kind not in "fge":
+        return list(values)
+    precision = int(fmt.split(".")[1][:-1]) if "." in fmt else 6
+    finite = [abs(v) for v in values if v is not None and math.isfinite(v)]
+    if kind == "f":
+        half_digit = 0.5 * 10.0**-precision
+    elif finite and max(finite) > 0.0:
+        half_digit = 0.5 * 10.0 ** (math.floor(math.log10(max(finite))) - max(precision - (kind == "g"), 0))
+    else:
+        half_digit = 0.0
+    return [v if v is None or abs(v) >= half_digit and v != 0.0 else 0.0 for v in values]
+
+
+def shown(values, fmt, separator=", "):
+    """``values`` formatted with ``fmt`` and joined, rounding residues as 0 (:func:`residue_free`)."""
+    return separator.join(format(v, fmt) for v in residue_free(values, fmt))
+
+
 def _bad_input(message):
     click.echo(f"error: {message}", err=True)
     sys.exit(2)
@@ -455,11 +479,11 @@ def _inspect_torque(vehicle, text, level, as_json):
     alloc = result["allocation"]
     if "wheels" in result:
         lines = [f"distribution ({alloc['method']}) of torque {values} N m: motor torque commands -D torque"]
-        for i, (u, limited) in enumerate(zip(alloc["commands"], alloc["limited_commands"], strict=True)):
-            note = f", limited to {limited:.6g}" if limited != u else ""
+        commands = residue_free(alloc["commands"], ".6g")
+        for i, (u, limited) in enumerate(zip(commands, alloc["limited_commands"], strict=True)):
+            note = f", limited to {limited:.6g}" if limited != alloc["commands"][i] else ""
             lines.append(f"  wheel {i + 1:2d}  {u:12.6g} N m{note}")
-        realised = ", ".join(f"{v:.6g}" for v in alloc["realised_torque_n_m"])
-        lines.append(f"  realised body torque [N m]: {realised}")
+        lines.append(f"  realised body torque [N m]: {shown(alloc['realised_torque_n_m'], '.6g')}")
         click.echo("\n".join(lines))
         return
     lines = [f"allocation ({alloc['method']}, {alloc['level']} thrust) of torque {values} N m"]
@@ -469,7 +493,7 @@ def _inspect_torque(vehicle, text, level, as_json):
     for i, u in enumerate(alloc["commands"]):
         if u > 0.0:
             lines.append(f"  thruster {i + 1:2d}  {u:10.6f} N")
-    realised = ", ".join(f"{v:.6g}" for v in alloc["realised_torque_n_m"])
+    realised = shown(alloc["realised_torque_n_m"], ".6g")
     lines.append(f"  realised torque [N m]: {realised}; total thrust {sum(alloc['commands']):.6f} N")
     if alloc["attained_share"] is not None and alloc["attained_share"] < 1.0:
         lines.append(f"  not attainable: {100 * alloc['attained_share']:.2f} % of it along its direction")
@@ -486,7 +510,7 @@ def format_design(name, info):
 
 def _format_entry(entry):
     def vec(values, fmt):
-        return "  ".join(format(v, fmt) for v in values)
+        return shown(values, fmt, "  ")
 
     control, flaps = entry["control"], entry["flaps"]
     lines = [
@@ -531,7 +555,7 @@ def _format_attitude_design(name, info):
 
     def vec(values, fmt):
         width = int(fmt.split(".")[0].rstrip("dfg") or 0)
-        return "  ".join(format(v, fmt) if v is not None else "-".rjust(width) for v in values)
+        return "  ".join(format(v, fmt) if v is not None else "-".rjust(width) for v in residue_free(values, fmt))
 
     lines = [f"vehicle {name}"]
     if "lever_arms_m" in info:
