@@ -1,13 +1,17 @@
-"""The same bits on any CPU (issue 22): drawn parameters and runs tables do not depend on the
-machine's SIMD features, its BLAS kernels or its libm variant.
+"""The same bits on any CPU (issues 22 and 32): drawn parameters, packed inputs and runs tables do
+not depend on the machine's SIMD features, its BLAS kernels or numba's compile target.
 
-A subprocess stands in for an older CPU: numpy limited to SSE4.2 (``NPY_ENABLE_CPU_FEATURES``;
-``NPY_DISABLE_CPU_FEATURES`` does not turn AVX-512 off), numpy's OpenBLAS on its SSE kernels
-without FMA (``OPENBLAS_CORETYPE=Nehalem``), glibc's libm without its FMA/AVX2 variants
+A subprocess stands in for another CPU: numpy limited to SSE4.2 (``NPY_ENABLE_CPU_FEATURES``;
+``NPY_DISABLE_CPU_FEATURES`` does not turn AVX-512 off), numpy's OpenBLAS on another kernel set
+(``OPENBLAS_CORETYPE``: Nehalem's SSE kernels without FMA, Haswell's and Zen's with it, SkylakeX's
+AVX-512 ones where the CPU has AVX-512), glibc's libm without its FMA/AVX2 variants
 (``GLIBC_TUNABLES``; the draws only, see below), numba compiling for ``NUMBA_CPU_NAME=generic``
 (x86-64 baseline: SSE2, no FMA), in a cold kernel cache of its own. On the old sampler (numpy's
 ``np.exp``, LAPACK's eigh and BLAS products for the inertia, libm's sin/cos/atan2 for rotations)
-each of these changed some draws by an ulp on an AVX-512 machine with FMA.
+each of these changed some draws by an ulp on an AVX-512 machine with FMA; on the old packing
+(LAPACK's pinv for the wheels' distribution) OpenBLAS's Nehalem kernels changed IRASSI's runs.
+Emulation only finds what differs on the CPU at hand, so a second check does not depend on it:
+everything that feeds a run is packed with BLAS and LAPACK poisoned (``tests/blas_poison.py``).
 """
 
 import itertools
@@ -139,40 +143,166 @@ from refexmc.campaign.chunk import fly_chunk
 from refexmc.config.load import load_campaign
 
 out = {}
-for name, runs in json.loads(sys.argv[2]):
+for label, name, runs, changes in json.loads(sys.argv[2]):
     campaign = load_campaign(f"campaigns/{name}.yaml")
-    campaign["runs"] = runs
+    campaign.update(changes, runs=runs)
     rows, _ = fly_chunk(campaign, range(runs))
     table = storage.runs_table(rows)
     for column in table.column_names:
         values = table[column].combine_chunks()
         if pa.types.is_floating(values.type):
-            out[f"{name}/{column}"] = values.to_numpy(zero_copy_only=False).view(np.uint64).tolist()
+            out[f"{label}/{column}"] = values.to_numpy(zero_copy_only=False).view(np.uint64).tolist()
         else:
-            out[f"{name}/{column}"] = values.to_pylist()
+            out[f"{label}/{column}"] = values.to_pylist()
 json.dump(out, open(sys.argv[1], "w"))
 """
-CAMPAIGNS = [("smoke", 20), ("refex-mc100", 6), ("irassi-fine-pointing", 3)]
+# every vehicle family (docs/families.md), a few runs each: (label, campaign, runs, campaign keys changed)
+DETECTED_WHEEL = {"wheel_failures": {"mode": "fixed", "wheels": [2], "detected": True}}
+CAMPAIGNS = [
+    ("smoke", "smoke", 4, {}),  # thrusters, PWPF and the allocation table, planar drag (000)
+    ("refex-regulated", "refex-blow-down-mc100", 2, {}),  # the regulated feed
+    ("irassi", "irassi-fine-pointing", 3, {}),  # reaction wheels (001)
+    ("irassi-rw2-detected", "irassi-fine-pointing", 2, DETECTED_WHEEL),  # D of three wheels
+    ("cold-gas-fig8", "cold-gas-fig8", 2, {}),  # blow-down feed, time-optimal translation (002)
+    ("surveyor-hop", "surveyor-hop", 2, {}),  # local trajectory
+    ("spore", "spore-deorbit-iss", 2, {}),  # LP allocation, orbit and deorbit burn (004)
+    ("generic-slew", "generic-slew", 2, {}),  # attitude only
+    ("x38", "x38-nominal", 2, {}),  # entry (003)
+]
+CPU_FLAGS = set(Path("/proc/cpuinfo").read_text().split()) if Path("/proc/cpuinfo").exists() else set()
+# OpenBLAS's kernels (OPENBLAS_CORETYPE) and what they execute: forcing one the CPU lacks crashes
+CORETYPES = {
+    "Nehalem": {"sse4_2"},
+    "Haswell": {"avx2", "fma"},
+    "Zen": {"avx2", "fma"},
+    "SkylakeX": {"avx512f", "avx512dq", "avx512bw", "avx512vl"},
+}
+
+
+def _cpu_variants(tmp_path):
+    """{name: environment} of the CPUs emulated here: every OpenBLAS kernel set the CPU can run
+    (numba's kernels from the shared cache: OpenBLAS does not change them), and an old x86-64:
+    numpy at SSE4.2, OpenBLAS's Nehalem kernels, numba compiling for a generic x86-64 (SSE2, no
+    FMA) into a cold cache of its own, the one cold compile."""
+    variants = {
+        f"openblas-{name.lower()}": {"OPENBLAS_CORETYPE": name}
+        for name, flags in CORETYPES.items()
+        if flags <= CPU_FLAGS
+    }
+    variants["sse42-nehalem-generic"] = {
+        **OLD_CPU,
+        "NUMBA_CPU_NAME": "generic",
+        "NUMBA_CACHE_DIR": str(tmp_path / "numba-generic"),
+    }
+    return variants
+
+
+def _fly_concurrently(tmp_path, variants, timeout=1200):
+    """{variant name: FLY's table}, every variant's subprocess started at once (a cold compile
+    takes one core for minutes; the others load kernels and fly in seconds)."""
+    processes = {}
+    for name, env in variants.items():
+        processes[name] = subprocess.Popen(
+            [sys.executable, "-c", FLY, str(tmp_path / f"{name}.json"), json.dumps(CAMPAIGNS)],
+            cwd=ROOT,
+            env={**os.environ, **env},
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+    for name, process in processes.items():
+        _, stderr = process.communicate(timeout=timeout)
+        assert process.returncode == 0, f"{name}: {stderr[-3000:]}"
+    return {name: json.loads((tmp_path / f"{name}.json").read_text()) for name in variants}
 
 
 @pytest.mark.slow
 @x86_64_only
-def test_runs_tables_are_the_same_bits_with_sse42_numpy_and_generic_numba_kernels(tmp_path):
-    """The smoke, refex-mc100 and irassi-fine-pointing runs tables (a few runs each) flown here
-    and in a subprocess whose numpy and OpenBLAS stop at SSE4.2 and whose kernels numba compiles
-    for a generic x86-64 (cold, in a cache of its own: ~1 min). glibc's libm keeps its variant:
-    the flight kernels call it (numba's math.exp, math.sin, ...), see docs/campaigns.md."""
-    tables = {}
-    for name, env in [("host", {}), ("older", {**OLD_CPU, "NUMBA_CPU_NAME": "generic"})]:
-        if env:
-            env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba-cache")
-        _python(FLY, [tmp_path / f"{name}.json", json.dumps(CAMPAIGNS)], env)
-        tables[name] = json.loads((tmp_path / f"{name}.json").read_text())
-    host, older = tables["host"], tables["older"]
-    assert sorted(host) == sorted(older)
-    assert {key.split("/")[0] for key in host} == {name for name, _ in CAMPAIGNS}
-    differing = sorted(key for key in host if host[key] != older[key])
-    assert not differing, f"columns with other bits: {differing}"
+def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(tmp_path):
+    """A few runs of every vehicle family (thrusters, feeds, wheels with and without a detected
+    failure, local, orbit with LP, attitude only, entry), flown here and in subprocesses under
+    each of :func:`_cpu_variants`: every runs-table value the same bits. glibc's libm keeps its
+    variant: the flight kernels call it (numba's math.exp, math.sin, ...), see docs/campaigns.md.
+    Before issue 32 the wheels' distribution matrix came from LAPACK's SVD and OpenBLAS's
+    products: the IRASSI columns with a detected failure differed between OpenBLAS's Nehalem and
+    Haswell kernels (and, without a failure, between two AVX-512 machines). ~3 min on 2 cores
+    with a warm kernel cache here: the generic x86-64's kernels compile cold."""
+    variants = _cpu_variants(tmp_path)
+    cold = {name: env for name, env in variants.items() if "NUMBA_CACHE_DIR" in env}
+    # the host's flights fill (or load) the shared kernel cache while the generic CPU compiles its
+    # own; then the OpenBLAS variants load the host's kernels
+    tables = _fly_concurrently(tmp_path, {"host": {}, **cold})
+    tables.update(_fly_concurrently(tmp_path, {name: env for name, env in variants.items() if name not in cold}))
+    host = tables.pop("host")
+    assert {key.split("/")[0] for key in host} == {label for label, *_ in CAMPAIGNS}
+    assert host["irassi-rw2-detected/failed_wheels"] == ["2", "2"]
+    assert len(tables) >= 2  # the generic CPU and OpenBLAS's Nehalem kernels at least
+    differing = {}
+    for name, table in tables.items():
+        assert sorted(table) == sorted(host)
+        differing[name] = sorted(key for key in host if host[key] != table[key])
+    assert not any(differing.values()), f"columns with other bits: {differing}"
+
+
+# --- no BLAS or LAPACK in what feeds a run (issue 32) ----------------------------------------
+
+POISON = ROOT / "tests" / "blas_poison.py"
+poisonable = pytest.mark.skipif(
+    platform.machine() not in ("x86_64", "AMD64", "aarch64") or not Path("/proc/self/maps").exists(),
+    reason="the trap instruction and /proc/self/maps of Linux on x86-64 or aarch64",
+)
+
+
+def _poisoned(*args):
+    env = {**os.environ, "PYTHONFAULTHANDLER": "1"}
+    return subprocess.run(
+        [sys.executable, str(POISON), *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600
+    )
+
+
+@poisonable
+def test_everything_that_feeds_a_run_packs_with_blas_and_lapack_poisoned():
+    """Every shipped campaign (each sweep point): the nominal inputs, the draws and inputs of its
+    first 40 runs (failure sets too), IRASSI's tables with every set of one or two wheels failed
+    and detected, and the shipped files no campaign flies, packed while numpy.linalg,
+    scipy.linalg, np.dot, np.matmul, ... raise and every BLAS/LAPACK function of the loaded
+    OpenBLAS libraries starts with an illegal instruction (``tests/blas_poison.py``: what it
+    covers and what not). So BLAS creeping into what feeds a run fails on any machine, not only
+    on one whose kernels round differently (before issue 32: the wheels' pinv, products, norms)."""
+    result = _poisoned("pack")
+    assert result.returncode == 0, result.stderr[-4000:]
+    poisoned, packed = result.stdout.strip().split("} {", 1)
+    assert "openblas" in poisoned  # numpy's own OpenBLAS (and scipy's) had their functions trapped
+    for name in ("irassi-fine-pointing", "x38-nominal", "spore-failure-sweep-detected", "surveyor-hop", "smoke"):
+        assert f"'{name}'" in packed
+
+
+@poisonable
+@pytest.mark.parametrize(
+    ("code", "caught_by"),
+    [
+        ("np.ones((3, 4)) @ np.ones(4)", "Illegal instruction"),  # the operator: the trap in cblas_dgemv
+        ("np.ones(3).dot(np.ones(3))", "Illegal instruction"),  # a method: cblas_ddot
+        ("from numpy.linalg._linalg import svd; svd(np.eye(3))", "Illegal instruction"),  # LAPACK dgesdd
+        ("np.linalg.pinv(np.ones((3, 4)))", "BlasCalled: np.linalg.pinv"),
+        ("np.dot(np.ones(3), np.ones(3))", "BlasCalled: np.dot"),
+    ],
+)
+def test_the_poison_catches_blas_and_lapack_however_called(code, caught_by):
+    """The control: each of these does get caught, the trap naming the Python line."""
+    result = _poisoned("control", code)
+    assert "CONTROL GOT THROUGH" not in result.stdout
+    assert result.returncode != 0 and caught_by in result.stderr, result.stderr[-3000:]
+    if caught_by == "Illegal instruction":
+        assert 'File "<string>", line 1' in result.stderr  # faulthandler: where it was called
+
+
+@poisonable
+def test_the_poison_lets_numpys_own_loops_through():
+    """Elementwise arithmetic, reductions, np.cross and integer products are not BLAS."""
+    code = "np.cross([1.0, 0, 0], [0, 1.0, 0]) + np.ones((3, 3)).sum(axis=0) * 2.0; np.dot(np.ones(3, int), [1, 2, 3])"
+    result = _poisoned("control", code)
+    assert result.returncode == 0 and "CONTROL GOT THROUGH" in result.stdout, result.stderr[-3000:]
 
 
 # --- the pieces, against independent references ----------------------------------------------
