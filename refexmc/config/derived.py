@@ -435,8 +435,7 @@ def _inertia_checks(tensors):
     tensors = np.where(symmetric[:, None, None], j, np.eye(3))
     tensors = np.tril(tensors) + np.swapaxes(np.tril(tensors, -1), 1, 2)  # the lower triangle, as eigvalsh
     # Jacobi, not LAPACK's eigvalsh: the verdict decides a campaign's redraws, the same on any CPU
-    eigenvalues = np.array([smallmatrix.symmetric_eigen(tensor)[0] for tensor in tensors]).reshape(-1, 3)
-    return symmetric, eigenvalues
+    return symmetric, smallmatrix.symmetric_eigenvalues(tensors)
 
 
 def _triangle_violated(eig):
