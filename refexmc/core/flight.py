@@ -759,11 +759,11 @@ def _integrate(
             for i in range(3):
                 tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
                 tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb
-            if wh is not None:
-                wheels.rk4_step(body.x, h, tau_a, tau_b, wh)
+            if wh is not None:  # sub-steps end where a wheel crosses its friction's zero-speed zone
+                rk4_steps += wheels.step(body.x, h, tau_a, tau_b, wh)
             else:
                 dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
-            rk4_steps += 1
+                rk4_steps += 1
         if loc is not None:
             local_flight.advance(mission, vehicle, loc, tank, body.x[0:4], span_seg)
         if tank is not None:  # the gas left is the tank's, P V / (R T) (002 eq. 1)
