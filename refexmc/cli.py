@@ -378,8 +378,8 @@ def validate(files, strict, convergence):
     printed on stderr; --strict makes them errors (exit 2). With --convergence each campaign's
     nominal run is flown at the mission's integrator steps and at a quarter of them; a
     requirement whose metric moves by more than 10 % of its margin is a warning.
-    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml --strict
-    Example: refexmc validate campaigns/irassi-fine-pointing.yaml --convergence
+    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml --strict;
+    refexmc validate campaigns/irassi-fine-pointing.yaml --convergence
     """
     from refexmc.config.load import load_any
 
