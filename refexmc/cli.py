@@ -389,12 +389,21 @@ def rerun(out, run_id, history_rate, dest):
 @main.command()
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @STRICT
-def validate(files, strict):
+@click.option(
+    "--convergence",
+    is_flag=True,
+    help="Also fly each campaign's nominal run at its integration step and at a quarter of it, and "
+    "compare every requirement's metric (docs/interface.md).",
+)
+def validate(files, strict, convergence):
     """Check campaign, vehicle or mission FILES without running anything.
 
     Design warnings (a design that validates but may not fly as meant: docs/missions.md) are
-    printed on stderr; --strict makes them errors (exit 2).
-    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml --strict
+    printed on stderr; --strict makes them errors (exit 2). With --convergence each campaign's
+    nominal run is flown at the mission's integrator steps and at a quarter of them; a
+    requirement whose metric moves by more than 10 % of its margin is a warning.
+    Example: refexmc validate campaigns/nominal.yaml configs/vehicles/refex.yaml --strict;
+    refexmc validate campaigns/irassi-fine-pointing.yaml --convergence
     """
     from refexmc.config.load import load_any
 
@@ -402,11 +411,15 @@ def validate(files, strict):
     for path in files:
         warnings = []
         try:
-            kind, _ = load_any(path, warnings)
+            kind, data = load_any(path, warnings)
         except ConfigError as exc:
             click.echo(f"error: {exc}", err=True)
             bad += 1
             continue
+        if convergence and kind == "campaign":
+            warnings += _convergence(path, data)
+        elif convergence:
+            click.echo(f"{path}: --convergence checks campaigns (requirements), not a {kind}: skipped")
         for warning in warnings:
             click.echo(f"{'error' if strict else 'warning'}: {warning}", err=True)
         if strict and warnings:
@@ -415,6 +428,35 @@ def validate(files, strict):
         click.echo(f"{path}: valid {kind}" + (f", {plural(len(warnings), 'design warning')}" if warnings else ""))
     if bad:
         sys.exit(2)
+
+
+def _convergence(path, campaign):
+    """Print the step-convergence table of ``campaign`` (refexmc.campaign.convergence); return its warnings."""
+    from refexmc.campaign import convergence
+
+    checked = convergence.step_convergence(campaign)
+    if checked is None:
+        click.echo(f"{path}: step convergence not checked: an entry flight's RK4 step is its control period")
+        return []
+    comparisons, coarse_row, fine_row = checked
+    click.echo(f"{path}: step convergence of the nominal run, {convergence.steps_text(campaign)}")
+    if not comparisons:
+        click.echo("  (the campaign has no requirements)")
+    width = max([len(c.requirement) for c in comparisons] + [11])
+    click.echo(f"  {'requirement':{width}s}  {'at the step':>14s}  {'at a quarter':>14s}  difference / margin")
+    warnings = []
+    for c in comparisons:
+        click.echo(f"  {c.requirement:{width}s}  {c.coarse:14.7g}  {c.fine:14.7g}  {100.0 * c.fraction:.3g} %")
+        if not c.converged:
+            warnings.append(
+                f"{path}: step convergence: '{c.requirement}' moves from {c.coarse:.7g} to {c.fine:.7g} with a "
+                f"quarter of the step, {100.0 * c.fraction:.3g} % of its margin (more than "
+                f"{100.0 * convergence.FRACTION_LIMIT:g} %): the integrator step is too coarse for it"
+            )
+    for name, row in (("the step", coarse_row), ("a quarter", fine_row)):
+        if row["status"] == "error":
+            warnings.append(f"{path}: step convergence: the nominal run at {name} errored: {row['failure_reason']}")
+    return warnings
 
 
 @main.command()

@@ -187,6 +187,44 @@ def test_ramped_pulses_of_two_thrusters_match_the_integrated_tank(model):
     assert tank.state[feed.TK_IMPULSE] == pytest.approx(reference[2], rel=1e-9)
 
 
+@pytest.mark.parametrize("model", ["blow_down", "regulated"])
+def test_pressure_within_a_ramp_segment_is_the_integrated_tanks_and_ends_where_segment_does(model):
+    """core.feed.pressure_within (the local trajectory's midpoint, issue 33): over a valve's 20 ms
+    rise, at its midpoint against scipy's DOP853 of the tank ODE (naive.tank_history, rtol 1e-13;
+    1e-12: the closed form is exact), and at the segment's end the very pressure feed.segment
+    leaves (the same closed form, to the bit)."""
+    f = dict(NITROGEN, model=model)
+    set_pressure = 0.8 * f["initial_pressure_pa"] if model == "regulated" else math.inf
+    tank = _tank(f, set_pressure)
+    thrusters = _thrusters([0.7], rise_fall_s=(0.02, 0.03))
+    valve_state = np.zeros((1, rcs.VALVE_STATE_SIZE))
+    rcs.command(valve_state, thrusters, 0, True, 0.0, 0)
+    active = rcs.update(valve_state, thrusters, 1, 0.0, 0, 1)
+    t_end = rcs.next_breakpoint(valve_state, 1, 0.0, 1.0, active)
+    assert t_end == pytest.approx(0.02)  # the rise: the level linear from 0 to 1
+    p0 = tank.state[feed.TK_PRESSURE]
+    middle = feed.pressure_within(valve_state, thrusters, NO_DERATING, tank, p0, 0.0, t_end, 0.5 * t_end, active)
+    end = feed.pressure_within(valve_state, thrusters, NO_DERATING, tank, p0, 0.0, t_end, t_end, active)
+    feed.segment(valve_state, thrusters, NO_DERATING, np.ones((1, 3)), tank, 0.0, t_end, np.zeros(3), np.zeros(3), 1)
+    assert end == tank.state[feed.TK_PRESSURE]
+    reference = naive.tank_history(
+        lambda t: 0.7 * min(t / 0.02, 1.0),
+        [0.5 * t_end],
+        {
+            "volume": f["tank_volume_m3"],
+            "gas_constant": f["gas_constant_j_kg_k"],
+            "gamma": f["heat_capacity_ratio"],
+            "temperature": f["temperature_k"],
+            "pressure": f["initial_pressure_pa"],
+            "throat_area": f["throat_area_m2"],
+            "thrust_coefficient": naive.textbook_thrust_coefficient(f["expansion_ratio"], f["heat_capacity_ratio"]),
+            "regulator": set_pressure,
+        },
+    )
+    assert middle == pytest.approx(reference[0], rel=1e-12)
+    assert middle < p0
+
+
 def test_regulated_tank_falls_linearly_above_the_set_pressure():
     """Above P_reg the chamber is at P_reg: the tank falls by P_reg t / tau, a straight line."""
     p_reg = 5e5

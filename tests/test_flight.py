@@ -304,12 +304,13 @@ STEPS = {  # each family's own step functions: compiled only by a kernel of that
     "thrusters": [rcs.update, rcs.next_breakpoint, rcs.segment_thrust, rcs.open_mask, rcs.torque_arms],
     "pwpf_table": [switching.enforce, allocation.table_masks],
     "lp_pwm": [lp_allocation.pulse_width, lp_allocation.allocate, allocation.nominal_arms],
-    "wheels": [wheels.drive, wheels.start, wheels.rk4_step],
+    "wheels": [wheels.drive, wheels.start, wheels.step, wheels.rk4_step],
     "planar_drag": [environment.advance_nodes, environment.interpolate],
     "orbit": [orbit_flight.start, orbit_flight.steer, orbit_flight.engine_period, orbit_flight.translate],
     "feed": [feed.start, feed.segment, feed.gas],
     "local": [
-        local_flight.start, local_flight.desired, local_flight.advance, local_flight.navigate, local_flight.measure
+        local_flight.start, local_flight.desired, local_flight.advance, local_flight.navigate, local_flight.measure,
+        local_flight.segment_force, feed.pressure_within,
     ],
 }
 out = []

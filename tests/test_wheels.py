@@ -119,6 +119,71 @@ def test_rk4_follows_solve_ivp():
     np.testing.assert_allclose(plant.h, end[7:], rtol=1e-9, atol=1e-9)
 
 
+def _one_second(table, x, h, motor, torque):
+    """solve_ivp's DOP853 at rtol 1e-12 over 1 s on the naive derivative (its error control
+    rejects steps across the zone's edges until each meets the tolerance)."""
+    ref = naive_wheels(table)
+
+    def rhs(_, y):
+        dx, dh = naive.wheel_state_rate(y[:7], y[7:], motor, torque, ref, INERTIA)
+        return np.concatenate([dx, dh])
+
+    return solve_ivp(rhs, (0.0, 1.0), np.concatenate([x, h]), method="DOP853", rtol=1e-12, atol=1e-15).y[:, -1]
+
+
+@pytest.mark.parametrize("through", [False, True])
+def test_step_ends_sub_steps_on_the_zero_speed_zone_and_follows_solve_ivp(through):
+    """A 1 s step in which the motors push wheel 1 across the friction's +-1 rpm zone (from +2 rpm
+    into it, or ``through`` it from +3 to -8 rpm, as IRASSI's torque-limited acquisition does:
+    issue 33): core.wheels.step against solve_ivp (which agrees with an event-split solve_ivp to
+    3e-14 N m s). Within the zone the friction is linear with time constant I_w w / tau_e = 2.7 s;
+    RK4 over the 0.46 s left there errs by about tau_e h (h / 2.7 s)^4 / 120 = 2e-8 N m s
+    (measured 7.5e-8 into the zone, 1.3e-9 through it), hence 2e-7 N m s on the momenta and 1e-10
+    rad/s on the body rate (measured 2e-11). The plain RK4 step across the kinks is off by
+    2e-4 to 3e-4 N m s: more than 1e-5 here. It takes more than one RK4 step."""
+    rpm = 2.0 * math.pi / 60.0
+    table = wheel_table(pyramid_axes())
+    x = np.concatenate([Rotation.from_rotvec([0.1, 0.2, -0.1]).as_quat(), [1e-4, -2e-4, 5e-5]])
+    plant = started(table, x)
+    speeds0 = np.array([3.0 if through else 2.0, 40.0, -30.0, 60.0]) * rpm
+    axes = table[:, L.W_AXIS : L.W_AXIS + 3]
+    plant.h[:4] = SPIN_INERTIA * (speeds0 + axes @ x[4:7])
+    plant.motor[:] = [-0.2 if through else -0.02, 0.01, -0.01, 0.02]
+    torque = np.array([1e-3, -2e-3, 5e-4])
+    end = _one_second(table, x, plant.h, plant.motor, torque)
+    speed_end = end[7] / SPIN_INERTIA - axes[0] @ end[4:7]
+    assert speed_end < -rpm if through else abs(speed_end) < rpm  # through the zone, or into it
+    plain_x, plain_h = x.copy(), plant.h.copy()
+    taken = wheels.step(x, 1.0, torque, torque, plant)
+    assert taken > 1
+    np.testing.assert_allclose(x[4:7], end[4:7], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(plant.h, end[7:], rtol=0, atol=2e-7)
+    plant.h[:] = plain_h
+    wheels.rk4_step(plain_x, 1.0, torque, torque, plant)
+    assert np.abs(plant.h - end[7:]).max() > 1e-5
+
+
+def test_step_away_from_the_zone_is_the_plain_rk4_step_to_the_bit():
+    """Wheels that stay outside the zone (or inside it) cross no edge: one RK4 step, the same bits."""
+    rng = np.random.default_rng(33)
+    table = wheel_table(pyramid_axes())
+    axes = table[:, L.W_AXIS : L.W_AXIS + 3]
+    for inside in (False, True):
+        x = random_state(rng) * np.r_[np.ones(4), 1e-2 * np.ones(3)]
+        x[:4] /= np.linalg.norm(x[:4])
+        plant = started(table, x)
+        speeds = rng.uniform(0.1, 0.5, 4) * COULOMB_WIDTH if inside else rng.uniform(50.0, 100.0, 4)
+        plant.h[:4] = SPIN_INERTIA * (speeds + axes @ x[4:7])
+        plant.motor[:] = rng.normal(0.0, 1e-3 if inside else 0.1, 4)
+        torque_start, torque_end = rng.normal(0.0, 1e-3, 3), rng.normal(0.0, 1e-3, 3)
+        h0, x_plain = plant.h.copy(), x.copy()
+        assert wheels.step(x, 1.0, torque_start, torque_end, plant) == 1
+        h_step = plant.h.copy()
+        plant.h[:] = h0
+        wheels.rk4_step(x_plain, 1.0, torque_start, torque_end, plant)
+        assert np.array_equal(x, x_plain) and np.array_equal(h_step, plant.h)
+
+
 def test_angular_momentum_is_conserved_without_external_torque():
     """No external torque: the inertial total angular momentum (computed here with scipy's
     Rotation, not the kernel) stays put through 22 h of wheel commands changing every second and

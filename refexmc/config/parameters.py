@@ -118,12 +118,19 @@ def dispersion_only(path, unit, doc, shape, table=None, field=None, *, lower=-ma
 
 
 FLIGHT_SOFTWARE_KEEPS = "the flight software keeps the nominal"
+TRANSLATION_KEEPS = "the truth; the translation law keeps the file's value (docs/cold-gas.md)"
 ENTRY = "the true entry vehicle (campaign.entry_plan builds it)"
 
 
 def _table():
     p = [
-        config_key("mass_kg", SCALAR, "vehicle", "mass_kg", note="trajectory drag only"),
+        config_key(
+            "mass_kg",
+            SCALAR,
+            "vehicle",
+            "mass_kg",
+            note="trajectory drag; trajectory local: the thrust's acceleration, the translation law keeps the file's",
+        ),
         config_key(
             "inertia_kg_m2",
             INERTIA,
@@ -232,9 +239,11 @@ def _table():
             key="wheels.units[].initial_momentum_n_m_s",
             note="per wheel, independent draws; the flight software is not told",
         ),
-        config_key("rcs.feed.initial_pressure_pa", SCALAR, "vehicle", "feed_initial_pressure_pa"),
-        config_key("rcs.feed.temperature_k", SCALAR, "vehicle", "feed_temperature_k"),
-        config_key("rcs.feed.throat_area_m2", SCALAR, "vehicle", "feed_throat_area_m2"),
+        config_key(
+            "rcs.feed.initial_pressure_pa", SCALAR, "vehicle", "feed_initial_pressure_pa", note=TRANSLATION_KEEPS
+        ),
+        config_key("rcs.feed.temperature_k", SCALAR, "vehicle", "feed_temperature_k", note=TRANSLATION_KEEPS),
+        config_key("rcs.feed.throat_area_m2", SCALAR, "vehicle", "feed_throat_area_m2", note=TRANSLATION_KEEPS),
         config_key("local.position_m", VECTOR, "mission", "local_position_m", note="trajectory local"),
         config_key("local.velocity_m_s", VECTOR, "mission", "local_velocity_m_s", note="trajectory local"),
     ]

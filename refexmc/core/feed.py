@@ -176,6 +176,18 @@ def segment(valve_state, thrusters, vehicle, arms, tank, t_start, t_end, tau_sta
 
 
 @jit_noalloc
+def pressure_within(valve_state, thrusters, vehicle, tank, pressure_start, t_start, t_end, t, active):
+    """Tank pressure at ``t`` inside the segment [t_start, t_end] that :func:`segment` advances
+    from ``pressure_start``: the same regulator and the same closed form, over [t_start, t]."""
+    regulator = tank.state[TK_REGULATOR]
+    if regulator < math.inf:
+        n_open = open_count(valve_state, thrusters.shape[0], active, 0.5 * (t_start + t_end))
+        regulator *= derating_factor(vehicle, n_open)
+    open_time = 0.5 * (open_sum(valve_state, thrusters, t_start, active) + open_sum(valve_state, thrusters, t, active))
+    return pressure_after(pressure_start, open_time * (t - t_start), tank.state[TK_TAU], regulator)
+
+
+@jit_noalloc
 def gas(tank):
     """Gas in the tank now (kg), 002 eq. 1."""
     return tank.state[TK_PRESSURE] * tank.state[TK_GAS_PER_PA]

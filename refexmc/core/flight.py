@@ -724,8 +724,9 @@ def _integrate(
                     )  # here: the gas used (kg)
                     if loc is not None:
                         local_flight.segment_force(
-                            act.valve_state, thrusters, tank, pressure_start, t_seg, t_next, valves_active, loc
-                        )
+                            vehicle, act.valve_state, thrusters, tank, pressure_start, t_seg, t_next,
+                            valves_active, loc,
+                        )  # fmt: skip
                 else:
                     impulse = rcs.segment_thrust(
                         act.valve_state, thrusters, vehicle, act.arms, thrust, t_seg, t_next, tau0, tau1, valves_active
@@ -759,13 +760,13 @@ def _integrate(
             for i in range(3):
                 tau_a[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fa
                 tau_b[i] = aero[i] + tau0[i] + (tau1[i] - tau0[i]) * fb
-            if wh is not None:
-                wheels.rk4_step(body.x, h, tau_a, tau_b, wh)
+            if wh is not None:  # sub-steps end where a wheel crosses its friction's zero-speed zone
+                rk4_steps += wheels.step(body.x, h, tau_a, tau_b, wh)
             else:
                 dynamics.rk4_step(body.x, h, tau_a, tau_b, body.inertia, body.inertia_inv, body.rk4)
-            rk4_steps += 1
+                rk4_steps += 1
         if loc is not None:
-            local_flight.advance(mission, vehicle, loc, tank, body.x[0:4], span_seg)
+            local_flight.advance(mission, loc, body.x[0:4], span_seg)
         if tank is not None:  # the gas left is the tank's, P V / (R T) (002 eq. 1)
             fuel = feed.gas(tank)
         elif fire is not None:  # without thrust: no propellant used

@@ -65,9 +65,9 @@ class Plant(NamedTuple):
     inertia_b: np.ndarray  # J - sum I_w a a^T
     inertia_b_inv: np.ndarray
     gravity: np.ndarray  # [k = sum mu / r^3, direction (unit, inertial)] of 001 eq. 11; k = 0: none
-    xwork: np.ndarray  # (5, 7) RK4 scratch
-    hwork: np.ndarray  # (5, len(h)) RK4 scratch
-    scratch: np.ndarray  # (5, 3)
+    xwork: np.ndarray  # (6, 7) RK4 scratch; row 5: x at the last accepted point (:func:`step`)
+    hwork: np.ndarray  # (8, len(h)) RK4 scratch; row 5: h there, rows 6, 7: the wheels' speeds there and their rates
+    scratch: np.ndarray  # (7, 3); rows 5, 6: a sub-step's external torques (:func:`step`)
     momentum: np.ndarray  # (3, 3): total angular momentum (inertial) at t = 0, at the end; scratch
     null_space: np.ndarray  # (2,): [1 once null-space management gave up, its error |e_n| last period]
 
@@ -86,9 +86,9 @@ def plant(table):
         np.zeros((3, 3)),
         np.zeros((3, 3)),
         np.zeros(4),
-        np.zeros((5, 7)),
-        np.zeros((5, n + IMPULSE)),
-        np.zeros((5, 3)),
+        np.zeros((6, 7)),
+        np.zeros((8, n + IMPULSE)),
+        np.zeros((7, 3)),
         np.zeros((3, 3)),
         np.zeros(2),
     )
@@ -169,8 +169,9 @@ def friction(wheels, i, relative):
 @jit_noalloc
 def friction_law(speed, coulomb, viscous, width):
     """001 eq. 1: -tau_e sign(Omega) - tau_v Omega at wheel speed ``speed`` (rad/s), the sign made
-    linear within +-``width`` (001 sec. 4.1: eq. 1 does not hold near zero speed; a continuous law
-    keeps RK4 at its order through a zero crossing)."""
+    linear within +-``width`` (001 sec. 4.1: eq. 1 does not hold near zero speed). The law is
+    continuous but its slope jumps at +-``width``: a step across an edge loses RK4's order, so
+    :func:`step` ends sub-steps on the edges."""
     drag = -viscous * speed
     if speed >= width:
         return drag - coulomb
@@ -306,6 +307,114 @@ def rk4_step(x, step, torque_start, torque_end, plant):
     norm = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
     for i in range(4):
         x[i] /= norm
+
+
+MAX_EDGE_EVENTS = 32  # edges located per integration step; past them the last trial stands
+EVENT_MIN_FRACTION = 1e-9  # an edge this close to a step's start is not split off (the kink's
+# error is then of order (fraction * step)^2 of the slope jump: nothing at 1e-9)
+
+
+@jit_noalloc
+def _wheel_speeds(x, h, wheels, out):
+    """Each wheel's speed relative to the body (rad/s), ``Omega_i = h_i / I_w - a_i . omega``."""
+    for i in range(wheels.shape[0]):
+        out[i] = h[i] / wheels[i, W_SPIN_INERTIA] - _along(wheels, i, x[4:7])
+
+
+@jit_noalloc
+def _first_edge(x, h, wheels, speeds_start, rates_start, step_s):
+    """The fraction (0, 1] of the trial step just taken at which the first wheel crosses an edge of
+    its zero-speed zone (+-W_COULOMB_WIDTH); 2.0 when none does (a wheel that stays outside the
+    zone, or inside it, crosses nothing). A crossing is a sign change of speed - edge between
+    ``speeds_start`` and the state now; its time is the Newton step from the start with the
+    speed's rate there (``rates_start``, the trial's first RK4 stage), which the friction beyond
+    the edge does not spoil (inside the zone the friction slows the wheel, so the step falls
+    short and the next trial refines it), or the speeds' linear interpolation where that step
+    does not land inside the trial."""
+    first = 2.0
+    for i in range(wheels.shape[0]):
+        if wheels[i, W_COULOMB] == 0.0:
+            continue  # no Coulomb term: the friction is linear everywhere
+        width = wheels[i, W_COULOMB_WIDTH]
+        s0 = speeds_start[i]
+        s1 = h[i] / wheels[i, W_SPIN_INERTIA] - _along(wheels, i, x[4:7])
+        for edge in (width, -width):
+            d0, d1 = s0 - edge, s1 - edge
+            if (d0 > 0.0 and d1 < 0.0) or (d0 < 0.0 and d1 > 0.0):
+                fraction = d0 / (d0 - d1)
+                if rates_start[i] * d0 < 0.0:
+                    newton = -d0 / (rates_start[i] * step_s)
+                    if newton <= 1.0:
+                        fraction = newton
+                if EVENT_MIN_FRACTION < fraction < first:
+                    first = fraction
+    return first
+
+
+@jit_noalloc
+def _speed_rates(dx, dh, wheels, out):
+    """d Omega_i / dt from the state's rates ``dx``, ``dh``."""
+    for i in range(wheels.shape[0]):
+        out[i] = dh[i] / wheels[i, W_SPIN_INERTIA] - _along(wheels, i, dx[4:7])
+
+
+@jit_noalloc
+def _torque_at(torque_start, torque_end, fraction, out):
+    """The external torque, linear over the step, at ``fraction`` of it (its ends exactly)."""
+    for i in range(3):
+        if fraction == 0.0:
+            out[i] = torque_start[i]
+        elif fraction == 1.0:
+            out[i] = torque_end[i]
+        else:
+            out[i] = torque_start[i] + (torque_end[i] - torque_start[i]) * fraction
+
+
+@jit_noalloc
+def _save(x, h, wheels, x_saved, h_saved, speeds):
+    for i in range(7):
+        x_saved[i] = x[i]
+    for i in range(h.shape[0]):
+        h_saved[i] = h[i]
+    _wheel_speeds(x, h, wheels, speeds)
+
+
+@jit_noalloc
+def step(x, step_s, torque_start, torque_end, plant):
+    """Advance ``x`` and ``plant.h`` by ``step_s`` as :func:`rk4_step`, the friction's kinks
+    resolved: a step in which a wheel's speed crosses an edge of the zero-speed zone (001 eq. 1's
+    linear zone, :func:`friction_law`) is taken again in sub-steps that end on each crossing
+    (:func:`_first_edge`; each trial over the rest refines the last), so every RK4 step sees a
+    smooth right-hand side but for an error of the located time's square. A step in which no
+    wheel crosses an edge is the plain RK4 step, to the bit. Returns the RK4 steps taken, trials
+    included."""
+    wheels, h = plant.table, plant.h
+    x_saved, h_saved, speeds, rates = plant.xwork[5], plant.hwork[5], plant.hwork[6], plant.hwork[7]
+    tau_a, tau_b = plant.scratch[5], plant.scratch[6]
+    _save(x, h, wheels, x_saved, h_saved, speeds)
+    done, end = 0.0, 1.0  # fractions of the step: the last accepted point, this RK4 step's end
+    taken, events = 0, 0
+    while True:
+        _torque_at(torque_start, torque_end, done, tau_a)
+        _torque_at(torque_start, torque_end, end, tau_b)
+        rk4_step(x, step_s * (end - done), tau_a, tau_b, plant)  # one call site: LLVM inlines it
+        taken += 1
+        if end < 1.0:  # a sub-step onto an edge: accepted, then a trial over the rest
+            done, end = end, 1.0
+            _save(x, h, wheels, x_saved, h_saved, speeds)
+            continue
+        if events == MAX_EDGE_EVENTS:
+            return taken
+        _speed_rates(plant.xwork[0], plant.hwork[0], wheels, rates)  # the trial's first RK4 stage
+        edge = _first_edge(x, h, wheels, speeds, rates, step_s * (1.0 - done))
+        end = done + (1.0 - done) * edge
+        if end >= 1.0:  # no edge crossed, or one on the step's end: the trial stands
+            return taken
+        events += 1
+        for i in range(7):  # back to the last accepted point, then on to the edge
+            x[i] = x_saved[i]
+        for i in range(h.shape[0]):
+            h[i] = h_saved[i]
 
 
 @jit_noalloc
