@@ -83,6 +83,18 @@ def test_refuses_what_it_cannot_stop(tmp_path):
     assert not Path(tmp_path / "out").exists()
 
 
+def test_a_failing_requirement_stops_the_campaign_with_exit_1(tmp_path, monkeypatch):
+    """A FAIL decides the campaign: it stops at the look that saw it (run exits 1), although
+    ``success_rate >= 1.0`` can never PASS and would otherwise fly the whole budget."""
+    monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "5")
+    failing = [("  - fuel_remaining.min >= 0.20", "  - fuel_remaining.min >= 0.95")]  # every flight uses > 5 %
+    campaign = campaign_copy("refex-mc100.yaml", tmp_path, "failing.yaml", failing)
+    result = invoke_run(campaign, "-o", tmp_path / "out", "--runs", 100, "--until-decided", "--batch", 10, "-j", 1)
+    assert result.exit_code == 1, result.output
+    assert "stopped when decided after 10 of 100 runs" in result.output and ": FAIL (1 requirement failed" in result.output
+    assert len(read_runs(tmp_path / "out")) == 10
+
+
 def test_stopping_record_reads_as_one_line_per_requirement():
     record = {
         "stopped": "budget",

@@ -24,6 +24,7 @@ img { max-width: 100%; }
 .note { color: #8a5a00; }
 .banner { background: #f6d0d0; border: 2px solid #b00000; color: #600000; font-weight: bold; padding: 0.6em 0.8em; }
 .incomplete, .errored { background: #f3d9a8; }
+tr.failing-row, span.failing-row { background: #fbeaea; } td.failing-cell, span.failing-cell { background: #e08a8a; font-weight: 700; }
 """
 
 
@@ -197,18 +198,23 @@ def wheel_failure_sets_section(wheel_sets):
             [
                 None,
                 None,
-                None if s["successes"] == s["runs"] else "fail",
-                *("fail" if verdicts.get(n) is False else None for n in names),
+                None if s["successes"] == s["runs"] else "failing-cell",
+                *("failing-cell" if verdicts.get(n) is False else None for n in names),
             ]
         )
-        classes.append("pass" if s.get("passed", s["successes"] == s["runs"]) else "fail")
+        classes.append("pass" if s.get("passed", s["successes"] == s["runs"]) else "failing-row")
     headers = [
         "failed wheels",
         "runs",
         "success",
         *(f"{n} (required {required[n].split(n, 1)[1].strip()})" if n in required else n for n in names),
     ]
-    return table(headers, rows, classes, cells)
+    legend = (
+        '<p>Rows: <span class="pass">&nbsp;green&nbsp;</span> the set meets every requirement, '
+        '<span class="failing-row">&nbsp;pale red&nbsp;</span> it fails one; a cell in '
+        '<span class="failing-cell">&nbsp;deep red&nbsp;</span> is the statistic that fails.</p>'
+    )
+    return legend + table(headers, rows, classes, cells)
 
 
 def failure_sets_section(sets):
