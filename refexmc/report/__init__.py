@@ -57,7 +57,7 @@ def make_report(out, require=(), html=True):
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
     if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
         summary["until_decided"] = studies.stopping(campaign)
-    sobol_indices = studies.sobol_section(campaign)  # sampling saltelli: Sobol' indices
+    sobol_indices = studies.sobol_section(campaign, summary["outputs"])  # sampling saltelli: Sobol' indices
     if sobol_indices is not None:
         summary["sobol"] = sobol_indices
     report_dir = Path(out) / "report"

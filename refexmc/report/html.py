@@ -24,7 +24,8 @@ img { max-width: 100%; }
 .note { color: #8a5a00; }
 .banner { background: #f6d0d0; border: 2px solid #b00000; color: #600000; font-weight: bold; padding: 0.6em 0.8em; }
 .incomplete, .errored { background: #f3d9a8; }
-tr.failing-row, span.failing-row { background: #fbeaea; } td.failing-cell, span.failing-cell { background: #e08a8a; font-weight: 700; }
+tr.failing-row, span.failing-row { background: #fbeaea; }
+td.failing-cell, span.failing-cell { background: #e08a8a; font-weight: 700; }
 """
 
 
