@@ -17,8 +17,8 @@ import pyarrow.parquet as pq
 import pytest
 from stored import campaign_copy, invoke_run, read_runs, snapshot
 
-from refexmc.campaign import run as run_module
 from refexmc.campaign import progress as progress_module
+from refexmc.campaign import run as run_module
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import TEST_CRASH_ENV, TEST_HANG_ENV
 

@@ -91,7 +91,8 @@ def test_a_failing_requirement_stops_the_campaign_with_exit_1(tmp_path, monkeypa
     campaign = campaign_copy("refex-mc100.yaml", tmp_path, "failing.yaml", failing)
     result = invoke_run(campaign, "-o", tmp_path / "out", "--runs", 100, "--until-decided", "--batch", 10, "-j", 1)
     assert result.exit_code == 1, result.output
-    assert "stopped when decided after 10 of 100 runs" in result.output and ": FAIL (1 requirement failed" in result.output
+    assert "stopped when decided after 10 of 100 runs" in result.output
+    assert ": FAIL (1 requirement failed" in result.output
     assert len(read_runs(tmp_path / "out")) == 10
 
 

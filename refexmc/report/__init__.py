@@ -275,7 +275,8 @@ def render_figures(campaign, summary):
         for row, target in enumerate(targets):
             y = ok[target].to_numpy(dtype=float)
             shown = scatter_runs(y, plan["tails"].get(target, "upper"))
-            for entry in section[target][:SCATTER_INPUTS]:
+            inputs = [entry for entry in section[target] if entry.get("kind", "input") == "input"]
+            for entry in inputs[:SCATTER_INPUTS]:  # a discrete cause has no axis of values
                 scatter.append(
                     {
                         "row": row,

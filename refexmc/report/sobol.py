@@ -131,7 +131,7 @@ def metric_entry(groups, values, base, seed=0):
         needed = base_samples_for(base, widest) if math.isfinite(widest) and widest > 0 else None
         flags = [flag for s in table.values() for flag in s["flags"]]
         kinds = [
-            (sum("wider" in f for f in flags), f"with a CI wider than ±{TARGET_HALF_WIDTH:g} (up to ±{widest:.2f})"),
+            (sum("wider" in f for f in flags), f"with a CI wider than ±{TARGET_HALF_WIDTH:g}, up to ±{widest:.2f}"),
             (sum("outside" in f for f in flags), "outside [0, 1] beyond its CI"),
             (sum("above total" in f for f in flags), "first-order above total beyond both CIs"),
             (sum("not computable" in f for f in flags), "not computable"),

@@ -317,6 +317,35 @@ def spearman(x, y):
     return rho, float(2.0 * sps.t.sf(abs(t), n - 2))
 
 
+def average_ranks(values):
+    """Ranks 1..n of ``values`` (ties: their average rank)."""
+    return sps.rankdata(np.asarray(values, dtype=float))
+
+
+def rank_eta2(ranks, labels):
+    """(eta^2, p, levels) of the ``ranks`` of an output over the levels of a factor ``labels``.
+
+    eta^2 = between-level / total sum of squares of the ranks: the share of the rank variance the
+    factor explains, rho^2 of a two-level factor's indicator. p: the Kruskal-Wallis test, whose
+    statistic with average ranks (tie-corrected) is exactly H = (n - 1) eta^2, on chi^2 with
+    levels - 1 degrees of freedom (Kruskal and Wallis 1952). (nan, nan, levels) when the ranks
+    do not vary or the factor has one level.
+    """
+    ranks = np.asarray(ranks, dtype=float)
+    _, codes = np.unique(np.asarray(labels).astype(str), return_inverse=True)
+    levels = int(codes.max()) + 1 if len(codes) else 0
+    centred = ranks - ranks.mean()
+    total = float(np.dot(centred, centred))
+    if levels < 2 or total == 0.0:
+        return math.nan, math.nan, levels
+    counts = np.bincount(codes, minlength=levels)
+    sums = np.bincount(codes, weights=centred, minlength=levels)
+    between = float(np.sum(sums**2 / counts))
+    eta2 = min(1.0, max(0.0, between / total))
+    h = (len(ranks) - 1) * eta2
+    return eta2, float(sps.chi2.sf(h, levels - 1)), levels
+
+
 GRAM_CHUNK_ROWS = 16384  # rows per block of the rank products: small float64 blocks, exact integer sums
 
 
