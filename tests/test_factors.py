@@ -67,19 +67,12 @@ def test_the_undetected_wheel_1_or_2_failure_drives_the_pointing_error_first(ira
     rate = names.index("p.initial.rates_deg_s.0")
     assert rate > 0  # the initial rate no longer ranks first ...
     assert ranked[rate]["eta2"] == pytest.approx(ranked[rate]["rho"] ** 2)  # ... on the same scale
-    for wheel in (
-        "wheel 1 failed (undetected)",
-        "wheel 2 failed (undetected)",
-    ):  # each a significant cause, raising the error
-        entry = ranked[names.index(wheel)]
+    wheel = [f"wheel {k} failed (undetected)" for k in (1, 2, 3, 4)]
+    for name in wheel[:2]:  # each a significant cause, raising the error
+        entry = ranked[names.index(name)]
         assert entry["rho"] > 0 and entry["p_value"] < 1e-6
-    for wheel in (
-        "wheel 3 failed (undetected)",
-        "wheel 4 failed (undetected)",
-    ):  # small penalties: below wheels 1 and 2
-        assert names.index(wheel) > max(
-            names.index("wheel 1 failed (undetected)"), names.index("wheel 2 failed (undetected)")
-        )
+    for name in wheel[2:]:  # small penalties: below wheels 1 and 2
+        assert names.index(name) > max(names.index(wheel[0]), names.index(wheel[1]))
     assert summary["sensitivity"]["factors"][:1] == ["wheel 1 failed (undetected)"]
 
 
