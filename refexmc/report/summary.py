@@ -10,7 +10,6 @@ from refexmc.report import requirements as requirements_module
 from refexmc.report.requirements import campaign_metric_covers
 
 KEY_COLUMNS = outputs.DISPLAY_ORDER
-SENSITIVITY_OUTPUTS = ("fuel_used_kg", "theta_t_handover_deg")
 WORST_CASES = (  # (column, what its worst end means) of outputs without a requirement, when they vary
     ("fuel_remaining", "least propellant remaining"),
     ("t_end_s", "longest flight"),
@@ -278,7 +277,6 @@ def paper_table4_agreement(campaign, sets):
     return {"compared": compared, "agree": compared - len(disagree), "disagree": disagree}
 
 
-SENSITIVITY_FALLBACK = ("fuel_used_kg", "theta_t_handover_deg")  # without requirements on a runs column
 SENSITIVITY_FIGURE_TARGETS = 4
 SENSITIVITY_LISTED = 10
 
@@ -291,11 +289,11 @@ def varying_parameters(campaign):
 
 def sensitivity_targets(plan, verdicts):
     """The outputs whose drivers the report shows: the requirement metrics from failing to
-    closest-to-failing (``outputs.margins``); without any, the propellant used and the end angle."""
+    closest-to-failing (``outputs.margins``); without any, the mission's other outputs (``outputs.plan``)."""
     ranked = [c for c, _ in outputs.margins(verdicts) if c in plan["requirement_columns"]]
     if ranked:
         return ranked
-    return [c for c in SENSITIVITY_FALLBACK if c in plan["other_columns"]]
+    return list(plan["other_columns"])
 
 
 def sensitivity(campaign, plan=None, verdicts=()):
