@@ -176,7 +176,7 @@ class MetricResult:
     kind: str
     better: str
     tolerance: float
-    baseline: float  # rate, or mean of the ok runs
+    baseline: float  # rate, or the ok runs' median (paired) or mean (unpaired)
     current: float
     n_baseline: int  # runs in the population (all runs for error_rate, ok runs otherwise)
     n_current: int
@@ -374,13 +374,14 @@ def compare_distribution(spec, baseline, current, pairs, tolerance):
         estimate, test = "difference of the means (Welch interval)", "Welch t"
     low, high = (float(v) for v in ci)
     significant = math.isfinite(low) and (low > 0.0 or high < 0.0)  # the printed interval decides
+    centre = np.median if pairs.paired else np.mean  # the statistic the difference is of
     return MetricResult(
         metric=spec.name,
         kind=spec.kind,
         better=spec.better,
         tolerance=tolerance,
-        baseline=float(b.mean()) if len(b) else math.nan,
-        current=float(c.mean()) if len(c) else math.nan,
+        baseline=float(centre(b)) if len(b) else math.nan,
+        current=float(centre(c)) if len(c) else math.nan,
         n_baseline=len(b),
         n_current=len(c),
         difference=float(difference),
@@ -579,7 +580,7 @@ def _tolerance(m):
     if math.isinf(m.tolerance):
         return "inf (not gated)"
     worse = {"higher": "drop", "lower": "rise", "either": "either way"}[m.better]
-    source = {"margin": f"; {REQUIREMENT_MARGIN_SHARE:.0%} of the margin", "--tolerance": "; --tolerance"}
+    source = {"margin": f"; {100 * REQUIREMENT_MARGIN_SHARE:g} % of the margin", "--tolerance": "; --tolerance"}
     return f"{number(m.tolerance)} ({worse}{source.get(m.source, '')})"
 
 
@@ -623,9 +624,9 @@ def format_table(comparison):
         + ("McNemar exact on the runs whose outcome changed" if paired else "Newcombe hybrid score interval")
         + "; columns: "
         + (
-            "median of the per-run differences, sign-test interval, baseline/current are means"
+            "median of the per-run differences, sign-test interval, baseline/current are medians"
             if paired
-            else "difference of the means, Welch interval and t-test"
+            else "difference of the means, Welch interval and t-test, baseline/current are means"
         )
         + "; each p is the test its interval inverts"
     )
