@@ -263,9 +263,12 @@ def render_figures(campaign, summary):
         result.append(
             (
                 "What drives the failing and closest-to-failing requirements",
-                "Dispersed inputs with the largest |Spearman ρ| against each requirement metric that fails or is "
-                "closest to failing (bars), with the partial rank correlation (PRCC, diamonds) where the campaign "
-                "has more runs than inputs + 2. Gray band: |ρ| not significantly different from 0 at the 5 % level.",
+                "The dispersed inputs and discrete causes that explain most of the rank variance of each "
+                "requirement metric that fails or is closest to failing: Spearman ρ of an input (bars), with the "
+                "partial rank correlation (PRCC, diamonds) where the campaign has more runs than inputs + 2; "
+                "hatched, a failed unit (the ρ of its indicator), a failure set or a choice input (√η², the "
+                "correlation ratio of the metric's ranks). Gray band: |ρ| not significantly different from 0 at "
+                "the 5 % level.",
                 figures.sensitivity_figure(section, targets, plan["labels"]),
                 "sensitivity",
             )

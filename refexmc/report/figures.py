@@ -308,6 +308,8 @@ def sensitivity_figure(section, targets, labels=None):
     """Tornado charts per target output: Spearman ρ (bars) and PRCC (diamonds) of the inputs and
     discrete causes that explain most of its rank variance (a failed unit: the ρ of its indicator,
     hatched; a factor of more levels: √η², hatched, unsigned); the band of |ρ| not significant at 5 %."""
+    from matplotlib.patches import Patch
+
     labels = labels or {}
     figure = Figure(figsize=(6.2 * len(targets), 0.32 * TORNADO_BARS + 1.8), layout="constrained")
     axes = np.atleast_1d(figure.subplots(1, len(targets)))
@@ -320,9 +322,10 @@ def sensitivity_figure(section, targets, labels=None):
         for k, (value, hatched) in enumerate(zip(rho, factor, strict=True)):
             colour = "tab:red" if value > 0 else "tab:blue"
             ax.barh(k, value, color="white" if hatched else colour, edgecolor=colour, hatch="///" if hatched else None)
-        ax.barh([], [], color="tab:gray", label="Spearman ρ (input)")
+        handles = [Patch(facecolor="tab:gray", label="Spearman ρ (input)")]
         if any(factor):
-            ax.barh([], [], color="white", edgecolor="tab:gray", hatch="///", label="failure or choice (ρ or √η²)")
+            hatched = {"facecolor": "white", "edgecolor": "tab:gray", "hatch": "///"}
+            handles.append(Patch(**hatched, label="failure or choice (ρ or √η²)"))
         prcc = np.array([np.nan if r.get("prcc") is None else r["prcc"] for r in rows])
         if np.isfinite(prcc).any():
             ax.plot(prcc, y, "D", color="black", ms=4, label="PRCC")
@@ -337,7 +340,7 @@ def sensitivity_figure(section, targets, labels=None):
         ax.set_xlabel(f"rank correlation with {output}", fontsize=8)
         ax.set_title(labels.get(output, output), fontsize=8, wrap=True)
         ax.grid(True, axis="x", lw=0.3)
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(handles=[*ax.get_legend_handles_labels()[0], *handles], fontsize=7, loc="lower right")
     return png(figure)
 
 
