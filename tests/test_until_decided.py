@@ -110,6 +110,13 @@ def test_stopping_record_reads_as_one_line_per_requirement():
     lines = decided.format_stopping(record).splitlines()
     assert lines[0].startswith("flew the whole budget of 200 runs")
     assert lines[1].strip().startswith("open: t_end_s.median") and "FAIL at 40 runs" in lines[2]
+    stopped = {**record, "stopped": "decided", "runs_flown": 40}  # a record without "verdict" (older OUTs) too
+    for verdict in (None, "FAIL"):
+        head = decided.format_stopping({**stopped, "verdict": verdict}).splitlines()[0]
+        assert head.startswith("stopped when decided after 40 of 200 runs") and ": FAIL (1 requirement failed" in head
+    passed = {**stopped, "verdict": "PASS", "requirements": record["requirements"][1:]}
+    passed["requirements"] = [{**passed["requirements"][0], "state": "PASS"}]
+    assert decided.format_stopping(passed).splitlines()[0].endswith("alpha 0.05): PASS")
 
 
 def test_chunks_end_on_the_looks():

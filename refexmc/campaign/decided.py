@@ -96,7 +96,9 @@ def run_until_decided(
 def format_stopping(record):
     """Lines for the terminal: how many runs were flown, why it stopped, each requirement's state."""
     looks = f"(looks every {record['batch_runs']} runs, alpha {record['alpha']:g})"
-    if record["stopped"] == "decided" and record.get("verdict") == sequential.FAIL:
+    states = [r["state"] for r in record["requirements"]]
+    verdict = record.get("verdict") or (sequential.FAIL if sequential.FAIL in states else sequential.PASS)  # older
+    if record["stopped"] == "decided" and verdict == sequential.FAIL:
         failed = sum(r["state"] == sequential.FAIL for r in record["requirements"])
         head = (
             f"stopped when decided after {record['runs_flown']} of {record['budget_runs']} runs {looks}: FAIL "
