@@ -99,7 +99,8 @@ def main():
 @click.option(
     "--until-decided",
     is_flag=True,
-    help="Fly in batches until every requirement is decided; the runs are the budget (docs/studies.md).",
+    help="Fly in batches until the verdict is decided (a requirement FAILs: exit 1; or all PASS); "
+    "the runs are the budget (docs/studies.md).",
 )
 @click.option("--batch", type=int, help="With --until-decided: runs between looks [default: budget / 10, >= 10].")
 @click.option("--alpha", type=float, help="With --until-decided: wrong-verdict rate [default: 0.05].")
@@ -168,6 +169,8 @@ def run(
     errored = result["runs"].loc[result["runs"]["status"] == "error", "run_id"].tolist()
     if errored:
         click.echo(f"runs with errors: {', '.join(map(str, errored))}", err=True)
+    failed = until_decided and result["until_decided"].get("verdict") == "FAIL"  # a FAIL decides the campaign
+    if errored or failed:
         sys.exit(1)
 
 
@@ -305,15 +308,20 @@ def report(out, no_html, require):
     "tolerances",
     multiple=True,
     metavar="METRIC=VALUE",
-    help="Override a metric's tolerance (inf: report only); a runs column adds it to the comparison.",
+    help="Gate a metric: a change worse than VALUE (in its unit) is a regression when significant "
+    "(inf: report only). Outputs without a requirement are gated only this way; any numeric runs "
+    "column can be named.",
 )
 def compare(baseline_out, out, tolerances):
-    """Compare campaign OUT against BASELINE_OUT: success rate, propellant, hand-over error, pulses.
+    """Compare campaign OUT against BASELINE_OUT by the mission's own metrics.
 
-    Paired run by run when both flew the same dispersed inputs (Wilcoxon signed-rank), else
-    two-sample KS; rates with a Newcombe interval. Exit 1 when a metric is significantly worse
-    by more than its tolerance (the CI gate; defaults in docs/compare.md).
-    Example: refexmc compare baselines/smoke runs/smoke --tolerance fuel_remaining=0.02
+    Success and error rates, then each runs column a requirement judges (worse: its failing side;
+    tolerance: 10 % of the baseline's margin), then the other outputs (shown; gated only with
+    --tolerance). Paired run by run when both flew the same dispersed inputs (median difference,
+    sign test; rates by McNemar), else Welch (rates: Newcombe); the p and the interval come from
+    one test. Exit 1 when a metric is significantly worse by more than its tolerance (the CI
+    gate, docs/compare.md).
+    Example: refexmc compare baselines/smoke runs/smoke --tolerance pulses_total=50
     """
     from pyarrow import ArrowException
 

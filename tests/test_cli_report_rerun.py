@@ -12,6 +12,7 @@ from stored import campaign_copy, invoke_run, read_runs
 from test_report import synthetic_runs, write_out
 
 from refexmc.cli import main
+from refexmc.report import make_report
 
 ROOT = Path(__file__).resolve().parents[1]
 IMAGES = re.compile(r"data:image/png;base64,[A-Za-z0-9+/=]*")  # base64 may spell anything
@@ -92,6 +93,24 @@ def test_report_of_an_incomplete_campaign_never_passes(tmp_path):
     summary = json.loads((out / "report" / "summary.json").read_text())
     assert summary["verdict"] == "INCOMPLETE" and summary["passed"] is False
     assert summary["banner"] in first and summary["completeness"]["missing_run_count"] == 2820
+
+
+def test_incomplete_hint_resumes_with_the_runs_the_out_was_started_with(tmp_path):
+    """OUT started with `--runs 180` from a file of 3,000 runs (same seed): finishing it needs
+    `--runs 180` (without it --resume refuses a different campaign), and no --seed."""
+    rows = synthetic_runs(n=120, errored=(), failed=())
+    out = write_out(tmp_path / "out", rows, requirements=["success_rate >= 1.0"])
+    resolved = out / "campaign.resolved.yaml"
+    resolved.write_text(resolved.read_text().replace("runs: 120", "runs: 180"))
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text("name: synthetic\nruns: 3000\nseed: 5\n")
+    manifest = {"name": "synthetic", "status": "running", "chunk_size": 60, "campaign_file": str(campaign)}
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    report = make_report(out, html=False)
+    assert f"(finish it with `refexmc run {campaign} -o {out} --resume --runs 180`)" in report["summary"]["banner"]
+    campaign.write_text("name: synthetic\nruns: 180\nseed: 6\n")  # the file's runs, another seed
+    report = make_report(out, html=False)
+    assert f"(finish it with `refexmc run {campaign} -o {out} --resume --seed 5`)" in report["summary"]["banner"]
 
 
 def test_report_of_a_campaign_whose_flights_all_failed(tmp_path):

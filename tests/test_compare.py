@@ -17,7 +17,7 @@ from refexmc.cli import main
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import apply_overrides, load_campaign
 from refexmc.report import compare as cmp
-from refexmc.report import data
+from refexmc.report import data, stats
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,10 +39,23 @@ def shifted(rows, column, shift):
     return out
 
 
-def pair(tmp_path, baseline_rows, current_rows, tolerances=()):
-    base = write_out(tmp_path / "base", baseline_rows, histories=False, parts=2)
-    cur = write_out(tmp_path / "cur", current_rows, histories=False, parts=1)
+REQUIREMENTS = ("fuel_remaining.min >= 0.20", "success_rate >= 0.5")  # fuel_remaining judged: higher is better
+
+
+def pair(tmp_path, baseline_rows, current_rows, tolerances=(), requirements=REQUIREMENTS, **written):
+    base = write_out(tmp_path / "base", baseline_rows, requirements, histories=False, parts=2, **written)
+    cur = write_out(tmp_path / "cur", current_rows, requirements, histories=False, parts=1, **written)
     return cmp.compare(base, cur, tolerances)
+
+
+def assert_verdict_and_interval_agree(result):
+    """Each row's significance is its printed interval excluding 0, and its p the same test's."""
+    for m in result.metrics:
+        low, high = m.ci
+        excludes = math.isfinite(low) and (low > 0.0 or high < 0.0)
+        assert m.significant == excludes, m
+        if math.isfinite(m.p_value):
+            assert (m.p_value <= 0.05 + 1e-12) == excludes or abs(m.p_value - 0.05) < 1e-9, m
 
 
 # --- the verdict ---------------------------------------------------------------------------------
@@ -80,8 +93,9 @@ def test_unpaired_statistics_match_scipy_and_exclude_errored_runs(tmp_path):
     fuel = metrics["fuel_remaining"]
     b, c = ok_values(base_rows, "fuel_remaining"), ok_values(cur_rows, "fuel_remaining")
     assert (fuel.n_baseline, fuel.n_current) == (39, 28)  # the errored runs' -5.0 is excluded
-    assert fuel.p_value == pytest.approx(sps.ks_2samp(b, c).pvalue, rel=1e-12)
-    assert fuel.test == "two-sample KS"
+    assert fuel.p_value == pytest.approx(sps.ttest_ind(c, b, equal_var=False).pvalue, rel=1e-12)
+    assert fuel.details["ks_p"] == pytest.approx(sps.ks_2samp(b, c).pvalue, rel=1e-12)
+    assert fuel.test == "Welch t"
     assert fuel.difference == pytest.approx(c.mean() - b.mean(), abs=1e-15)
     welch = sps.ttest_ind(c, b, equal_var=False).confidence_interval(0.95)
     assert fuel.ci == pytest.approx((welch.low, welch.high), abs=1e-12)
@@ -97,7 +111,10 @@ def test_unpaired_statistics_match_scipy_and_exclude_errored_runs(tmp_path):
     low = d - math.hypot(25 / 30 - wc.low, wb.high - 38 / 40)
     high = d + math.hypot(wc.high - 25 / 30, 38 / 40 - wb.low)
     assert success.ci == pytest.approx((low, high), abs=1e-12)
-    assert success.p_value == pytest.approx(sps.fisher_exact([[25, 5], [38, 2]]).pvalue)
+    # the p of inverting that interval: at confidence 1 - p the interval just reaches 0
+    edge = stats.newcombe_interval(25, 30, 38, 40, 1.0 - success.p_value)
+    assert min(abs(edge[0]), abs(edge[1])) < 1e-9
+    assert_verdict_and_interval_agree(result)
 
     errors = metrics["error_rate"]
     assert (errors.details["x_baseline"], errors.n_baseline, errors.details["x_current"], errors.n_current) == (
@@ -114,14 +131,14 @@ def test_paired_statistics_match_scipy_and_hand_values(tmp_path):
     # every ok run loses 0.02 to 0.0245 of propellant, no two alike: signed-rank p = 2 / 2^n exactly
     cur_rows = shifted(base_rows, "fuel_remaining", lambda i: -0.02 - 0.00015 * i)
     cur_rows[12].update(status="error", success=False, failure_reason="RuntimeError: boom", fuel_remaining=-5.0)
-    result = pair(tmp_path, base_rows, cur_rows)
+    result = pair(tmp_path, base_rows, cur_rows, ["fuel_remaining=0.01"])  # the margin's 10 % is ~0.03
     pairs = result.pairing
     assert pairs.paired and list(pairs.run_ids) == [i for i in range(30) if i not in (7, 12)]
     fuel = by_metric(result)["fuel_remaining"]
     diffs = np.array([cur_rows[i]["fuel_remaining"] - base_rows[i]["fuel_remaining"] for i in pairs.run_ids])
-    assert fuel.test == "Wilcoxon signed-rank"
-    assert fuel.p_value == pytest.approx(2.0 / 2**28, rel=1e-9)
-    assert fuel.p_value == pytest.approx(sps.wilcoxon(diffs).pvalue, rel=1e-12)
+    assert fuel.test == "sign test"
+    assert fuel.p_value == pytest.approx(2.0 / 2**28, rel=1e-9)  # all 28 differences negative
+    assert fuel.p_value == pytest.approx(sps.binomtest(0, 28).pvalue, rel=1e-12)
     assert fuel.difference == pytest.approx(np.median(diffs), abs=1e-15)
     assert fuel.ci[0] < fuel.difference < fuel.ci[1] < -0.02
     assert fuel.details["ks_p"] == pytest.approx(
@@ -170,28 +187,106 @@ def test_pairing_needs_the_same_seeds_failures_and_common_parameters(tmp_path):
     assert "dispersed in the current only: p.rcs.thrust_scale.1" in extra.note
 
 
-def test_tolerances_decide_what_a_significant_change_means(tmp_path):
+def test_requirements_and_tolerances_decide_what_a_significant_change_means(tmp_path):
     base_rows = synthetic_runs(n=20, errored=(), failed=(), seed=7)
     cur_rows = shifted(base_rows, "fuel_remaining", lambda i: -0.005)
     cur_rows = shifted(cur_rows, "t_end_s", lambda i: 2.0)
     cur_rows = shifted(cur_rows, "theta_t_handover_deg", lambda i: -0.2)
     result = pair(tmp_path, base_rows, cur_rows)
     metrics = by_metric(result)
-    assert metrics["fuel_remaining"].p_value < 1e-5  # every run lost 0.005: significant ...
-    assert metrics["fuel_remaining"].verdict == cmp.OK  # ... but within the 0.01 tolerance
-    assert metrics["theta_t_handover_deg"].verdict == cmp.BETTER
-    assert metrics["t_end_s"].verdict == cmp.REGRESSION  # either direction counts
-    assert [m.metric for m in result.regressions] == ["t_end_s"]
+    fuel = metrics["fuel_remaining"]  # judged by fuel_remaining.min >= 0.20: higher is better
+    assert fuel.better == "higher" and fuel.requirement == "fuel_remaining.min >= 0.20" and fuel.source == "margin"
+    median = np.median(ok_values(base_rows, "fuel_remaining"))
+    assert fuel.tolerance == pytest.approx(0.1 * (median - 0.20))
+    # every run lost 0.005: significant, but within 10 % of the margin
+    assert fuel.p_value < 1e-5 and fuel.verdict == cmp.OK
+    # outputs without a requirement: shown, significant, never gated (no default of one mission)
+    for column in ("t_end_s", "theta_t_handover_deg"):
+        assert metrics[column].significant and metrics[column].verdict == cmp.OK
+        assert math.isinf(metrics[column].tolerance) and metrics[column].requirement == ""
+    assert result.passed
 
-    strict = cmp.compare(tmp_path / "base", tmp_path / "cur", ["fuel_remaining=0.001", "t_end_s=inf"])
-    assert [m.metric for m in strict.regressions] == ["fuel_remaining"]
-    assert by_metric(strict)["t_end_s"].verdict == cmp.OK
+    gated = cmp.compare(tmp_path / "base", tmp_path / "cur", ["fuel_remaining=0.001", "t_end_s=1"])
+    assert [m.metric for m in gated.regressions] == ["fuel_remaining", "t_end_s"]  # t_end_s: longer is worse
+    assert by_metric(gated)["t_end_s"].source == "--tolerance"
+    assert by_metric(gated)["theta_t_handover_deg"].verdict == cmp.OK  # still not gated
 
     added = cmp.compare(tmp_path / "base", tmp_path / "cur", ["fuel_used_kg = 0.001", "t_sam_s=5"])
     metrics = by_metric(added)
     assert metrics["fuel_used_kg"].better == "lower" and metrics["fuel_used_kg"].tolerance == 0.001
     # the worse tail of report/tails.py: a mode that lasts longer is worse
     assert metrics["t_sam_s"].better == "lower" and metrics["t_sam_s"].verdict == cmp.OK
+
+
+HOP_MODES = {"HOP": 25.0, "HOLD": 5.0}
+
+
+def hop_runs(n, seed, faster_s=0.0, failed=()):
+    """Rows of a hop campaign's runs table: its own metrics, a few failed flights (stuck valves)."""
+    rng = np.random.default_rng(seed)
+    rows = synthetic_runs(n=n, errored=(), failed=failed, seed=seed, modes=HOP_MODES)
+    for row in rows:
+        t_hop = rng.normal(30.0, 4.0) - faster_s
+        row.update(
+            t_hop_s=t_hop,
+            t_end_s=t_hop + 5.0,
+            position_error_end_m=abs(rng.normal(0.01, 0.005)),
+            tank_pressure_end_pa=rng.normal(2.0e6, 1.0e5),
+        )
+        row.pop("theta_t_handover_deg")
+    return rows
+
+
+def test_a_faster_hop_is_better_by_its_requirement_and_never_a_regression(tmp_path):
+    """The issue's hop: arriving 2.4 s sooner is no regression (t_end_s has no requirement, t_hop_s
+    is better lower by `t_hop_s.p95 <= 45`); each verdict comes from the interval it prints; the
+    counts say how many flights failed."""
+    requirements = ("success_rate >= 0.9", "t_hop_s.p95 <= 45", "tank_pressure_end_pa.p5 >= 1.0e6")
+    base_rows = hop_runs(300, seed=11, failed=range(2, 300, 15))  # 20 failed flights
+    cur_rows = hop_runs(300, seed=12, faster_s=2.4, failed=range(2, 300, 15))
+    written = {"requirements": requirements, "modes": HOP_MODES, "vehicle": "cold-gas-surveyor"}
+    result = pair(tmp_path, base_rows, cur_rows, **written)
+    assert not result.pairing.paired
+    metrics = by_metric(result)
+    assert list(metrics)[:4] == ["success_rate", "error_rate", "t_hop_s", "tank_pressure_end_pa"]
+    hop = metrics["t_hop_s"]
+    assert hop.better == "lower" and hop.requirement == "t_hop_s.p95 <= 45"
+    assert hop.significant and hop.ci[1] < 0 and hop.verdict == cmp.BETTER
+    assert metrics["tank_pressure_end_pa"].better == "higher"
+    end = metrics["t_end_s"]
+    assert end.significant and end.verdict == cmp.OK and math.isinf(end.tolerance)
+    assert result.passed
+    assert_verdict_and_interval_agree(result)
+    table = cmp.format_table(result)
+    assert "300 runs: 280 successful, 20 failed flights, 0 errored" in table
+    assert "worse by the requirement: t_hop_s: t_hop_s.p95 <= 45" in table and "verdict: PASS" in table
+    slower = pair(tmp_path / "slower", cur_rows, base_rows, **written)  # 2.4 s later
+    assert [m.metric for m in slower.regressions] == ["t_hop_s"]  # > 10 % of the 15 s margin to 45 s
+
+
+def test_paired_success_is_compared_by_mcnemar_on_the_discordant_runs(tmp_path):
+    base_rows = synthetic_runs(n=40, errored=(), failed=(1, 2), seed=9)
+    cur_rows = copy.deepcopy(base_rows)
+    for i in (1, 2):  # the baseline's two failures now fly
+        cur_rows[i].update(success=True, failure_reason=None)
+    for i in (5, 8, 13, 21, 22, 30, 33, 39):  # eight new ones
+        cur_rows[i].update(success=False, failure_reason="sam_timeout")
+    result = pair(tmp_path, base_rows, cur_rows)
+    assert result.pairing.paired
+    rate = by_metric(result)["success_rate"]
+    assert rate.test == "McNemar exact"
+    assert (rate.details["discordant_lost"], rate.details["discordant_won"]) == (8, 2)
+    assert rate.p_value == pytest.approx(sps.binomtest(2, 10, 0.5).pvalue, rel=1e-12)  # symmetric: central = minlike
+    assert rate.difference == pytest.approx((2 - 8) / 40)
+    cp = sps.binomtest(2, 10).proportion_ci(0.95, method="exact")
+    assert rate.ci == pytest.approx((10 * (2 * cp.low - 1) / 40, 10 * (2 * cp.high - 1) / 40), rel=1e-9)
+    assert not rate.significant and rate.verdict == cmp.OK  # p = 0.11: 8 against 2 is not enough
+    assert_verdict_and_interval_agree(result)
+    for i in (9, 10, 11, 12):  # 12 lost, 2 won
+        cur_rows[i].update(success=False, failure_reason="sam_timeout")
+    worse = by_metric(pair(tmp_path / "worse", base_rows, cur_rows))["success_rate"]
+    assert worse.p_value == pytest.approx(sps.binomtest(2, 14, 0.5).pvalue, rel=1e-12)
+    assert worse.ci[1] < 0 and worse.verdict == cmp.REGRESSION
 
 
 def test_a_significant_drop_of_the_success_rate_is_a_regression(tmp_path):
@@ -222,6 +317,7 @@ def test_a_significant_drop_of_the_success_rate_is_a_regression(tmp_path):
     ("text", "message"),
     [
         ("fuel_remainig=0.02", "did you mean 'fuel_remaining'?"),
+        ("sucess_rate=0.1", "did you mean 'success_rate'?"),
         ("t_sam=5", "did you mean 't_sam_s'?"),
         ("fuel_remaining", "expected METRIC=VALUE"),
         ("fuel_remaining=lots", "expected a number after '='"),
@@ -287,7 +383,7 @@ def test_flown_campaign_using_more_propellant_exits_1(flown):
     assert result.exit_code == 1, result.output
     assert "verdict: FAIL (1 regression: fuel_remaining)" in result.output
     fuel = by_metric(cmp.compare(root / "baseline", root / "degraded"))["fuel_remaining"]
-    assert fuel.test == "Wilcoxon signed-rank" and fuel.p_value == pytest.approx(2.0 / 2**10)
+    assert fuel.test == "sign test" and fuel.p_value == pytest.approx(2.0 / 2**10)  # 10 of 10 runs worse
     assert fuel.difference < -0.03
     loose = CliRunner().invoke(
         main, ["compare", str(root / "baseline"), str(root / "degraded"), "--tolerance", "fuel_remaining=0.1"]

@@ -226,7 +226,26 @@ def test_irassi_in_arcsec_with_sensitivity_and_wheel_sets_judged(mission):
         assert row[metric] == pytest.approx(expected)
         assert row["verdicts"][metric] == (expected <= 0.4)
         assert row["passed"] == (all(row["verdicts"].values()) and row["successes"] == row["runs"])
-    assert '<td class="fail">' in page or all(r["passed"] for r in summary["wheel_failure_sets"]["sets"])
+    assert '<td class="failing-cell">' in page or all(r["passed"] for r in summary["wheel_failure_sets"]["sets"])
+
+
+def test_failed_wheel_table_tells_a_failing_cell_from_a_failing_row():
+    """A set that fails one requirement: its row pale red, the failing statistic's cell deep red."""
+    from refexmc.report.html import STYLE, wheel_failure_sets_section
+
+    stat = "pointing_max_arcsec.p99"
+    sets = [
+        {"failed_wheels": "", "runs": 90, "successes": 90, stat: 0.2, "verdicts": {stat: True}, "passed": True},
+        {"failed_wheels": "1", "runs": 10, "successes": 10, stat: 0.9, "verdicts": {stat: False}, "passed": False},
+    ]
+    page = wheel_failure_sets_section(
+        {"statistics": [stat], "requirements": {stat: f"{stat} <= 0.4"}, "sets": sets, "detected": False}
+    )
+    rows = re.findall(r"<tr(?: class=\"([^\"]*)\")?>(.*?)</tr>", page)
+    assert [cls for cls, _ in rows[1:]] == ["pass", "failing-row"]
+    assert rows[2][1].count('class="failing-cell"') == 1 and '<td class="failing-cell">0.9' in rows[2][1]
+    colours = dict(re.findall(r"(tr\.failing-row|td\.failing-cell)[^{]*\{ background: (#[0-9a-f]{6})", STYLE))
+    assert colours["tr.failing-row"] != colours["td.failing-cell"]
 
 
 PAGE_WIDTH = 1400

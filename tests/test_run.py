@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 import pytest
 from stored import campaign_copy, invoke_run, read_runs, snapshot
 
+from refexmc.campaign import progress as progress_module
 from refexmc.campaign import run as run_module
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import TEST_CRASH_ENV, TEST_HANG_ENV
@@ -233,3 +234,21 @@ def test_default_chunk_size_gives_about_target_chunks_within_bounds(runs):
     if run_module.MIN_CHUNK_SIZE < size < run_module.MAX_CHUNK_SIZE:  # ... and the smallest size that does it
         assert (size - 1) * run_module.TARGET_CHUNKS < runs
     assert run_module.default_chunk_size(runs + 1) >= size  # more runs never give smaller chunks
+
+
+def test_progress_says_compiling_and_leaves_the_first_runs_out_of_the_eta(monkeypatch):
+    """The first runs carry the JIT compile: the first line says so and the ETA is timed after them
+    (a 10 s compile before 10 runs of 0.1 s each would otherwise give an ETA of ~900 s for 90 runs)."""
+    clock = [0.0]
+    monkeypatch.setattr(progress_module.time, "monotonic", lambda: clock[0])
+    stream = io.StringIO()
+    meter = Progress(100, mode="lines", stream=stream)
+    clock[0] = 10.0  # compile + the first 10 runs
+    meter.update(10)
+    clock[0] = 16.0  # 60 more runs at 10 runs/s
+    meter.update(60)
+    meter.close()
+    lines = stream.getvalue().splitlines()
+    assert "compiling" in lines[0] and "ETA" not in lines[0].split(";")[0]
+    assert lines[1].startswith("10/100 runs, the first in 10 s (JIT compile included)")
+    assert lines[2] == "70/100 runs, 10 runs/s, ETA 3 s"  # 30 runs at 10 runs/s, not 30 at 70/16 s

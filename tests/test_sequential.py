@@ -201,3 +201,20 @@ def test_a_moment_requirement_fails_for_good_at_the_first_failed_run():
     table = runs_table(success, np.full(30, 0.5))
     assert not decision.look(0, table.iloc[:10]) and decision.states == ["open"]
     assert decision.look(1, table.iloc[:20]) and decision.states == ["FAIL"] and decision.decided_at == [20]
+
+
+def test_a_fail_decides_the_campaign_while_other_requirements_are_open():
+    """One FAIL decides the campaign's verdict: the looks stop though another requirement is open."""
+    rules = [
+        sequential.rule_for(requirement("success_rate >= 1.0")),  # never PASSes in a finite campaign
+        sequential.rule_for(requirement("fuel_remaining.min >= 0.2")),
+    ]
+    decision = sequential.Decision(rules, sequential.look_sizes(100, 10))
+    fuel = np.full(100, 0.5)
+    fuel[13] = 0.1  # breaks the minimum at the second look
+    table = runs_table(np.ones(100, dtype=bool), fuel)
+    assert not decision.look(0, table.iloc[:10]) and decision.verdict == "open"
+    assert decision.look(1, table.iloc[:20])
+    assert decision.states == ["open", "FAIL"] and decision.verdict == "FAIL"
+    record = decision.record(0.05, 10, 20)
+    assert record["stopped"] == "decided" and record["verdict"] == "FAIL" and record["looks"] == [10, 20]

@@ -125,3 +125,129 @@ def test_runs_override_is_checked_too(tmp_path):
     path = campaign_copy("nominal.yaml", tmp_path, replace=SALTELLI)
     result = invoke_run(path, "-o", tmp_path / "out", "--runs", "20")
     assert result.exit_code == 2 and "--runs: sampling saltelli" in result.output and "e.g. runs: 257" in result.output
+
+
+# --- what the design cannot support: flagged with the N that would ---------------------------------
+
+GROUPS = (("x1", 1), ("x2", 1), ("x3", 1))
+
+
+def ishigami_on_design(n_base, seed=7):
+    u = saltelli._design(seed, GROUPS, n_base)
+    x = -math.pi + 2.0 * math.pi * u
+    return u, np.sin(x[:, 0]) + A * np.sin(x[:, 1]) ** 2 + B * x[:, 2] ** 4 * np.sin(x[:, 0])
+
+
+def test_a_large_design_supports_its_indices_and_a_small_one_is_flagged_with_the_n_that_would():
+    _, y = ishigami_on_design(4096)
+    large = sobol.metric_entry(GROUPS, y, 4096, seed=1)
+    assert large["supported"] and "flag" not in large
+    _, y = ishigami_on_design(16)
+    small = sobol.metric_entry(GROUPS, y, 16, seed=1)
+    assert not small["supported"]
+    needed = small["base_samples_needed"]
+    assert needed > 16 and needed & (needed - 1) == 0  # a power of 2, as the design needs
+    widest = max(max(s["first_conf"], s["total_conf"]) for s in small["indices"].values() if s["flags"])
+    assert needed >= 16 * (widest / sobol.TARGET_HALF_WIDTH) ** 2  # CIs shrink as 1 / sqrt(N)
+    assert "N = 16 base samples cannot support" in small["flag"] and f"about N = {needed}" in small["flag"]
+    for s in small["indices"].values():  # an unflagged index is inside [0, 1] with a narrow CI
+        if not s["flags"]:
+            assert s["first_conf"] <= 0.1 and s["total_conf"] <= 0.1
+            assert -s["first_conf"] <= s["first"] <= 1 + s["first_conf"]
+
+
+def test_indices_outside_the_unit_interval_or_first_above_total_are_flagged():
+    assert sobol.index_flags({"first": -0.3, "first_conf": 0.05, "total": 0.2, "total_conf": 0.05}) == [
+        "first outside [0, 1] beyond its CI"
+    ]
+    assert "total outside [0, 1] beyond its CI" in sobol.index_flags(
+        {"first": 0.5, "first_conf": 0.05, "total": 14.5, "total_conf": 3.0}
+    )
+    assert sobol.index_flags({"first": 0.6, "first_conf": 0.02, "total": 0.3, "total_conf": 0.02}) == [
+        "first above total beyond their CIs"
+    ]
+    assert sobol.index_flags({"first": 0.3, "first_conf": 0.02, "total": 0.32, "total_conf": 0.02}) == []
+
+
+def test_a_rare_failure_missed_by_a_and_b_cannot_be_estimated_never_a_confident_zero():
+    """The issue's hop: success failed in 2 column-swap runs only, A and B all successful. The
+    indices divide by the variance over A and B, 0: "cannot estimate", with the N that would."""
+    n_base = 32
+    u, _ = ishigami_on_design(n_base)
+    both = np.minimum(u[:, 0], u[:, 1])  # a failure needs x1 and x2 both high: an interaction
+    rows_ab = sobol.design_rows(len(GROUPS), n_base)
+    swaps = np.setdiff1d(np.arange(len(u)), rows_ab)
+    threshold = both[rows_ab].max()
+    assert np.count_nonzero(both[swaps] > threshold) >= 1  # this design has such swap rows
+    success = (both <= threshold).astype(float)
+    entry = sobol.metric_entry(GROUPS, success, n_base)
+    assert "indices" not in entry
+    failed = int(np.count_nonzero(success == 0.0))
+    assert (
+        f"the 64 runs of the matrices A and B all have the value 1 while {failed} column-swap run"
+        in (entry["cannot_estimate"])
+    )
+    rate = failed / len(u)
+    assert entry["base_samples_needed"] >= sobol.EVENTS_NEEDED / (2 * rate)  # ~10 failures expected in A and B
+    # failures in A and B too: an estimate, flagged at this N, never 0.000 +- 0.000 everywhere
+    success = (both <= np.quantile(both, 0.9)).astype(float)
+    entry = sobol.metric_entry(GROUPS, success, n_base, seed=1)
+    assert "indices" in entry
+    assert any(s["total"] > 0.0 and s["total_conf"] > 0.0 for s in entry["indices"].values())
+    assert not entry["supported"] and entry["base_samples_needed"] > n_base
+
+
+def test_a_metric_without_a_value_in_some_runs_says_why():
+    _, y = ishigami_on_design(8)
+    y[3] = math.nan
+    assert "1 of 40 runs have no value" in sobol.metric_entry(GROUPS, y, 8)["cannot_estimate"]
+    assert "no value of it in any run" in sobol.metric_entry(GROUPS, np.full(40, math.nan), 8)["cannot_estimate"]
+
+
+# the issue's hop: a Saltelli campaign over the hop's own dispersions, N = 8 base samples (81 runs)
+HOP_SALTELLI = [
+    ("runs: 1000", "runs: 81"),
+    ("sampling: random", "sampling: saltelli"),
+    ("  navigation.attitude_noise_deg: {dist: uniform, low: 0.0, high: 0.1}", ""),
+    ("  navigation.local_position_noise_m: {dist: uniform, low: 0.0, high: 0.005}", ""),
+    ("  navigation.local_velocity_noise_m_s: {dist: uniform, low: 0.0, high: 0.001}", ""),
+    ("  navigation.tank_pressure_noise_pa: {dist: uniform, low: 0.0, high: 2.5e4}", ""),
+    ("  mode: random\n  count_probabilities: [0.95, 0.05]", "  mode: none"),
+]
+
+
+def test_the_hop_sobol_analyses_its_own_metrics_and_flags_what_n_8_cannot_support(tmp_path):
+    path = campaign_copy("surveyor-hop.yaml", tmp_path, replace=HOP_SALTELLI)
+    out = tmp_path / "out"
+    run_campaign(path, out, jobs=1)
+    result = make_report(out, html=False)
+    section = result["summary"]["sobol"]
+    assert list(section["metrics"]) == ["t_hop_s", "position_error_end_m", "tank_pressure_end_pa"]
+    assert "theta_t_handover_deg" not in result["text"].split("Sobol' indices")[1]
+    for metric, entry in section["metrics"].items():
+        assert "indices" in entry or "cannot_estimate" in entry
+        if "indices" in entry:  # 8 base samples over 8 groups: flagged, with the N that would do
+            assert not entry["supported"] and entry["base_samples_needed"] >= 64, metric
+            assert entry["runs_needed"] == entry["base_samples_needed"] * 10 + 1
+    assert "not analysed" not in result["text"] and " ?" in result["text"]
+    narrowed = campaign_copy(
+        "surveyor-hop.yaml", tmp_path, "narrowed.yaml", HOP_SALTELLI, sobol="{metrics: [success, speed_end_m_s]}"
+    )
+    assert load_campaign(narrowed)["sobol"]["metrics"] == ["success", "speed_end_m_s"]
+
+
+def test_a_sobol_metric_the_mission_lacks_is_bad_input_at_validate(tmp_path):
+    from click.testing import CliRunner
+
+    from refexmc.cli import main
+
+    path = campaign_copy(
+        "surveyor-hop.yaml", tmp_path, replace=HOP_SALTELLI, sobol="\n  metrics: [t_hop_s, pointing_max_arcsec]"
+    )
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    line = path.read_text().splitlines().index("  metrics: [t_hop_s, pointing_max_arcsec]") + 1
+    assert f"{path}:{line}: sobol.metrics.1: unknown metric 'pointing_max_arcsec'" in result.output
+    random = campaign_copy("surveyor-hop.yaml", tmp_path, "random.yaml", sobol="{metrics: [t_hop_s]}")
+    with pytest.raises(ConfigError, match="'sobol' goes with 'sampling: saltelli'"):
+        load_campaign(random)

@@ -83,6 +83,19 @@ def test_refuses_what_it_cannot_stop(tmp_path):
     assert not Path(tmp_path / "out").exists()
 
 
+def test_a_failing_requirement_stops_the_campaign_with_exit_1(tmp_path, monkeypatch):
+    """A FAIL decides the campaign: it stops at the look that saw it (run exits 1), although
+    ``success_rate >= 1.0`` can never PASS and would otherwise fly the whole budget."""
+    monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "5")
+    failing = [("  - fuel_remaining.min >= 0.20", "  - fuel_remaining.min >= 0.95")]  # every flight uses > 5 %
+    campaign = campaign_copy("refex-mc100.yaml", tmp_path, "failing.yaml", failing)
+    result = invoke_run(campaign, "-o", tmp_path / "out", "--runs", 100, "--until-decided", "--batch", 10, "-j", 1)
+    assert result.exit_code == 1, result.output
+    assert "stopped when decided after 10 of 100 runs" in result.output
+    assert ": FAIL (1 requirement failed" in result.output
+    assert len(read_runs(tmp_path / "out")) == 10
+
+
 def test_stopping_record_reads_as_one_line_per_requirement():
     record = {
         "stopped": "budget",
@@ -97,6 +110,13 @@ def test_stopping_record_reads_as_one_line_per_requirement():
     lines = decided.format_stopping(record).splitlines()
     assert lines[0].startswith("flew the whole budget of 200 runs")
     assert lines[1].strip().startswith("open: t_end_s.median") and "FAIL at 40 runs" in lines[2]
+    stopped = {**record, "stopped": "decided", "runs_flown": 40}  # a record without "verdict" (older OUTs) too
+    for verdict in (None, "FAIL"):
+        head = decided.format_stopping({**stopped, "verdict": verdict}).splitlines()[0]
+        assert head.startswith("stopped when decided after 40 of 200 runs") and ": FAIL (1 requirement failed" in head
+    passed = {**stopped, "verdict": "PASS", "requirements": record["requirements"][1:]}
+    passed["requirements"] = [{**passed["requirements"][0], "state": "PASS"}]
+    assert decided.format_stopping(passed).splitlines()[0].endswith("alpha 0.05): PASS")
 
 
 def test_chunks_end_on_the_looks():

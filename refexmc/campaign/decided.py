@@ -2,7 +2,8 @@
 
 The campaign's ``runs`` (or ``--runs``) is the budget N. The runs are flown in batches; after each
 batch the rule of :mod:`refexmc.campaign.sequential` looks at the runs table and the campaign
-stops once every requirement is decided, or at the budget. Run i is the same run whatever the
+stops once its verdict is decided (a requirement FAILs, or every requirement PASSes), or at the
+budget. Run i is the same run whatever the
 number of runs (keyed seeds, ``sampling: random``), so OUT then holds exactly the first n runs of
 the full campaign, and is the campaign ``--runs n`` with a stopping record: the resolved campaign
 says ``runs: n``, ``manifest.json`` has ``until_decided`` (looks, verdicts, why it stopped).
@@ -94,11 +95,20 @@ def run_until_decided(
 
 def format_stopping(record):
     """Lines for the terminal: how many runs were flown, why it stopped, each requirement's state."""
-    if record["stopped"] == "decided":
-        head = f"stopped when decided after {record['runs_flown']} of {record['budget_runs']} runs"
+    looks = f"(looks every {record['batch_runs']} runs, alpha {record['alpha']:g})"
+    states = [r["state"] for r in record["requirements"]]
+    verdict = record.get("verdict") or (sequential.FAIL if sequential.FAIL in states else sequential.PASS)  # older
+    if record["stopped"] == "decided" and verdict == sequential.FAIL:
+        failed = sum(r["state"] == sequential.FAIL for r in record["requirements"])
+        head = (
+            f"stopped when decided after {record['runs_flown']} of {record['budget_runs']} runs {looks}: FAIL "
+            f"({failed} requirement{'s' if failed > 1 else ''} failed, which no further run can undo)"
+        )
+    elif record["stopped"] == "decided":
+        head = f"stopped when decided after {record['runs_flown']} of {record['budget_runs']} runs {looks}: PASS"
     else:
-        head = f"flew the whole budget of {record['budget_runs']} runs: not every requirement was decided"
-    lines = [f"{head} (looks every {record['batch_runs']} runs, alpha {record['alpha']:g})"]
+        head = f"flew the whole budget of {record['budget_runs']} runs {looks}: not every requirement was decided"
+    lines = [head]
     for r in record["requirements"]:
         at = f" at {r['decided_at_runs']} runs" if r["decided_at_runs"] is not None else ""
         lines.append(f"  {r['state']:>4}{at}: {r['requirement']} [{r['test']}]")

@@ -242,8 +242,17 @@ class Decision:
         return self.decided
 
     @property
+    def verdict(self):
+        """The campaign's verdict so far: FAIL once any requirement FAILs (the campaign fails
+        whatever the others do), PASS once every one PASSes, else open."""
+        if FAIL in self.states:
+            return FAIL
+        return PASS if all(state == PASS for state in self.states) else OPEN
+
+    @property
     def decided(self):
-        return all(state != OPEN for state in self.states)
+        """The campaign's verdict is decided (a FAIL decides it): flying on cannot change it."""
+        return self.verdict != OPEN
 
     def record(self, alpha, batch, flown):
         """The JSON-ready stopping record (``manifest.json`` ``until_decided``); ``flown``: runs in OUT."""
@@ -256,6 +265,7 @@ class Decision:
             "decided_at_runs": self.history[-1]["runs"] if self.history else 0,
             "runs_flown": flown,
             "stopped": "decided" if self.decided else "budget",
+            "verdict": self.verdict,
             "requirements": [
                 {
                     "requirement": rule.requirement.text,

@@ -847,7 +847,37 @@ def load_campaign(path, warnings=None):
         from refexmc.campaign import saltelli
 
         saltelli.check(campaign, path, lines)
+    if "sobol" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        campaign["sobol"] = data["sobol"]
+        check_sobol_metrics(campaign, [c for c in columns if not c.startswith("p.")], path, lines)
     return campaign
+
+
+def check_sobol_metrics(campaign, columns, path=None, lines=None):
+    """ConfigError (file, line, key path) unless the ``sobol`` key goes with ``sampling: saltelli``
+    and names only ``success`` and runs columns the mission produces (``columns``)."""
+    lines = lines or {}
+    if campaign["sampling"] != "saltelli":
+        raise ConfigError(
+            "'sobol' goes with 'sampling: saltelli' (the design its indices need), "
+            f"got sampling {campaign['sampling']}",
+            file=path,
+            line=lines.get(("sobol",)),
+            path=("sobol",),
+        )
+    known = ["success", *columns, "pulses_total"]
+    for i, metric in enumerate(campaign["sobol"]["metrics"]):
+        if metric in known:
+            continue
+        guess = difflib.get_close_matches(metric, known, n=1, cutoff=0.6)
+        hint = f"did you mean '{guess[0]}'? " if guess else ""
+        shown = ", ".join(c for c in known if not c.startswith("pulses_"))
+        raise ConfigError(
+            f"unknown metric '{metric}': this mission produces no such runs column; {hint}(metrics: {shown})",
+            file=path,
+            line=lines.get(("sobol", "metrics", i)) or lines.get(("sobol", "metrics")),
+            path=("sobol", "metrics", i),
+        )
 
 
 def _is_entry_mission(ref, campaign_file):
@@ -882,13 +912,14 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
                 line=lines.get((key,)),
                 path=(key,),
             )
-    if data.get("sampling") == "saltelli":
-        raise ConfigError(
-            "sampling saltelli is not available with an entry mission",
-            file=path,
-            line=lines.get(("sampling",)),
-            path=("sampling",),
-        )
+    for key in ("sampling", "sobol"):
+        if key in data and (key == "sobol" or data[key] == "saltelli"):
+            raise ConfigError(
+                f"{'sampling saltelli' if key == 'sampling' else key} is not available with an entry mission",
+                file=path,
+                line=lines.get((key,)),
+                path=(key,),
+            )
     if "surfaces" not in vehicle:
         fail_vehicle("an entry mission needs a vehicle with aerodynamic surfaces ('surfaces')")
     flaps = vehicle["surfaces"]["body_flaps"]

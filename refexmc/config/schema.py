@@ -1283,6 +1283,19 @@ CAMPAIGN = obj(
             },
             optional=("metrics",),
         ),
+        "sobol": obj(
+            "the Sobol' indices of a 'sampling: saltelli' campaign (docs/studies.md sec. 3)",
+            {
+                "metrics": {
+                    "type": "array",
+                    "minItems": 1,
+                    "uniqueItems": True,
+                    "items": string("'success' or a runs column the mission produces"),
+                    "description": "the metrics whose indices the report estimates [default: success when a "
+                    "flight failed, the requirements' columns, then the mission's other outputs]",
+                },
+            },
+        ),
     },
     optional=(
         "runs",
@@ -1296,5 +1309,6 @@ CAMPAIGN = obj(
         "requirements",
         "published",
         "sweep",
+        "sobol",
     ),
 )

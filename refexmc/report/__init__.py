@@ -57,7 +57,7 @@ def make_report(out, require=(), html=True):
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
     if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
         summary["until_decided"] = studies.stopping(campaign)
-    sobol_indices = studies.sobol_section(campaign)  # sampling saltelli: Sobol' indices
+    sobol_indices = studies.sobol_section(campaign, summary["outputs"])  # sampling saltelli: Sobol' indices
     if sobol_indices is not None:
         summary["sobol"] = sobol_indices
     report_dir = Path(out) / "report"
@@ -263,9 +263,12 @@ def render_figures(campaign, summary):
         result.append(
             (
                 "What drives the failing and closest-to-failing requirements",
-                "Dispersed inputs with the largest |Spearman ρ| against each requirement metric that fails or is "
-                "closest to failing (bars), with the partial rank correlation (PRCC, diamonds) where the campaign "
-                "has more runs than inputs + 2. Gray band: |ρ| not significantly different from 0 at the 5 % level.",
+                "The dispersed inputs and discrete causes that explain most of the rank variance of each "
+                "requirement metric that fails or is closest to failing: Spearman ρ of an input (bars), with the "
+                "partial rank correlation (PRCC, diamonds) where the campaign has more runs than inputs + 2; "
+                "hatched, a failed unit (the ρ of its indicator), a failure set or a choice input (√η², the "
+                "correlation ratio of the metric's ranks). Gray band: |ρ| not significantly different from 0 at "
+                "the 5 % level.",
                 figures.sensitivity_figure(section, targets, plan["labels"]),
                 "sensitivity",
             )
@@ -275,7 +278,8 @@ def render_figures(campaign, summary):
         for row, target in enumerate(targets):
             y = ok[target].to_numpy(dtype=float)
             shown = scatter_runs(y, plan["tails"].get(target, "upper"))
-            for entry in section[target][:SCATTER_INPUTS]:
+            inputs = [entry for entry in section[target] if entry.get("kind", "input") == "input"]
+            for entry in inputs[:SCATTER_INPUTS]:  # a discrete cause has no axis of values
                 scatter.append(
                     {
                         "row": row,

@@ -1,56 +1,45 @@
 """`refexmc compare BASELINE_OUT OUT`: did a change make the campaign significantly worse?
 
-The CI gate for changes to the flight software: a change that makes the vehicle use 10 % more
-propellant must turn CI red. ``compare(baseline_out, current_out, tolerances)`` reads two campaign
-outputs (``refexmc.report.data.load``; histories are not needed) and returns a ``Comparison``;
-``format_table`` renders it. A metric is a **regression** when the change is statistically
-significant (two-sided, 5 %) **and** worse than the baseline by more than its tolerance, so that
-numerical noise (another numba or numpy version, a reordered sum) never fails CI while a real
-degradation does. Errored runs are excluded from every statistic except ``error_rate``, and counted.
+The CI gate for changes to the flight software. ``compare(baseline_out, current_out, tolerances)``
+reads two campaign outputs (``refexmc.report.data.load``; histories are not needed) and returns a
+``Comparison``; ``format_table`` renders it. A metric is a **regression** when the change is
+statistically significant (two-sided, 5 %) **and** worse than the baseline by more than its
+tolerance, so that numerical noise never fails CI while a real degradation does. Errored runs are
+excluded from every statistic except ``error_rate``, and counted (docs/compare.md).
 
-Metrics (current minus baseline): the success and error rates, then the mission's own metrics
-(``mission_metrics``): the runs columns its requirements judge, then its other outputs
-(``outputs.plan``), each worse in the direction of its tail in ``report/tails.py``:
+**Which metrics, judged how** (each by the mission's own terms, no default of one mission):
 
 - ``success_rate`` (over all runs, an errored run unsuccessful, as the report counts it) and
-  ``error_rate`` (of all runs): difference of the two rates with the Newcombe hybrid score
-  interval (Newcombe 1998, method 10: Wilson intervals of each rate combined; good coverage down
-  to a few runs and at rates of 0 or 1, where the Wald interval degenerates). Significant when the
-  95 % interval excludes 0. The p column shows Fisher's exact test for reference. Tolerance 0: any
-  significant drop of the success rate (or rise of the error rate) is a regression.
-- Run-table columns (``fuel_remaining``, ``theta_t_handover_deg``, ``pulses_total``, ``t_end_s``,
-  and every other metric of the mission):
-  - **paired**, when both campaigns flew the same dispersed inputs (``pairing``: same run ids,
-    seeds, failed thrusters and values of every dispersed parameter both have): the median of the
-    per-run differences with its distribution-free 95 % interval (sign-test order statistics,
-    ``stats.percentile_bound``), and the Wilcoxon signed-rank test of the differences. Pairing
-    removes the run-to-run spread of the dispersions (smoke, 20 runs: an Isp 2 % lower shifts
-    propellant remaining by -0.009 in every run, Wilcoxon p = 2e-6; unpaired, with another seed,
-    an Isp 10 % lower, -0.041, gives KS p = 0.012).
-  - **unpaired** otherwise: the difference of the means with Welch's 95 % interval, and the
-    two-sample Kolmogorov-Smirnov test (any change of the distribution, not only of its centre).
-    The KS p-value is computed in the paired case too (``details["ks_p"]``).
+  ``error_rate``: gated with tolerance 0 (any significant drop of the success rate or rise of the
+  error rate is a regression).
+- the runs columns the campaigns' **requirements** judge, in requirement order: worse is the
+  requirement's failing side (``<=``/``<``: higher is worse; ``>=``/``>``: lower is worse; both
+  kinds on one column: a change either way); tolerance ``REQUIREMENT_MARGIN_SHARE`` (10 %) of the
+  baseline's margin, median to the nearest bound.
+- the mission's **other outputs** (``outputs.plan``): shown with their statistics and never gated,
+  unless ``--tolerance METRIC=VALUE`` gives them a tolerance (then worse is the column's tail in
+  ``report/tails.py``, "either way" for a column without one). ``--tolerance`` also overrides a
+  requirement column's tolerance and adds any other numeric runs column.
 
-Default tolerances (``METRICS``; ``--tolerance METRIC=VALUE`` overrides, ``inf`` reports without
-gating), chosen against the smoke campaign, which uses 40-50 % of its propellant:
+**The tests.** The verdict and the printed 95 % interval come from one construction each, so that a
+significant row never prints an interval holding 0:
 
-- ``fuel_remaining`` 0.01 (1 % of the tank, about 20 g of nitrogen or 20 high-thrust pulses per
-  flight): 10 % more propellant used is 0.045-0.05, four to five times the tolerance. Noise stays
-  far below it: scaling the vehicle mass by 1 + 1e-6 changes no run's propellant, by 1.01 single
-  runs by up to 0.014 while the median per-run difference stays 0.
-- ``theta_t_handover_deg`` 0.1 deg: a quarter of the 0.42 deg attitude deadband, inside which the
-  limit cycle wanders anyway (smoke: 0.04-0.31 deg).
-- ``pulses_total`` 50 valve openings per flight (about 6 % of the ~830 of a smoke flight): valve
-  cycle life, and a sign of a chattering controller.
-- ``t_end_s`` 1 s either way: the hand-over time is the initial condition of the aerodynamic phase
-  (smoke: 229 s, 0.7 s across the dispersions); a shift either way is a change that phase's
-  analysis has not seen, so both directions count as a regression.
-
-A requirement column without a default tolerance regresses when it loses more than
-``REQUIREMENT_MARGIN_SHARE`` (10 %) of the baseline's margin, median to the nearest bound; any other
-output is shown with tolerance inf (never a regression) unless ``--tolerance`` names it. A
-``--tolerance`` for another numeric column of the runs table (``pulses_3``, ...) adds that column
-to the comparison (its tail says which direction is worse; ``either`` for columns without one).
+- a column, **paired** (both campaigns flew the same dispersed inputs, ``pairing``): the median of
+  the per-run differences with its distribution-free interval (order statistics), and the exact
+  sign test that this interval inverts (``stats.sign_test_p``). Chosen over the Wilcoxon
+  signed-rank test because the sign test needs no symmetry of the differences and its interval is
+  exact; it loses little here, where a change moves most runs the same way (smoke: an Isp 10 %
+  lower raises the propellant used in every one of 10 runs, p = 2/2^10).
+- a column, **unpaired**: the difference of the means with Welch's interval and Welch's t-test
+  (``stats.welch_p``), exact inversions of each other; the means are what a shifted design moves,
+  and at campaign sizes (tens of runs and up) their distribution is near normal. The two-sample
+  Kolmogorov-Smirnov p-value is kept in ``details["ks_p"]`` and a note names a column whose
+  distribution changed shape without a significant change of its mean.
+- a rate, **paired**: McNemar's exact test on the discordant runs (``stats.mcnemar_exact``): the
+  difference of the rates over the common runs, with the Clopper-Pearson interval of the share of
+  discordant runs that improved mapped onto it.
+- a rate, **unpaired**: the difference of the rates with Newcombe's hybrid score interval
+  (Newcombe 1998, method 10) and the p-value of inverting it (``stats.newcombe_p``).
 """
 
 import difflib
@@ -58,12 +47,20 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats as sps
 
 from refexmc.config.errors import ConfigError
 from refexmc.config.requirements import parse_requirement
 from refexmc.report import data, outputs, stats, tails
-from refexmc.report.stats import ks_p, median_interval, newcombe_interval, welch_interval, wilcoxon_p
+from refexmc.report.stats import (
+    ks_p,
+    mcnemar_exact,
+    median_interval,
+    newcombe_interval,
+    newcombe_p,
+    sign_test_p,
+    welch_interval,
+    welch_p,
+)
 from refexmc.report.text import number
 
 ALPHA = 1.0 - stats.CONFIDENCE  # two-sided level of every test and interval: 5 %
@@ -77,34 +74,38 @@ class MetricSpec:
     name: str
     kind: str  # "proportion" or "distribution"
     better: str  # "higher", "lower" or "either" (a significant change either way is a regression)
-    tolerance: float  # in the metric's unit; a change within it is never a regression
+    tolerance: float  # in the metric's unit; a change within it is never a regression; inf: not gated
     digits: int = 4  # decimals in the table
+    requirement: str = ""  # the requirements that judge the column (its direction), "" for none
+    source: str = ""  # where the tolerance comes from: "rate", "margin", "--tolerance" or "" (not gated)
 
 
-METRICS = {
+RATES = {
     spec.name: spec
     for spec in (
-        MetricSpec("success_rate", "proportion", "higher", 0.0, digits=3),
-        MetricSpec("error_rate", "proportion", "lower", 0.0, digits=3),
-        MetricSpec("fuel_remaining", "distribution", "higher", 0.01, 4),  # fraction of the propellant
-        MetricSpec("theta_t_handover_deg", "distribution", "lower", 0.1, 3),  # deg
-        MetricSpec("pulses_total", "distribution", "lower", 50.0, 1),  # valve openings per flight
-        MetricSpec("t_end_s", "distribution", "either", 1.0, 2),  # s
+        MetricSpec("success_rate", "proportion", "higher", 0.0, 3, source="rate"),
+        MetricSpec("error_rate", "proportion", "lower", 0.0, 3, source="rate"),
     )
 }
-COLUMN_BETTER = {"fuel_used_kg": "lower", "modes_completed": "higher"}  # extra columns; default "either"
 BETTER_BY_TAIL = {"upper": "lower", "lower": "higher", "both": "either"}  # report/tails.py's worse tail
-# a requirement metric without a default tolerance regresses when it loses more than this share of
-# the baseline's margin to the requirement (median to bound): small against the margin the
-# requirement leaves, large against run-to-run noise, which moves the median by far less
+BETTER_BY_OPERATOR = {"<=": "lower", "<": "lower", ">=": "higher", ">": "higher"}  # a requirement's good side
+# a requirement metric regresses when it loses more than this share of the baseline's margin to
+# the requirement (median to bound): small against the margin the requirement leaves, large
+# against run-to-run noise, which moves the median by far less
 REQUIREMENT_MARGIN_SHARE = 0.1
 
 
 def _column_better(column):
-    if column.startswith("pulses_"):
-        return "lower"
+    """Worse direction of a column without a requirement: its tail (report/tails.py), else either way."""
     tail = tails.worse_tail(column)
-    return COLUMN_BETTER.get(column, BETTER_BY_TAIL[tail] if tail else "either")
+    return BETTER_BY_TAIL[tail] if tail else "either"
+
+
+def requirement_better(column, requirements):
+    """Better direction of a requirement column from its operators: ``<=`` lower, ``>=`` higher;
+    both kinds (a band), ``==`` or none: "either"."""
+    sides = {BETTER_BY_OPERATOR.get(r["op"], "either") for r in outputs.requirements_of(column, requirements)}
+    return sides.pop() if len(sides) == 1 else "either"
 
 
 def _requirements(campaign):
@@ -136,9 +137,9 @@ def requirement_tolerance(column, requirements, baseline):
 
 def mission_metrics(baseline, current):
     """MetricSpecs of the mission's own metrics both runs tables have: the requirements' columns
-    (both campaigns'), then the other outputs (``outputs.plan``) that vary in either campaign.
-    Defaults: ``METRICS`` where it names the column; a requirement column
-    ``requirement_tolerance``; any other output inf (shown, never a regression by default)."""
+    (both campaigns'), judged by their requirements (``requirement_better``,
+    ``requirement_tolerance``), then the other outputs (``outputs.plan``) that vary in either
+    campaign, shown with tolerance inf (never a regression unless ``--tolerance`` names them)."""
     requirements = _requirements(current) + [r for r in _requirements(baseline) if r not in _requirements(current)]
     plans = [outputs.plan(campaign, requirements) for campaign in (baseline, current)]
     both = set(baseline.runs.columns) & set(current.runs.columns)
@@ -147,14 +148,14 @@ def mission_metrics(baseline, current):
     for plan in plans:
         others += [c for c in plan["other_columns"] if c in both and c not in judged and c not in others]
     specs = {}
-    for column in [*judged, *others]:
-        if column in METRICS:
-            specs[column] = METRICS[column]
-            continue
-        tail = plans[1]["tails"].get(column) or plans[0]["tails"].get(column) or "both"
-        better = BETTER_BY_TAIL[tail]
-        tolerance = requirement_tolerance(column, requirements, baseline) if column in judged else math.inf
-        specs[column] = MetricSpec(column, "distribution", better, tolerance, 4)
+    for column in judged:
+        texts = ", ".join(r["requirement"] for r in outputs.requirements_of(column, requirements))
+        tolerance = requirement_tolerance(column, requirements, baseline)
+        better = requirement_better(column, requirements)
+        source = "margin" if math.isfinite(tolerance) else ""
+        specs[column] = MetricSpec(column, "distribution", better, tolerance, 4, texts, source)
+    for column in others:
+        specs[column] = MetricSpec(column, "distribution", _column_better(column), math.inf, 4)
     return specs
 
 
@@ -175,7 +176,7 @@ class MetricResult:
     kind: str
     better: str
     tolerance: float
-    baseline: float  # rate, or mean of the ok runs
+    baseline: float  # rate, or the ok runs' median (paired) or mean (unpaired)
     current: float
     n_baseline: int  # runs in the population (all runs for error_rate, ok runs otherwise)
     n_current: int
@@ -188,6 +189,8 @@ class MetricResult:
     verdict: str  # OK, BETTER, REGRESSION or NOT_COMPUTABLE
     digits: int = 4
     details: dict = field(default_factory=dict)
+    requirement: str = ""  # the requirements that judge it ("" for none)
+    source: str = ""  # where its tolerance comes from (MetricSpec.source)
 
 
 @dataclass
@@ -277,35 +280,73 @@ def pairing(baseline, current):
 # --- metrics -----------------------------------------------------------------------------------
 
 
-def compare_proportion(spec, x_baseline, n_baseline, x_current, n_current, tolerance):
-    """A rate (successes x of n) of both campaigns: difference, Newcombe interval, Fisher p."""
-    rate_b = x_baseline / n_baseline if n_baseline else math.nan
-    rate_c = x_current / n_current if n_current else math.nan
-    difference = rate_c - rate_b
-    low, high = newcombe_interval(x_current, n_current, x_baseline, n_baseline)
-    p = math.nan
-    if n_baseline and n_current:
-        table = [[x_current, n_current - x_current], [x_baseline, n_baseline - x_baseline]]
-        p = float(sps.fisher_exact(table).pvalue)
-    significant = math.isfinite(low) and (low > 0.0 or high < 0.0)
+def _proportion_result(spec, tolerance, rates, ns, difference, ci, estimate, test, p, details):
+    low, high = ci
+    significant = math.isfinite(low) and (low > 0.0 or high < 0.0)  # the printed interval decides
     return MetricResult(
         metric=spec.name,
         kind=spec.kind,
         better=spec.better,
         tolerance=tolerance,
-        baseline=rate_b,
-        current=rate_c,
-        n_baseline=n_baseline,
-        n_current=n_current,
+        baseline=rates[0],
+        current=rates[1],
+        n_baseline=ns[0],
+        n_current=ns[1],
         difference=difference,
         ci=(low, high),
-        estimate="difference of rates (Newcombe hybrid score interval)",
-        test="Fisher exact",
+        estimate=estimate,
+        test=test,
         p_value=p,
         significant=significant,
         verdict=verdict(spec.better, difference, significant, tolerance),
         digits=spec.digits,
-        details={"x_baseline": x_baseline, "x_current": x_current},
+        details=details,
+    )
+
+
+def compare_proportion(spec, x_baseline, n_baseline, x_current, n_current, tolerance):
+    """A rate (x of n) of two unpaired campaigns: difference, Newcombe interval and its inversion's p."""
+    rate_b = x_baseline / n_baseline if n_baseline else math.nan
+    rate_c = x_current / n_current if n_current else math.nan
+    return _proportion_result(
+        spec,
+        tolerance,
+        (rate_b, rate_c),
+        (n_baseline, n_current),
+        rate_c - rate_b,
+        newcombe_interval(x_current, n_current, x_baseline, n_baseline),
+        "difference of rates (Newcombe hybrid score interval)",
+        "Newcombe score",
+        newcombe_p(x_current, n_current, x_baseline, n_baseline),
+        {"x_baseline": x_baseline, "x_current": x_current},
+    )
+
+
+def compare_paired_proportion(spec, baseline_outcome, current_outcome, tolerance):
+    """A binary outcome of the same runs in both campaigns (boolean arrays, run by run): McNemar's
+    exact test on the discordant runs; the difference of the rates, (won - lost) / n, with the
+    Clopper-Pearson interval of won / (won + lost) mapped onto it: (won + lost) (2 pi - 1) / n."""
+    b = np.asarray(baseline_outcome, dtype=bool)
+    c = np.asarray(current_outcome, dtype=bool)
+    n = len(b)
+    lost, won = int(np.count_nonzero(b & ~c)), int(np.count_nonzero(~b & c))
+    p, (low, high) = mcnemar_exact(lost, won)
+    m = lost + won
+    ci = (m * (2.0 * low - 1.0) / n, m * (2.0 * high - 1.0) / n) if n else (math.nan, math.nan)
+    if m == 0:
+        ci = (0.0, 0.0)  # no run changed its outcome
+    x_b, x_c = int(b.sum()), int(c.sum())
+    return _proportion_result(
+        spec,
+        tolerance,
+        (x_b / n if n else math.nan, x_c / n if n else math.nan),
+        (n, n),
+        (won - lost) / n if n else math.nan,
+        ci,
+        "difference of rates over the paired runs (McNemar: Clopper-Pearson interval of the discordant runs)",
+        "McNemar exact",
+        p,
+        {"x_baseline": x_b, "x_current": x_c, "discordant_lost": lost, "discordant_won": won},
     )
 
 
@@ -325,24 +366,26 @@ def compare_distribution(spec, baseline, current, pairs, tolerance):
         cur_by_id = current.ok.set_index("run_id")[spec.name]
         diffs = _finite(cur_by_id.loc[pairs.run_ids].to_numpy(float) - base_by_id.loc[pairs.run_ids].to_numpy(float))
         difference, ci = median_interval(diffs)
-        p = wilcoxon_p(diffs)
+        p = sign_test_p(diffs)
         details.update(pairs=len(diffs), worse_runs=_worse_runs(spec.better, diffs, tolerance))
-        estimate, test = "median of the per-run differences (sign-test interval)", "Wilcoxon signed-rank"
+        estimate, test = "median of the per-run differences (sign-test interval)", "sign test"
     else:
-        difference, ci, p = mean_difference, welch, details["ks_p"]
-        estimate, test = "difference of the means (Welch interval)", "two-sample KS"
-    significant = math.isfinite(p) and p < ALPHA
+        difference, ci, p = mean_difference, welch, welch_p(b, c)
+        estimate, test = "difference of the means (Welch interval)", "Welch t"
+    low, high = (float(v) for v in ci)
+    significant = math.isfinite(low) and (low > 0.0 or high < 0.0)  # the printed interval decides
+    centre = np.median if pairs.paired else np.mean  # the statistic the difference is of
     return MetricResult(
         metric=spec.name,
         kind=spec.kind,
         better=spec.better,
         tolerance=tolerance,
-        baseline=float(b.mean()) if len(b) else math.nan,
-        current=float(c.mean()) if len(c) else math.nan,
+        baseline=float(centre(b)) if len(b) else math.nan,
+        current=float(centre(c)) if len(c) else math.nan,
         n_baseline=len(b),
         n_current=len(c),
         difference=float(difference),
-        ci=tuple(float(v) for v in ci),
+        ci=(low, high),
         estimate=estimate,
         test=test,
         p_value=p,
@@ -376,29 +419,29 @@ def _numeric_columns(campaign):
 def parse_tolerances(texts, baseline, current):
     """``['METRIC=VALUE', ...]`` -> {metric: MetricSpec with that tolerance}; ConfigError on bad input.
 
-    METRIC is one of ``METRICS`` or a numeric column both runs tables have (then added to the
-    comparison). VALUE is a number >= 0 in the metric's unit, or ``inf`` (report, never gate).
-    Unknown metrics get a did-you-mean over exactly these names (not the ``<column>.<stat>``
-    grammar of ``requirements.check_metric``, whose hints would name statistics compare has not).
+    METRIC is a rate (``RATES``), one of the mission's metrics (``mission_metrics``: its direction
+    kept) or a numeric column both runs tables have (then added to the comparison, worse by its
+    tail). VALUE is a number >= 0 in the metric's unit, or ``inf`` (report, never gate). Unknown
+    metrics get a did-you-mean over exactly these names.
     """
     columns = [c for c in _numeric_columns(baseline) if c in set(_numeric_columns(current))]
-    known = list(METRICS) + [c for c in columns if c not in METRICS]
     mission = mission_metrics(baseline, current) if texts else {}
+    known = list(RATES) + list(mission) + [c for c in columns if c not in mission]
     specs = {}
     for text in texts:
         where = {"path": ("--tolerance",)}
         metric, sep, value_text = str(text).partition("=")
         metric, value_text = metric.strip(), value_text.strip()
         if not sep or not metric or not value_text:
-            raise ConfigError(f"expected METRIC=VALUE (e.g. fuel_remaining=0.02), got '{text}'", **where)
+            raise ConfigError(f"expected METRIC=VALUE (e.g. success_rate=0.05), got '{text}'", **where)
         try:
             value = float(value_text)
         except ValueError:
             raise ConfigError(f"expected a number after '=', got '{value_text}' in '{text}'", **where) from None
         if math.isnan(value) or value < 0.0:
             raise ConfigError(f"expected a tolerance >= 0 (or inf), got '{value_text}' in '{text}'", **where)
-        if metric in METRICS:
-            base = METRICS[metric]
+        if metric in RATES:
+            base = RATES[metric]
         elif metric in mission:
             base = mission[metric]
         elif metric in columns:
@@ -406,10 +449,10 @@ def parse_tolerances(texts, baseline, current):
         else:
             guess = difflib.get_close_matches(metric, known, n=1, cutoff=0.6)
             hint = f"did you mean '{guess[0]}'? " if guess else ""
-            raise ConfigError(
-                f"unknown metric '{metric}'; {hint}(metrics: {', '.join(METRICS)}, or a numeric runs column)", **where
-            )
-        specs[metric] = MetricSpec(base.name, base.kind, base.better, value, base.digits)
+            shown = ", ".join(known[:12]) + (", ..." if len(known) > 12 else "")
+            raise ConfigError(f"unknown metric '{metric}'; {hint}(metrics: {shown})", **where)
+        source = "--tolerance" if math.isfinite(value) else ""
+        specs[metric] = MetricSpec(base.name, base.kind, base.better, value, base.digits, base.requirement, source)
     return specs
 
 
@@ -417,14 +460,23 @@ def parse_tolerances(texts, baseline, current):
 
 
 def _describe(campaign):
+    successful = len(campaign.successful)
     return {
         "name": campaign.name,
         "out": str(campaign.out),
         "runs": len(campaign.runs),
         "ok": len(campaign.ok),
         "errored": len(campaign.errored),
-        "success": int(campaign.ok["success"].astype(bool).sum()),
+        "success": successful,
+        "failed": len(campaign.ok) - successful,
     }
+
+
+def _outcomes(campaign, run_ids):
+    """(success, errored) per run id of ``run_ids`` (boolean arrays; an errored run is unsuccessful)."""
+    runs = campaign.runs.drop_duplicates("run_id").set_index("run_id").loc[run_ids]
+    flown = (runs["status"] == "ok").to_numpy()
+    return flown & runs["success"].fillna(False).to_numpy(dtype=bool), ~flown
 
 
 def compare(baseline_out, current_out, tolerances=()):
@@ -436,19 +488,31 @@ def compare(baseline_out, current_out, tolerances=()):
     baseline = data.load(baseline_out)
     current = data.load(current_out)
     overrides = parse_tolerances(tolerances, baseline, current)
-    rates = {name: METRICS[name] for name in ("success_rate", "error_rate")}
-    specs = {**rates, **mission_metrics(baseline, current), **overrides}
+    specs = {**RATES, **mission_metrics(baseline, current), **overrides}
     pairs = pairing(baseline, current)
     b, c = _describe(baseline), _describe(current)
+    common = np.intersect1d(baseline.runs["run_id"].to_numpy(), current.runs["run_id"].to_numpy())
+    outcomes = {"baseline": _outcomes(baseline, common), "current": _outcomes(current, common)}
     results = []
     for spec in specs.values():
-        if spec.name == "success_rate":  # over all runs, an errored run unsuccessful: as the report
-            results.append(compare_proportion(spec, b["success"], b["runs"], c["success"], c["runs"], spec.tolerance))
-        elif spec.name == "error_rate":
-            results.append(compare_proportion(spec, b["errored"], b["runs"], c["errored"], c["runs"], spec.tolerance))
+        if spec.name in RATES:
+            which = 0 if spec.name == "success_rate" else 1
+            if pairs.paired:  # the same runs: McNemar on the runs whose outcome changed
+                result = compare_paired_proportion(
+                    spec, outcomes["baseline"][which], outcomes["current"][which], spec.tolerance
+                )
+            else:  # over all runs, an errored run unsuccessful: as the report counts it
+                key = "success" if which == 0 else "errored"
+                result = compare_proportion(spec, b[key], b["runs"], c[key], c["runs"], spec.tolerance)
         elif spec.name in baseline.runs and spec.name in current.runs:
-            results.append(compare_distribution(spec, baseline, current, pairs, spec.tolerance))
+            result = compare_distribution(spec, baseline, current, pairs, spec.tolerance)
+        else:
+            continue
+        result.requirement, result.source = spec.requirement, spec.source
+        results.append(result)
     notes = [pairs.note]
+    if pairs.paired and len(common) < max(b["runs"], c["runs"]):
+        notes.append(f"rates over the {len(common)} run ids both campaigns hold")
     differ = sorted(
         key
         for key in {*baseline.resolved, *current.resolved}
@@ -462,6 +526,15 @@ def compare(baseline_out, current_out, tolerances=()):
                 f"{side}: {info['errored']} of {info['runs']} runs errored "
                 "(in error_rate only, excluded from the other metrics)"
             )
+    shape = [
+        m.metric
+        for m in results
+        if m.kind == "distribution" and not m.significant and m.details.get("ks_p", math.nan) < ALPHA
+    ]
+    if shape:
+        notes.append(
+            f"distribution changed shape (two-sample KS p < 0.05) without a significant shift: {', '.join(shape)}"
+        )
     if pairs.paired:
         notes += _changed_runs(baseline, current, pairs)
     return Comparison(baseline=b, current=c, pairing=pairs, metrics=results, notes=notes)
@@ -507,15 +580,23 @@ def _tolerance(m):
     if math.isinf(m.tolerance):
         return "inf (not gated)"
     worse = {"higher": "drop", "lower": "rise", "either": "either way"}[m.better]
-    return f"{number(m.tolerance)} ({worse})"
+    source = {"margin": f"; {100 * REQUIREMENT_MARGIN_SHARE:g} % of the margin", "--tolerance": "; --tolerance"}
+    return f"{number(m.tolerance)} ({worse}{source.get(m.source, '')})"
+
+
+def _counts(info):
+    return (
+        f"{info['runs']} runs: {info['success']} successful, {info['failed']} failed "
+        f"flight{'' if info['failed'] == 1 else 's'}, {info['errored']} errored"
+    )
 
 
 def format_table(comparison):
     """The terminal table: metric, baseline, current, difference [95 % interval], test, p, tolerance, verdict."""
     b, c = comparison.baseline, comparison.current
     lines = [
-        f"baseline {b['name']}: {b['runs']} runs, {b['ok']} ok, {b['errored']} errored ({b['out']})",
-        f"current  {c['name']}: {c['runs']} runs, {c['ok']} ok, {c['errored']} errored ({c['out']})",
+        f"baseline {b['name']}: {_counts(b)} ({b['out']})",
+        f"current  {c['name']}: {_counts(c)} ({c['out']})",
     ]
     lines += [f"note: {note}" for note in comparison.notes]
     header = ("metric", "baseline", "current", "difference [95 % CI]", "test", "p", "tolerance", "verdict")
@@ -537,15 +618,25 @@ def format_table(comparison):
     for row in [header, *rows]:
         lines.append("  ".join(str(v).ljust(w) for v, w in zip(row, widths, strict=True)).rstrip())
     lines.append("")
+    paired = comparison.pairing.paired
     lines.append(
-        "difference: current - baseline; rates: Newcombe hybrid score interval; columns: "
+        "difference: current - baseline; rates: "
+        + ("McNemar exact on the runs whose outcome changed" if paired else "Newcombe hybrid score interval")
+        + "; columns: "
         + (
-            "median of the per-run differences (sign-test interval), baseline/current are means"
-            if comparison.pairing.paired
-            else "difference of the means (Welch interval)"
+            "median of the per-run differences, sign-test interval, baseline/current are medians"
+            if paired
+            else "difference of the means, Welch interval and t-test, baseline/current are means"
         )
+        + "; each p is the test its interval inverts"
     )
-    lines.append("REGRESSION: significant at 5 % and worse than the baseline by more than the tolerance")
+    judged = [m for m in comparison.metrics if m.requirement]
+    if judged:
+        lines.append("worse by the requirement: " + "; ".join(f"{m.metric}: {m.requirement}" for m in judged))
+    lines.append(
+        "REGRESSION: significant at 5 % and worse than the baseline by more than the tolerance; "
+        "outputs without a requirement are gated only with --tolerance METRIC=VALUE"
+    )
     regressions = comparison.regressions
     if regressions:
         names = ", ".join(m.metric for m in regressions)

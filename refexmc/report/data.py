@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+import yaml
 
 from refexmc.campaign import storage
 from refexmc.config.errors import ConfigError
@@ -246,10 +247,36 @@ def completeness(campaign):
         "missing_chunks": missing_chunks,
         "errored_count": len(errored_ids),
         "errored_run_ids": errored_ids[:LISTED_IDS],
+        "resume_command": resume_command(campaign),
     }
 
 
 LISTED_IDS = 20
+
+
+def resume_command(campaign):
+    """The `refexmc run ... --resume` command that finishes OUT: the campaign file its manifest
+    names (CAMPAIGN when none) with the ``--runs`` and ``--seed`` OUT was started with where they
+    are not the file's own (a campaign started with ``--runs 50`` resumes only with ``--runs 50``)."""
+    from refexmc.campaign.run import resume_command as command
+
+    resolved = campaign.resolved
+    file = (campaign.manifest or {}).get("campaign_file")
+    own = {}
+    if file and Path(file).is_file():
+        try:
+            own = yaml.safe_load(Path(file).read_text()) or {}
+        except (OSError, yaml.YAMLError):
+            own = {}
+    own = own if isinstance(own, dict) else {}
+    enumerated = any((resolved.get(key) or {}).get("mode") == "enumerate" for key in ("failures", "wheel_failures"))
+    runs, seed = resolved.get("runs"), resolved.get("seed")
+    return command(
+        file or "CAMPAIGN",
+        campaign.out,
+        runs=None if enumerated or own.get("runs") == runs else runs,  # enumerate derives its runs
+        seed=None if own.get("seed") == seed else seed,
+    )
 
 
 def id_ranges(ids, limit=LISTED_IDS):

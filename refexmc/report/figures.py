@@ -305,21 +305,32 @@ def _square(row, column):
 
 
 def sensitivity_figure(section, targets, labels=None):
-    """Tornado charts per target output: Spearman ρ (bars) and PRCC (diamonds) of the inputs with the
-    largest |ρ|; the band of |ρ| not significant at 5 %."""
+    """Tornado charts per target output: Spearman ρ (bars) and PRCC (diamonds) of the inputs and
+    discrete causes that explain most of its rank variance (a failed unit: the ρ of its indicator,
+    hatched; a factor of more levels: √η², hatched, unsigned); the band of |ρ| not significant at 5 %."""
+    from matplotlib.patches import Patch
+
     labels = labels or {}
     figure = Figure(figsize=(6.2 * len(targets), 0.32 * TORNADO_BARS + 1.8), layout="constrained")
     axes = np.atleast_1d(figure.subplots(1, len(targets)))
     critical = section.get("critical_abs_rho_95")
     for ax, output in zip(axes, targets, strict=True):
         rows = section[output][:TORNADO_BARS][::-1]
-        rho = np.array([r["rho"] for r in rows])
+        rho = np.array([math.sqrt(r["eta2"]) if r.get("rho") is None else r["rho"] for r in rows])
         y = np.arange(len(rows))
-        ax.barh(y, rho, color=["tab:red" if v > 0 else "tab:blue" for v in rho], label="Spearman ρ")
+        factor = [r.get("kind", "input") != "input" for r in rows]
+        for k, (value, hatched) in enumerate(zip(rho, factor, strict=True)):
+            colour = "tab:red" if value > 0 else "tab:blue"
+            ax.barh(k, value, color="white" if hatched else colour, edgecolor=colour, hatch="///" if hatched else None)
+        handles = [Patch(facecolor="tab:gray", label="Spearman ρ (input)")]
+        if any(factor):
+            hatched = {"facecolor": "white", "edgecolor": "tab:gray", "hatch": "///"}
+            handles.append(Patch(**hatched, label="failure or choice (ρ or √η²)"))
         prcc = np.array([np.nan if r.get("prcc") is None else r["prcc"] for r in rows])
         if np.isfinite(prcc).any():
             ax.plot(prcc, y, "D", color="black", ms=4, label="PRCC")
-        ax.set_yticks(y, [r["parameter"][2:] for r in rows], fontsize=7)
+        names = [r["parameter"][2:] if r["parameter"].startswith("p.") else r["parameter"] for r in rows]
+        ax.set_yticks(y, names, fontsize=7)
         if critical is not None and math.isfinite(critical):
             ax.axvspan(
                 -critical, critical, color="#eeeeee", zorder=0, label=f"|ρ| < {critical:.2f}: not significant (5 %)"
@@ -329,7 +340,7 @@ def sensitivity_figure(section, targets, labels=None):
         ax.set_xlabel(f"rank correlation with {output}", fontsize=8)
         ax.set_title(labels.get(output, output), fontsize=8, wrap=True)
         ax.grid(True, axis="x", lw=0.3)
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(handles=[*ax.get_legend_handles_labels()[0], *handles], fontsize=7, loc="lower right")
     return png(figure)
 
 

@@ -24,6 +24,8 @@ img { max-width: 100%; }
 .note { color: #8a5a00; }
 .banner { background: #f6d0d0; border: 2px solid #b00000; color: #600000; font-weight: bold; padding: 0.6em 0.8em; }
 .incomplete, .errored { background: #f3d9a8; }
+tr.failing-row, span.failing-row { background: #fbeaea; }
+td.failing-cell, span.failing-cell { background: #e08a8a; font-weight: 700; }
 """
 
 
@@ -197,18 +199,23 @@ def wheel_failure_sets_section(wheel_sets):
             [
                 None,
                 None,
-                None if s["successes"] == s["runs"] else "fail",
-                *("fail" if verdicts.get(n) is False else None for n in names),
+                None if s["successes"] == s["runs"] else "failing-cell",
+                *("failing-cell" if verdicts.get(n) is False else None for n in names),
             ]
         )
-        classes.append("pass" if s.get("passed", s["successes"] == s["runs"]) else "fail")
+        classes.append("pass" if s.get("passed", s["successes"] == s["runs"]) else "failing-row")
     headers = [
         "failed wheels",
         "runs",
         "success",
         *(f"{n} (required {required[n].split(n, 1)[1].strip()})" if n in required else n for n in names),
     ]
-    return table(headers, rows, classes, cells)
+    legend = (
+        '<p>Rows: <span class="pass">&nbsp;green&nbsp;</span> the set meets every requirement, '
+        '<span class="failing-row">&nbsp;pale red&nbsp;</span> it fails one; a cell in '
+        '<span class="failing-cell">&nbsp;deep red&nbsp;</span> is the statistic that fails.</p>'
+    )
+    return legend + table(headers, rows, classes, cells)
 
 
 def failure_sets_section(sets):
@@ -285,6 +292,15 @@ def worst_section(worst, show_thrusters=True, show_wheels=False):
     return "\n".join(parts)
 
 
+def _levels(row, shown=3):
+    """A factor's levels with the highest output ranks: " (highest: [2] 7 runs, [1] 9 runs)"."""
+    levels = row.get("levels_by_rank")
+    if not levels:
+        return ""
+    text = ", ".join(f"[{entry['level'] or 'none'}] {entry['runs']} runs" for entry in levels[:shown])
+    return f" <span class='text'>(highest: {e(text)})</span>"
+
+
 def sensitivity_section(section, labels=None):
     parts = [
         f"<p>{e(section['method'])}, N = {section['runs']}, {section.get('parameters', '')} inputs that vary; "
@@ -292,11 +308,20 @@ def sensitivity_section(section, labels=None):
         f"{number(section['critical_abs_rho_95'], 3)} differs from 0 at the 5 % level (per parameter; with many "
         f"parameters some cross it by chance). {e(section.get('prcc_note', ''))}.</p>"
     ]
+    if section.get("factors"):
+        parts.append(
+            "<p>Discrete causes ranked with the inputs: "
+            + ", ".join(f"<code>{e(name)}</code>" for name in section["factors"])
+            + ". η²: the share of the metric's rank variance a cause explains (ρ² for an input, the correlation "
+            "ratio over a factor's levels, Kruskal-Wallis p); a failed unit's ρ is that of its indicator.</p>"
+        )
     for output in section.get("targets", labels or ()):
         rows = [
             [
-                f"<code>{e(r['parameter'])}</code>",
-                f"{r['rho']:+.3f}",
+                f"<code>{e(r['parameter'])}</code>" + _levels(r),
+                e(r.get("kind", "input")),
+                f"{r['eta2']:.3f}" if r.get("eta2") is not None else "-",
+                "-" if r.get("rho") is None else f"{r['rho']:+.3f}",
                 number(r["p_value"], 3),
                 "-" if r.get("prcc") is None else f"{r['prcc']:+.3f}",
                 number(r.get("prcc_p_value"), 3),
@@ -305,9 +330,8 @@ def sensitivity_section(section, labels=None):
         ]
         if rows:
             label = (labels or {}).get(output, output)
-            parts.append(
-                f"<h3>{e(label)}</h3>" + table(["parameter", "Spearman ρ", "p-value", "PRCC", "PRCC p-value"], rows)
-            )
+            headers = ["cause", "kind", "η²", "Spearman ρ", "p-value", "PRCC", "PRCC p-value"]
+            parts.append(f"<h3>{e(label)}</h3>" + table(headers, rows))
     return "\n".join(parts)
 
 

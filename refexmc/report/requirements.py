@@ -132,7 +132,7 @@ def overall_verdict(completeness, verdicts):
             detail += f"; {plural(completeness['errored_count'], 'errored run')}"
         banner = (
             f"INCOMPLETE campaign: {detail}. No verdict until every planned run has flown "
-            "(finish it with `refexmc run CAMPAIGN -o OUT --resume`)."
+            f"(finish it with `{completeness.get('resume_command') or 'refexmc run CAMPAIGN -o OUT --resume'}`)."
         )
         return "INCOMPLETE", False, banner + f" {judged}."
     if completeness["errored_count"]:

@@ -317,6 +317,35 @@ def spearman(x, y):
     return rho, float(2.0 * sps.t.sf(abs(t), n - 2))
 
 
+def average_ranks(values):
+    """Ranks 1..n of ``values`` (ties: their average rank)."""
+    return sps.rankdata(np.asarray(values, dtype=float))
+
+
+def rank_eta2(ranks, labels):
+    """(eta^2, p, levels) of the ``ranks`` of an output over the levels of a factor ``labels``.
+
+    eta^2 = between-level / total sum of squares of the ranks: the share of the rank variance the
+    factor explains, rho^2 of a two-level factor's indicator. p: the Kruskal-Wallis test, whose
+    statistic with average ranks (tie-corrected) is exactly H = (n - 1) eta^2, on chi^2 with
+    levels - 1 degrees of freedom (Kruskal and Wallis 1952). (nan, nan, levels) when the ranks
+    do not vary or the factor has one level.
+    """
+    ranks = np.asarray(ranks, dtype=float)
+    _, codes = np.unique(np.asarray(labels).astype(str), return_inverse=True)
+    levels = int(codes.max()) + 1 if len(codes) else 0
+    centred = ranks - ranks.mean()
+    total = float(np.dot(centred, centred))
+    if levels < 2 or total == 0.0:
+        return math.nan, math.nan, levels
+    counts = np.bincount(codes, minlength=levels)
+    sums = np.bincount(codes, weights=centred, minlength=levels)
+    between = float(np.sum(sums**2 / counts))
+    eta2 = min(1.0, max(0.0, between / total))
+    h = (len(ranks) - 1) * eta2
+    return eta2, float(sps.chi2.sf(h, levels - 1)), levels
+
+
 GRAM_CHUNK_ROWS = 16384  # rows per block of the rank products: small float64 blocks, exact integer sums
 
 
@@ -509,3 +538,74 @@ def ks_p(baseline, current):
     if len(baseline) == 0 or len(current) == 0:
         return math.nan
     return float(sps.ks_2samp(baseline, current).pvalue)
+
+
+# --- tests whose p-value and printed interval are one construction (refexmc compare) -------------
+
+
+def sign_test_p(differences):
+    """Two-sided exact sign-test p-value of paired differences, the inversion of
+    :func:`median_interval`: the interval excludes 0 exactly when p <= 1 - confidence.
+
+    The lower bound X_(r) is > 0 when at most r - 1 differences are <= 0, i.e. when
+    P(Binomial(n, 1/2) <= #(d <= 0)) <= (1 - confidence) / 2 (``order_statistic_lower_rank``);
+    mirrored for the upper bound. Zeros count against both sides (a zero difference never
+    shows a change); p = 2 min(both tails), at most 1. NaN without differences.
+    """
+    differences = np.asarray(differences, float)
+    n = len(differences)
+    if n == 0:
+        return math.nan
+    not_positive = int(np.count_nonzero(differences <= 0.0))
+    not_negative = int(np.count_nonzero(differences >= 0.0))
+    tail = min(sps.binom.cdf(not_positive, n, 0.5), sps.binom.cdf(not_negative, n, 0.5))
+    return float(min(1.0, 2.0 * tail))
+
+
+def welch_p(baseline, current):
+    """Two-sided Welch t-test p-value of mean(current) - mean(baseline), the inversion of
+    :func:`welch_interval` (p < 1 - confidence exactly when the interval excludes 0)."""
+    baseline, current = np.asarray(baseline, float), np.asarray(current, float)
+    nb, nc = len(baseline), len(current)
+    if nb < 2 or nc < 2:
+        return math.nan
+    d = float(current.mean() - baseline.mean())
+    vb, vc = baseline.var(ddof=1) / nb, current.var(ddof=1) / nc
+    se = math.sqrt(vb + vc)
+    if se == 0.0:
+        return 1.0 if d == 0.0 else 0.0
+    df = (vb + vc) ** 2 / (vb**2 / (nb - 1) + vc**2 / (nc - 1))
+    return float(2.0 * sps.t.sf(abs(d) / se, df))
+
+
+def newcombe_p(x1, n1, x2, n2, iterations=60):
+    """Two-sided p-value of p1 - p2 by inverting :func:`newcombe_interval`: 1 - the confidence at
+    which the interval just reaches 0 (bisection; the intervals nest as the confidence grows)."""
+    if n1 == 0 or n2 == 0:
+        return math.nan
+    if x1 * n2 == x2 * n1:
+        return 1.0
+    low, high = 0.0, 1.0 - 1e-15  # confidences: the interval excludes 0 at ``low``, holds it at ``high``
+    widest = newcombe_interval(x1, n1, x2, n2, high)
+    if widest[0] > 0.0 or widest[1] < 0.0:
+        return 1e-15  # excludes 0 at any confidence computable in float64
+    for _ in range(iterations):
+        middle = (low + high) / 2.0
+        a, b = newcombe_interval(x1, n1, x2, n2, middle)
+        if a > 0.0 or b < 0.0:
+            low = middle
+        else:
+            high = middle
+    return float(1.0 - (low + high) / 2.0)
+
+
+def mcnemar_exact(lost, won, confidence=CONFIDENCE):
+    """Exact McNemar test of a paired binary outcome: of the ``lost + won`` discordant pairs
+    (outcome 1 in the baseline only, in the current only), ``won`` ~ Binomial(m, pi), pi = 1/2
+    when nothing changed. Returns (p, (low, high)): the central two-sided p-value 2 min(tails)
+    and the Clopper-Pearson interval of pi, which excludes 1/2 exactly when p < 1 - confidence."""
+    m = lost + won
+    if m == 0:
+        return 1.0, (0.0, 1.0)
+    tail = min(sps.binom.cdf(won, m, 0.5), sps.binom.sf(won - 1, m, 0.5))
+    return float(min(1.0, 2.0 * tail)), clopper_pearson(won, m, confidence)

@@ -281,13 +281,15 @@ def sweep_page(summary, png_bytes):
 # --- Sobol' indices ------------------------------------------------------------------------------
 
 
-def sobol_section(campaign):
-    """The Sobol' indices of a ``sampling: saltelli`` campaign (refexmc.report.sobol), or None."""
+def sobol_section(campaign, plan):
+    """The Sobol' indices of a ``sampling: saltelli`` campaign (refexmc.report.sobol), or None;
+    ``plan``: the report's ``outputs.plan`` (the mission's metrics)."""
     if campaign.resolved.get("sampling") != "saltelli":
         return None
     from refexmc.report import sobol
 
-    return sobol.campaign_indices(campaign.resolved, campaign.runs, seed=int(campaign.resolved.get("seed", 0)) % 2**32)
+    seed = int(campaign.resolved.get("seed", 0)) % 2**32
+    return sobol.campaign_indices(campaign.resolved, campaign.runs, plan, seed=seed)
 
 
 def sobol_text(summary):
@@ -297,7 +299,8 @@ def sobol_text(summary):
 
 
 def sobol_html(summary):
-    """An HTML section: the indices figure and, per metric, the table of first and total indices."""
+    """An HTML section: the indices figure and, per metric, the table of first and total indices
+    (flagged indices marked), or why it cannot be estimated."""
     if not summary.get("sobol"):
         return ""
     from refexmc.report import sobol
@@ -306,23 +309,29 @@ def sobol_html(summary):
     section = summary["sobol"]
     parts = [
         "<section id='sobol'><h2>Sobol' indices</h2>",
-        f"<p>Saltelli design over {len(section['groups'])} dispersed parameters, {section['runs']} runs; "
-        "first-order and total indices with 95 % bootstrap intervals (SALib; docs/studies.md).</p>",
+        f"<p>Saltelli design over {len(section['groups'])} dispersed parameters, {section['runs']} runs, "
+        f"N = {section['base_samples']} base samples; first-order and total indices with 95 % bootstrap "
+        f"intervals (SALib; docs/studies.md); metrics: {e(section.get('metrics_from', ''))}. "
+        "<b>?</b> marks an index this design cannot support.</p>",
     ]
     png_bytes = sobol.figure(section)
     if png_bytes:
         encoded = base64.b64encode(png_bytes).decode("ascii")
         parts.append(f"<figure><img alt='Sobol indices' src='data:image/png;base64,{encoded}'></figure>")
     for metric, entry in section["metrics"].items():
-        if "skipped" in entry:
-            parts.append(f"<p>{e(metric)}: not analysed ({e(entry['skipped'])}).</p>")
+        needed = sobol.needed_text(entry)
+        if "cannot_estimate" in entry:
+            why = e(entry["cannot_estimate"]) + e(needed)
+            parts.append(f"<h3>{e(metric)}</h3><p class='note'>cannot estimate: {why}</p>")
             continue
         rows = "".join(
-            f"<tr><td>{e(name)}</td><td>{s['first']:.3f} ± {s['first_conf']:.3f}</td>"
-            f"<td>{s['total']:.3f} ± {s['total_conf']:.3f}</td></tr>"
+            f"<tr><td>{e(name)}</td><td>{e(sobol.mark(s, 'first'))}</td><td>{e(sobol.mark(s, 'total'))}</td>"
+            f"<td class='text'>{e('; '.join(s.get('flags', [])))}</td></tr>"
             for name, s in ((n, entry["indices"][n]) for n in sobol.ranking(entry))
         )
+        flag = f"<p class='note'>{e(entry['flag'])}{e(needed)}</p>" if entry.get("flag") else ""
         parts.append(
-            f"<h3>{e(metric)}</h3><table><tr><th>parameter</th><th>first</th><th>total</th></tr>{rows}</table>"
+            f"<h3>{e(metric)}</h3>{flag}<table><tr><th>parameter</th><th>first</th><th>total</th>"
+            f"<th>not supported</th></tr>{rows}</table>"
         )
     return "".join(parts) + "</section>"

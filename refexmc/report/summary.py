@@ -5,12 +5,11 @@ import shlex
 
 import numpy as np
 
-from refexmc.report import data, entry_histories, outputs, published, stats
+from refexmc.report import data, entry_histories, factors, outputs, published, stats
 from refexmc.report import requirements as requirements_module
 from refexmc.report.requirements import campaign_metric_covers
 
 KEY_COLUMNS = outputs.DISPLAY_ORDER
-SENSITIVITY_OUTPUTS = ("fuel_used_kg", "theta_t_handover_deg")
 WORST_CASES = (  # (column, what its worst end means) of outputs without a requirement, when they vary
     ("fuel_remaining", "least propellant remaining"),
     ("t_end_s", "longest flight"),
@@ -278,7 +277,6 @@ def paper_table4_agreement(campaign, sets):
     return {"compared": compared, "agree": compared - len(disagree), "disagree": disagree}
 
 
-SENSITIVITY_FALLBACK = ("fuel_used_kg", "theta_t_handover_deg")  # without requirements on a runs column
 SENSITIVITY_FIGURE_TARGETS = 4
 SENSITIVITY_LISTED = 10
 
@@ -291,16 +289,19 @@ def varying_parameters(campaign):
 
 def sensitivity_targets(plan, verdicts):
     """The outputs whose drivers the report shows: the requirement metrics from failing to
-    closest-to-failing (``outputs.margins``); without any, the propellant used and the end angle."""
+    closest-to-failing (``outputs.margins``); without any, the mission's other outputs (``outputs.plan``)."""
     ranked = [c for c, _ in outputs.margins(verdicts) if c in plan["requirement_columns"]]
     if ranked:
         return ranked
-    return [c for c in SENSITIVITY_FALLBACK if c in plan["other_columns"]]
+    return list(plan["other_columns"])
 
 
 def sensitivity(campaign, plan=None, verdicts=()):
-    """Spearman rank correlation and partial rank correlation (PRCC) of every varying ``p.`` column
-    with each target output (``sensitivity_targets``), rows by |Spearman rho|.
+    """What drives each target output (``sensitivity_targets``): the Spearman rank correlation and
+    partial rank correlation (PRCC) of every varying continuous ``p.`` column, and the discrete
+    causes (``factors``: each failed unit, failure sets, ``choice`` inputs) with their correlation
+    ratio; rows by ``eta2``, the share of the output's rank variance each explains (rho^2 for a
+    continuous input), so both kinds rank on one scale.
 
     ``targets`` lists the outputs in order (failing first); ``figure_targets`` those the figures
     show: the failing ones and the closest-to-failing passing one.
@@ -308,15 +309,21 @@ def sensitivity(campaign, plan=None, verdicts=()):
     plan = plan or outputs.plan(campaign, verdicts)
     ok = campaign.ok
     n = len(ok)
-    parameters = varying_parameters(campaign)
+    categorical = set(factors.choice_columns(campaign))
+    parameters = [c for c in varying_parameters(campaign) if c not in categorical]
+    discrete = factors.factors(campaign, ok)
     targets = sensitivity_targets(plan, verdicts)
     failing = {c for c, margin in outputs.margins(verdicts) if margin < 0}
     figure_targets = [c for c in targets if c in failing]
     figure_targets += [c for c in targets if c not in failing][:1]
     result = {
-        "method": "Spearman rank correlation and partial rank correlation (PRCC) over the ok runs",
+        "method": "Spearman rank correlation and partial rank correlation (PRCC) over the ok runs; discrete "
+        "causes (failed units, failure sets, choice inputs) by the correlation ratio of the output's ranks "
+        "(Kruskal-Wallis p); ranked by eta2, the share of the output's rank variance explained (rho^2 for "
+        "a continuous input)",
         "runs": n,
         "parameters": len(parameters),
+        "factors": [name for name, _, _ in discrete],
         "targets": targets,
         "figure_targets": figure_targets[:SENSITIVITY_FIGURE_TARGETS],
         "critical_abs_rho_95": stats.spearman_critical(n),
@@ -346,24 +353,28 @@ def sensitivity(campaign, plan=None, verdicts=()):
         if count < 3 or np.ptp(y[keep]) == 0:
             result[output] = []
             continue
-        here = ranks if ranks is not None and keep.all() else ranked(keep)
-        gram = stats.rank_gram(here, stats.doubled_centred_ranks(y[keep]))
-        rhos, ps = stats.spearman_from_gram(gram, count)
-        prcc, prcc_p = stats.prcc_from_gram(gram, count)
         rows = []
+        if parameters:
+            here = ranks if ranks is not None and keep.all() else ranked(keep)
+            gram = stats.rank_gram(here, stats.doubled_centred_ranks(y[keep]))
+            rhos, ps = stats.spearman_from_gram(gram, count)
+            prcc, prcc_p = stats.prcc_from_gram(gram, count)
         for j, column in enumerate(parameters):
             rho, p = float(rhos[j]), float(ps[j])
             if math.isfinite(rho):
                 rows.append(
                     {
                         "parameter": column,
+                        "kind": "input",
                         "rho": rho,
+                        "eta2": rho * rho,
                         "p_value": p,
                         "prcc": float(prcc[j]) if math.isfinite(prcc[j]) else None,
                         "prcc_p_value": float(prcc_p[j]) if math.isfinite(prcc_p[j]) else None,
                     }
                 )
-        rows.sort(key=lambda r: -abs(r["rho"]))
+        rows += factors.factor_rows(discrete, y, keep)
+        rows.sort(key=lambda r: -r["eta2"])
         result[output] = rows
     return result
 
@@ -666,7 +677,9 @@ def build(campaign, verdicts=()):
         "failure_sets": sets,
         "failure_sets_vs_000_table4": paper_table4_agreement(campaign, sets),
         "wheel_failure_sets": wheel_failure_sets(campaign, verdicts),
-        "sensitivity": sensitivity(campaign, plan, verdicts) if campaign.parameter_columns and n_ok >= 3 else None,
+        "sensitivity": sensitivity(campaign, plan, verdicts)
+        if n_ok >= 3 and (campaign.parameter_columns or factors.factors(campaign, campaign.ok))
+        else None,
         "convergence": convergence(campaign, convergence_column, plan["tails"].get(convergence_column, "lower"))
         if n_ok >= 2
         else None,

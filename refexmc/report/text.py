@@ -177,6 +177,26 @@ def published_lines(summary):
     return lines
 
 
+DRIVERS_SHOWN = 3
+
+
+def driver_lines(summary):
+    """One line per figure target: the causes that explain most of its rank variance (eta2, p)."""
+    section = summary.get("sensitivity") or {}
+    lines = []
+    for target in section.get("figure_targets", ()):
+        rows = section.get(target) or []
+        if not rows:
+            continue
+        shown = [
+            f"{r['parameter']} ({'ρ²' if r.get('kind', 'input') == 'input' else 'η²'} {r['eta2']:.2f}, "
+            f"p {r['p_value']:.2g})"
+            for r in rows[:DRIVERS_SHOWN]
+        ]
+        lines.append(f"what drives {target}: " + ", ".join(shown))
+    return lines
+
+
 def format_summary(summary, report_dir=None):
     """A one-screen summary: banner, counts, success, key statistics, published values beside ours,
     failure reasons, requirements, verdict."""
@@ -236,6 +256,7 @@ def format_summary(summary, report_dir=None):
         word = "smallest" if section["side"] == "low" else "largest"
         lines.append(f"{word} {column}: run {run['run_id']} ({number(run[column])}): {run['command']}")
     lines += published_lines(summary)
+    lines += driver_lines(summary)
     reasons = failure_reason_lines(summary)
     if reasons:
         lines += ["", *reasons]
