@@ -1,0 +1,214 @@
+"""Pointing requirements (issue 35, docs/pointing.md): the core's indices and interpretations
+against closed forms, the config's bad input, and a flight's columns.
+
+The closed forms are of a sinusoid plus a bias about one body axis, e(t) = b + A sin(w t), sampled
+over whole periods at N points each: over a period the sampled phases are uniform, so
+
+- APE, ensemble: b + A (a sample sits on the peak); temporal: the P_C quantile of b + A sin,
+  b + A sin(pi (P_C - 1/2)) (P(sin <= s) = 1/2 + asin(s)/pi);
+- MPE over whole periods: |b|; RPE over one-period intervals: ensemble A, temporal A sin(pi P_C / 2)
+  (P(|sin| <= s) = 2 asin(s)/pi); PDE over half periods: the half-period means b +- 2A/pi differ by 4A/pi;
+- mixed against a bound c: the fraction of time above it, 1/2 - asin((c - b)/A)/pi.
+
+A sampled quantile or fraction differs from the continuous one by at most one sample's change,
+2 pi A / N (the largest slope times the step), the tolerance below.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from refexmc.config import pointing as config_pointing
+from refexmc.core import layout as L
+from refexmc.core import pointing, quaternion
+
+N = 4000  # samples per period
+PERIOD = 400.0  # s
+DT = PERIOD / N
+BIAS, AMPLITUDE = 3e-6, 1e-6  # rad: b > A, so |e| = e
+SAMPLE_TOL = 2.0 * math.pi * AMPLITUDE / N  # one sample's change of the sinusoid
+
+
+def row(index=L.POINTING_INDEX_ABSOLUTE, interpretation=L.INTERPRETATION_TEMPORAL, error=L.ERROR_TOTAL,
+        axis=(1.0, 0.0, 0.0), p_c=0.9973, bound=0.0, delta_t=math.inf, knowledge=0.0, modes=1,
+        start=0.0, end=math.inf):  # fmt: skip
+    r = np.zeros(L.POINTING_SIZE)
+    r[L.P_INDEX] = index
+    r[L.P_INTERPRETATION] = interpretation
+    r[L.P_ERROR] = error
+    r[L.P_AXIS : L.P_AXIS + 3] = axis
+    r[L.P_PROBABILITY] = p_c
+    r[L.P_BOUND] = bound
+    r[L.P_DELTA_T] = delta_t
+    r[L.P_KNOWLEDGE] = knowledge
+    r[L.P_MODE_MASK] = modes
+    r[L.P_WINDOW_FROM] = start
+    r[L.P_WINDOW_TO] = end
+    return r
+
+
+def fly_errors(rows, errors, modes=None, dt=DT, knowledge_errors=None):
+    """Record rotation vectors ``errors`` (steps, 3) as true-vs-reference errors (reference: identity)
+    at t = k dt, mode ``modes[k]`` (0), measured attitude truth (x) rot(knowledge_errors[k]); reduce."""
+    table = np.array(rows)
+    rec = pointing.new_record(table, len(errors) + 2)
+    q_ref = np.array([0.0, 0.0, 0.0, 1.0])
+    q_true, q_meas, rot = np.empty(4), np.empty(4), np.empty(4)
+    for k, e in enumerate(errors):
+        quaternion.from_rotation_vector(e[0], e[1], e[2], q_true)
+        q_meas[:] = q_true
+        if knowledge_errors is not None:
+            ke = knowledge_errors[k]
+            quaternion.from_rotation_vector(ke[0], ke[1], ke[2], rot)
+            quaternion.multiply(q_true, rot, q_meas)
+        pointing.record(rec, q_true, q_ref, q_meas, True, 0 if modes is None else int(modes[k]), k * dt)
+    values = np.empty(len(rows))
+    pointing.reduce(rec, dt, values)
+    return values
+
+
+def sinusoid(periods=3, bias=BIAS, amplitude=AMPLITUDE, axis=0):
+    t = np.arange(periods * N) * DT
+    e = np.zeros((len(t), 3))
+    e[:, axis] = bias + amplitude * np.sin(2.0 * math.pi * t / PERIOD)
+    return e
+
+
+def test_ape_of_a_sinusoid_plus_bias_matches_its_closed_form():
+    p_c = 0.9973
+    values = fly_errors(
+        [row(interpretation=L.INTERPRETATION_ENSEMBLE), row(p_c=p_c), row(error=L.ERROR_AXIS)], sinusoid()
+    )
+    # the rotation vector of a rotation about x is recovered to ~1e-22 rad here (angle 4e-6 rad)
+    assert values[0] == pytest.approx(BIAS + AMPLITUDE, abs=1e-18)
+    assert values[1] == pytest.approx(BIAS + AMPLITUDE * math.sin(math.pi * (p_c - 0.5)), abs=SAMPLE_TOL)
+    assert values[2] == pytest.approx(values[1], abs=1e-18)  # x axis: the whole error
+
+
+def test_mpe_rpe_pde_of_a_sinusoid_plus_bias_match_their_closed_forms():
+    p_c = 0.95
+    rows = [
+        row(index=L.POINTING_INDEX_MEAN, interpretation=L.INTERPRETATION_ENSEMBLE),
+        row(index=L.POINTING_INDEX_MEAN, interpretation=L.INTERPRETATION_ENSEMBLE, delta_t=PERIOD),
+        row(index=L.POINTING_INDEX_RELATIVE, interpretation=L.INTERPRETATION_ENSEMBLE, delta_t=PERIOD),
+        row(index=L.POINTING_INDEX_RELATIVE, p_c=p_c, delta_t=PERIOD),
+        row(index=L.POINTING_INDEX_DRIFT, interpretation=L.INTERPRETATION_ENSEMBLE, delta_t=PERIOD / 2),
+    ]
+    values = fly_errors(rows, sinusoid())
+    # the mean of N uniformly phased samples of a sine is 0 to rounding: ~N ulp of A
+    assert values[0] == pytest.approx(BIAS, abs=1e-18)
+    assert values[1] == pytest.approx(BIAS, abs=1e-18)
+    assert values[2] == pytest.approx(AMPLITUDE, abs=1e-18)
+    assert values[3] == pytest.approx(AMPLITUDE * math.sin(math.pi * p_c / 2.0), abs=SAMPLE_TOL)
+    # half-period means of N/2 samples: 2A/pi to O(1/N^2) (the midpoint rule on a sine)
+    assert values[4] == pytest.approx(4.0 * AMPLITUDE / math.pi, rel=1e-5)
+
+
+def test_pre_compares_the_means_of_observation_periods():
+    """Two observation periods of mode 0 with different biases, mode 1 between them: PRE is the
+    difference of their means; PDE within each period sees only its own intervals."""
+    first = sinusoid(periods=2, bias=BIAS)
+    gap = np.zeros((N, 3))
+    second = sinusoid(periods=2, bias=BIAS + 2e-7)
+    errors = np.vstack([first, gap, second])
+    modes = np.r_[np.zeros(len(first)), np.ones(N), np.zeros(len(second))]
+    rows = [
+        row(index=L.POINTING_INDEX_REPRODUCIBILITY, interpretation=L.INTERPRETATION_ENSEMBLE),
+        row(index=L.POINTING_INDEX_DRIFT, interpretation=L.INTERPRETATION_ENSEMBLE, delta_t=PERIOD),
+    ]
+    values = fly_errors(rows, errors, modes)
+    assert values[0] == pytest.approx(2e-7, abs=1e-18)
+    assert values[1] < 1e-18  # equal means of whole periods within a period
+
+
+def test_mixed_is_the_fraction_of_window_time_above_the_bound():
+    bound = BIAS + 0.5 * AMPLITUDE
+    values = fly_errors([row(interpretation=L.INTERPRETATION_MIXED, bound=bound)], sinusoid())
+    expected = 0.5 - math.asin((bound - BIAS) / AMPLITUDE) / math.pi  # 1/3
+    assert values[0] == pytest.approx(expected, abs=1.0 / N)
+
+
+def test_window_times_and_modes_select_the_samples():
+    errors = np.zeros((100, 3))
+    errors[:, 0] = np.arange(100) * 1e-8  # growing: the window's largest is its last sample
+    modes = np.r_[np.zeros(50), np.ones(50)]
+    rows = [
+        row(interpretation=L.INTERPRETATION_ENSEMBLE, start=10 * DT, end=30 * DT),
+        row(interpretation=L.INTERPRETATION_ENSEMBLE, modes=0b01),
+        row(interpretation=L.INTERPRETATION_ENSEMBLE, modes=0b10, end=70 * DT),
+        row(interpretation=L.INTERPRETATION_ENSEMBLE, modes=0b100),  # a mode never flown: no samples
+    ]
+    values = fly_errors(rows, errors, modes)
+    assert values[0] == pytest.approx(30e-8, rel=1e-12)
+    assert values[1] == pytest.approx(49e-8, rel=1e-12)
+    assert values[2] == pytest.approx(70e-8, rel=1e-12)
+    assert math.isnan(values[3])
+
+
+def test_los_sees_no_rotation_about_the_boresight():
+    errors = np.zeros((10, 3))
+    errors[:, 0] = 5e-6  # about the boresight x: the line of sight does not move
+    errors[:, 1] = np.linspace(0.0, 2e-6, 10)
+    boresight = row(interpretation=L.INTERPRETATION_ENSEMBLE, error=L.ERROR_LOS, axis=(1.0, 0.0, 0.0))
+    total = row(interpretation=L.INTERPRETATION_ENSEMBLE)
+    values = fly_errors([boresight, total], errors)
+    # rotating x by (5e-6, 2e-6, 0) rad moves it by 2e-6 rad to second order (5e-6 * 2e-6 = 1e-11)
+    assert values[0] == pytest.approx(2e-6, rel=1e-5)
+    assert values[1] == pytest.approx(math.hypot(5e-6, 2e-6), rel=1e-12)
+
+
+def test_a_large_los_error_is_the_exact_angle():
+    angle = 0.7  # rad about z: the boresight x moves by exactly this
+    values = fly_errors(
+        [row(interpretation=L.INTERPRETATION_ENSEMBLE, error=L.ERROR_LOS, axis=(1.0, 0.0, 0.0))],
+        np.array([[0.0, 0.0, angle]]),
+    )
+    assert values[0] == pytest.approx(angle, rel=1e-14)
+
+
+def test_knowledge_index_measures_estimated_minus_true():
+    truth = sinusoid(periods=1)
+    knowledge = np.zeros_like(truth)
+    knowledge[:, 2] = np.linspace(-3e-7, 4e-7, len(truth))
+    values = fly_errors(
+        [row(interpretation=L.INTERPRETATION_ENSEMBLE, knowledge=1.0)], truth, knowledge_errors=knowledge
+    )
+    # the body-axes knowledge error is the rotation vector of conj(q) (x) q (x) rot(k) = rot(k)
+    assert values[0] == pytest.approx(4e-7, rel=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.one_of(st.just(0.0), st.floats(1e-12, 1e-4)), min_size=1, max_size=60),
+    st.floats(0.01, 0.9999),
+)
+def test_a_temporal_value_never_exceeds_the_largest_error(samples, p_c):
+    errors = np.zeros((len(samples), 3))
+    errors[:, 1] = samples
+    values = fly_errors([row(p_c=p_c), row(interpretation=L.INTERPRETATION_ENSEMBLE)], errors)
+    assert values[0] <= values[1]
+    # and it is the smallest sample with at least P_C of the samples at or below it (the recorded
+    # magnitudes come back through a quaternion: equal to the inputs to 1e-12 relative)
+    magnitudes = np.abs(errors[:, 1])
+    at_or_below = np.count_nonzero(magnitudes <= values[0] * (1 + 1e-12))
+    below = np.count_nonzero(magnitudes < values[0] * (1 - 1e-12))
+    assert at_or_below / len(samples) >= p_c - 1e-12
+    assert below / len(samples) < p_c
+
+
+def test_too_small_a_buffer_gives_nan_not_a_partial_statistic():
+    rec = pointing.new_record(np.array([row(interpretation=L.INTERPRETATION_ENSEMBLE)]), 3)
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    for k in range(5):
+        pointing.record(rec, q, q, q, True, 0, k * 1.0)
+    values = np.empty(1)
+    pointing.reduce(rec, 1.0, values)
+    assert math.isnan(values[0])
+
+
+def test_column_names_start_with_the_index():
+    assert config_pointing.column_name("APE", "total", "temporal", "arcsec") == "ape_total_temporal_arcsec"
+    assert config_pointing.column_name("AKE", "los", "mixed", "arcsec", "star") == "ake_los_mixed_star_fraction"
