@@ -212,3 +212,81 @@ def test_too_small_a_buffer_gives_nan_not_a_partial_statistic():
 def test_column_names_start_with_the_index():
     assert config_pointing.column_name("APE", "total", "temporal", "arcsec") == "ape_total_temporal_arcsec"
     assert config_pointing.column_name("AKE", "los", "mixed", "arcsec", "star") == "ake_los_mixed_star_fraction"
+
+
+# --- a campaign with pointing requirements: runs columns, summary.json, report -----------------
+
+POINTING_RECORDS = """  - index: APE
+    error: total
+    bound_deg: 2.0
+    p_c: 0.9973
+    interpretation: temporal
+    window: {modes: [GEEM]}
+  - index: APE
+    error: total
+    bound_deg: 2.0
+    p_c: 0.9973
+    interpretation: ensemble
+    window: {modes: [GEEM]}
+  - index: RPE
+    error: los
+    boresight: [1, 0, 0]
+    bound_deg: 0.5
+    p_c: 0.95
+    interpretation: mixed
+    window: {modes: [GEEM]}
+    delta_t_s: 5.0
+  - index: AKE
+    error: x
+    bound_deg: 1.0
+    p_c: 0.9973
+    interpretation: temporal
+    window: {from_s: 10.0}
+    runs: failure_free
+  - ape_total_ensemble_deg.max <= 10.0
+"""
+
+
+def test_a_campaign_reports_each_pointing_requirement(tmp_path):
+    import json
+
+    import pyarrow.parquet as pq
+    from click.testing import CliRunner
+    from stored import campaign_copy
+
+    from refexmc.cli import main
+
+    path = campaign_copy("smoke.yaml", tmp_path, replace=[("runs: 20", "runs: 4")])
+    path.write_text(path.read_text() + POINTING_RECORDS)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(path), "-o", str(out), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    runs = pq.read_table(out / "runs").to_pandas()
+    columns = ["ape_total_temporal_deg", "ape_total_ensemble_deg", "rpe_los_mixed_fraction", "ake_x_temporal_deg"]
+    assert all(c in runs.columns for c in columns)
+    assert (runs["ape_total_temporal_deg"] <= runs["ape_total_ensemble_deg"]).all()
+    assert runs[columns].notna().all().all()
+    report = CliRunner().invoke(main, ["report", str(out)])
+    summary = json.loads((out / "report/summary.json").read_text())
+    pointed = [r for r in summary["requirements"] if r.get("kind") == "pointing"]
+    assert [r["metric"] for r in pointed] == columns
+    for r in pointed:
+        for key in ("index", "error", "interpretation", "p_c", "confidence", "window", "runs", "passed"):
+            assert key in r, key
+        assert r["worst_runs"] and r["worst_runs"][0]["command"].startswith("refexmc rerun")
+    # 4 runs cannot show 99 % of runs (temporal) or P_C (ensemble) at 95 %: 299 and 1109 runs needed
+    assert [r["runs_needed"] for r in pointed[:2]] == [299, 1109]
+    assert not pointed[0]["passed"] and not pointed[1]["passed"]
+    assert report.exit_code == 1  # a FAIL is a verdict, not bad input
+    assert "pointing requirements" in report.output and "worst runs" in report.output
+    # the 'METRIC OP VALUE' grammar reads the new columns too
+    texts = [r["requirement"] for r in summary["requirements"] if r["passed"]]
+    assert "ape_total_ensemble_deg.max <= 10.0" in texts
+
+
+def test_runs_needed_with_none_outside():
+    from refexmc.report.pointing import runs_needed
+
+    assert runs_needed(0.9973, 0.95) == 1109  # ln 0.05 / ln 0.9973 = 1108.04
+    assert runs_needed(0.99, 0.95) == 299
+    assert 0.05 ** (1 / 1109) >= 0.9973 > 0.05 ** (1 / 1108)
