@@ -290,3 +290,69 @@ def test_runs_needed_with_none_outside():
     assert runs_needed(0.9973, 0.95) == 1109  # ln 0.05 / ln 0.9973 = 1108.04
     assert runs_needed(0.99, 0.95) == 299
     assert 0.05 ** (1 / 1109) >= 0.9973 > 0.05 ** (1 / 1108)
+
+
+def test_the_worked_example_of_docs_pointing():
+    """docs/pointing.md: three runs e_i = b_i + A_i sin(2 pi t / T), T = 100 s at 10 Hz over four
+    periods; each value against its closed form and the page's table, then the three verdicts."""
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from refexmc.report import pointing as report_pointing
+
+    arcsec = math.pi / 180.0 / 3600.0
+    dt, period, p_c, bound = 0.1, 100.0, 0.9973, 0.4
+    toy = [(0.10, 0.20), (0.25, 0.10), (0.35, 0.10)]
+    t = np.arange(4 * int(period / dt)) * dt
+    rows = [
+        row(p_c=p_c),
+        row(interpretation=L.INTERPRETATION_ENSEMBLE),
+        row(interpretation=L.INTERPRETATION_MIXED, bound=bound * arcsec),
+        row(index=L.POINTING_INDEX_MEAN, interpretation=L.INTERPRETATION_ENSEMBLE),
+        row(index=L.POINTING_INDEX_RELATIVE, interpretation=L.INTERPRETATION_ENSEMBLE, delta_t=period),
+    ]
+    values = []
+    for b, a in toy:
+        e = np.zeros((len(t), 3))
+        e[:, 0] = (b + a * np.sin(2.0 * math.pi * t / period)) * arcsec
+        v = fly_errors(rows, e, dt=dt)
+        values.append([v[0] / arcsec, v[1] / arcsec, v[2], v[3] / arcsec, v[4] / arcsec])
+        step = 2.0 * math.pi * a * dt / period  # one sample's change
+        assert v[0] / arcsec == pytest.approx(b + a * math.sin(math.pi * (p_c - 0.5)), abs=step)
+        assert v[1] / arcsec == pytest.approx(b + a, abs=1e-12)
+        above = 0.0 if b + a <= bound else 0.5 - math.asin((bound - b) / a) / math.pi
+        assert v[2] == pytest.approx(above, abs=1.0 / 1000)  # a fraction of 1000 samples per period
+        assert v[3] / arcsec == pytest.approx(b, abs=1e-12)
+        assert v[4] / arcsec == pytest.approx(a, abs=1e-12)
+    page = (Path(__file__).resolve().parents[1] / "docs/pointing.md").read_text()
+    for (b, a), v in zip(toy, values, strict=True):
+        assert f"| {b:.2f}, {a:.2f} | {v[0]:.5f} ({b + a * math.sin(math.pi * (p_c - 0.5)):.5f}) | {v[1]:.2f} |" in page, v
+    # the verdicts: a campaign of these three runs, every one failure-free
+    runs = pd.DataFrame(
+        {
+            "run_id": [0, 1, 2],
+            "status": ["ok"] * 3,
+            "success": [True] * 3,
+            "failed_thrusters": [""] * 3,
+            "ape_total_temporal_arcsec": [v[0] for v in values],
+            "ape_total_ensemble_arcsec": [v[1] for v in values],
+            "ape_total_mixed_fraction": [v[2] for v in values],
+        }
+    )
+    campaign = SimpleNamespace(runs=runs, out=Path("toy"))
+    mission = {"modes": [{"name": "science"}], "navigation": {}}
+    records = [
+        {"index": "APE", "error": "total", "bound_arcsec": bound, "p_c": p_c, "interpretation": kind, "window": {}}
+        for kind in ("temporal", "ensemble", "mixed")
+    ]
+    temporal, ensemble, mixed = (report_pointing.evaluate(r, campaign) for r in config_pointing.parse(records, mission))
+    assert temporal["runs_within"] == ensemble["runs_within"] == 2
+    assert temporal["actual"] == pytest.approx(0.13535, abs=1e-5) and not temporal["passed"]
+    assert (temporal["runs_needed"], ensemble["runs_needed"]) == (299, 1109)
+    assert ensemble["actual"] == temporal["actual"] and not ensemble["passed"]
+    assert mixed["mean_fraction_above"] == pytest.approx(1 / 9, abs=1e-3)
+    assert mixed["actual"] == pytest.approx(0.4356, abs=2e-3) and not mixed["passed"]
+    for word in ("0.1354", "0.368", "0.4356", "1109", "299"):
+        assert word in page
