@@ -114,8 +114,12 @@ def test_sigma_and_tau_come_back_from_a_flown_history():
     mission["navigation"]["attitude_gm_tau_s"] = tau
     record = {"index": "AKE", "error": "total", "bound_arcsec": 1.0, "p_c": 0.9973, "interpretation": "ensemble",
               "window": {"modes": ["science"]}}  # fmt: skip
-    plan = config_pointing.plan(config_pointing.parse([record], mission), mission)
+    # and the largest true error over the mission's pointing window: the runs column pointing_max_arcsec
+    largest = dict(record, index="APE", window={"from_s": mission["pointing_statistics_from_s"]})
+    plan = config_pointing.plan(config_pointing.parse([record, largest], mission), mission)
     result = fly(pack(vehicle, mission), 3, 1 / 600, mode_names(mission), requirements=plan)
+    values = result.runs_values()
+    assert values["ape_total_ensemble_arcsec"] == values["pointing_max_arcsec"]  # the same samples, two codes
     rec = result.pointing_record
     n = int(rec.counts[0])
     e = rec.samples[0, :n, 0:3] * (180.0 / math.pi * 3600.0)  # arcsec, per body axis

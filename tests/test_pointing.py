@@ -328,7 +328,9 @@ def test_the_worked_example_of_docs_pointing():
         assert v[4] / arcsec == pytest.approx(a, abs=1e-12)
     page = (Path(__file__).resolve().parents[1] / "docs/pointing.md").read_text()
     for (b, a), v in zip(toy, values, strict=True):
-        assert f"| {b:.2f}, {a:.2f} | {v[0]:.5f} ({b + a * math.sin(math.pi * (p_c - 0.5)):.5f}) | {v[1]:.2f} |" in page, v
+        assert (
+            f"| {b:.2f}, {a:.2f} | {v[0]:.5f} ({b + a * math.sin(math.pi * (p_c - 0.5)):.5f}) | {v[1]:.2f} |" in page
+        ), v
     # the verdicts: a campaign of these three runs, every one failure-free
     runs = pd.DataFrame(
         {

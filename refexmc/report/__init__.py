@@ -209,14 +209,20 @@ def render_figures(campaign, summary):
         result += entry_figures.figures_of(campaign, summary, bounds_of)
     if histories is not None:
         shown, left_out = aggregate.modes_with_samples(histories, len(campaign.ok))
-        arcsec = any(plan["units"].get(c) == "arcsec" for c in plan["requirement_columns"])
+        pointed = [r for r in summary["requirements"] if r.get("kind") == "pointing"]  # report.pointing
+        arcsec = any(plan["units"].get(c) == "arcsec" for c in plan["requirement_columns"]) or any(
+            r["unit"] == "arcsec" for r in pointed
+        )
         unit, scale = ("arcsec", ARCSEC_PER_DEG) if arcsec else ("deg", 1.0)
         lines = []
         if arcsec:
             seen = set()
             for r in summary["requirements"]:
                 column = split_metric(r["metric"])[0] if r["metric"] not in CAMPAIGN_METRICS else ""
-                if plan["units"].get(column) == "arcsec" and r["value"] not in seen:
+                in_arcsec = (
+                    r["unit"] == "arcsec" if r.get("kind") == "pointing" else plan["units"].get(column) == "arcsec"
+                )
+                if in_arcsec and r["value"] not in seen:
                     seen.add(r["value"])
                     lines.append((r["value"], f"{r['value']:g}″ required ({r['requirement']})"))
         png_bytes = figures.modes_figure(histories, shown, unit=unit, unit_scale=scale, lines=lines)
