@@ -32,9 +32,12 @@ WORST_RUNS = 5
 def requirements_of(campaign):
     """The campaign's pointing requirements (from OUT/campaign.resolved.yaml), checked."""
     resolved = campaign.resolved
+    listed = resolved.get("requirements") or []
+    if not any(config_pointing.is_pointing(item) for item in listed):
+        return []
     return config_pointing.parse(
-        resolved.get("requirements") or [],
-        resolved["mission"],
+        listed,
+        resolved.get("mission") or {"modes": []},
         resolved.get("dispersions") or {},
         campaign.out / "campaign.resolved.yaml",
         campaign.resolved_lines,
