@@ -147,3 +147,26 @@ def test_irassi_runs_without_gauss_markov_error_keep_their_bits():
     rows, _ = fly_chunk(campaign, range(campaign["runs"]))
     stored = json.loads((folder / "rows.json").read_text())
     assert _hex_rows(rows) == stored
+
+
+def test_the_measurement_adds_the_processes_then_advances_them():
+    """Measured attitude = truth (x) rot(x_att), measured rate = truth + x_rate, with the processes'
+    values before the call; afterwards they have taken one exact step."""
+    nav = _nav(sigma_att=3e-6, tau_att=20.0, sigma_rate=2e-7, tau_rate=5.0)
+    state = np.array([7], dtype=np.uint64)
+    knowledge = np.zeros(navigation.KNOWLEDGE_SIZE)
+    navigation.start(nav, 0.5, state, knowledge)
+    before = knowledge.copy()
+    x = np.zeros(7)
+    x[3] = 1.0
+    x[4:7] = [1e-3, -2e-3, 5e-4]
+    q_out, rate_out = np.empty(4), np.empty(3)
+    navigation.measure(x, nav, 0.0, state, knowledge, q_out, rate_out, np.empty(4))
+    from scipy.spatial.transform import Rotation
+
+    # rotation vector of ~5e-6 rad through a quaternion: 1e-17 rad
+    np.testing.assert_allclose(Rotation.from_quat(q_out).as_rotvec(), before[0:3], rtol=0, atol=1e-17)
+    np.testing.assert_array_equal(rate_out, x[4:7] + before[3:6])
+    a_att, a_rate = math.exp(-0.5 / 20.0), math.exp(-0.5 / 5.0)
+    assert knowledge[navigation.K_ATT_DECAY] == a_att and knowledge[navigation.K_RATE_DECAY] == a_rate
+    assert not np.array_equal(knowledge[0:6], before[0:6])
