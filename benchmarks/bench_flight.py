@@ -199,6 +199,12 @@ def bench_flight_vs_rk4(reps, cpu):
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
     history = np.zeros((result.history.shape[0] + 3, L.HISTORY_SIZE))
     kernel_args = (inputs, np.int64(0), np.int64(every), summary, pulses, history)
+    try:  # since issue 35 the kernel also takes the pointing requirements' record (none here)
+        from refexmc.core.pointing import empty_record
+
+        kernel_args += (empty_record(),)
+    except ImportError:  # a version before it
+        pass
     run_flight(*kernel_args)
 
     flight_s, bare_s, kernel_s = [], [], []

@@ -16,7 +16,7 @@ from refexmc.config.requirements import (
     WHEEL_COLUMNS,
     mode_time_columns,
 )
-from refexmc.core import flight
+from refexmc.core import flight, pointing
 from refexmc.core import layout as L
 
 AXES = "xyz"
@@ -32,7 +32,16 @@ class FlightResult:
     """One flight's outputs, named."""
 
     def __init__(
-        self, summary, pulse_counts, history, mode_names, orbit=False, pointing=False, wheels=False, local=False
+        self,
+        summary,
+        pulse_counts,
+        history,
+        mode_names,
+        orbit=False,
+        pointing=False,
+        wheels=False,
+        local=False,
+        requirement_values=None,
     ):
         self.summary = summary  # layout.SUMMARY then per-mode values
         self.pulse_counts = pulse_counts  # valve open commands sent, per thruster
@@ -42,6 +51,8 @@ class FlightResult:
         self.pointing = pointing  # a pointing window: config.requirements.POINTING_COLUMNS
         self.wheels = wheels  # reaction wheels: config.requirements.WHEEL_COLUMNS
         self.local = local  # the local trajectory: config.requirements.LOCAL_COLUMNS
+        # the pointing requirements' per-run values by runs column (config.pointing, core.pointing)
+        self.requirement_values = dict(requirement_values or {})
 
     def value(self, name):
         """A summary value by name; ``t_mode_s`` and ``t1_mode_s`` give one value per mode."""
@@ -96,6 +107,7 @@ class FlightResult:
         if self.wheels:
             for name in WHEEL_COLUMNS:
                 row[name] = float(self.value(name))
+        row.update(self.requirement_values)
         row["modes_completed"] = int(self.value("modes_completed"))
         for i, count in enumerate(self.pulse_counts):
             row[f"pulses_{i + 1}"] = int(count)
@@ -171,11 +183,24 @@ def control_period(inputs):
     return float(inputs.fsw[L.F_CONTROL_PERIOD])
 
 
-def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
+def pointing_capacity(inputs, table):
+    """Samples a pointing requirement's buffer needs: the control steps of its window within the
+    flight time (both ends), the largest over ``table``'s rows."""
+    period = inputs.fsw[L.F_CONTROL_PERIOD]
+    end = inputs.mission[L.M_MAX_TIME]
+    steps = 1
+    for row in table:
+        span = min(row[L.P_WINDOW_TO], end + period) - max(row[L.P_WINDOW_FROM], 0.0)
+        steps = max(steps, int(math.ceil(max(span, 0.0) / period)) + 2)
+    return steps
+
+
+def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None, requirements=None):
     """Fly ``inputs`` (config.pack.RunInputs); history at ``history_rate_hz``.
 
     ``mode_names`` (``config.pack.mode_names``) name the result's per-mode values and failures;
-    without them the modes are ``mode_1``, ``mode_2``, ...
+    without them the modes are ``mode_1``, ``mode_2``, ...; ``requirements``: the campaign's
+    pointing requirements (``config.pointing.PointingPlan``), computed in the flight at the control rate.
     """
     if mode_names is None:
         mode_names = [f"mode_{m + 1}" for m in range(inputs.modes.shape[0])]
@@ -186,13 +211,24 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None):
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
     history = np.zeros((max_rows, L.HISTORY_SIZE))
     run_flight = flight.kernel(*flight.family(inputs))  # the vehicle family's own kernel (docs/families.md)
-    run_flight(inputs, np.int64(nav_seed), np.int64(every), summary, pulses, history)
+    if requirements is None or not requirements.columns:
+        record = pointing.empty_record()
+    else:
+        record = pointing.new_record(requirements.table, pointing_capacity(inputs, requirements.table))
+    run_flight(inputs, np.int64(nav_seed), np.int64(every), summary, pulses, history, record)
+    values = {}
+    if requirements is not None and requirements.columns:
+        reduced = np.empty(len(requirements.columns))
+        pointing.reduce(record, period, reduced)
+        values = {c: float(v * f) for c, v, f in zip(requirements.columns, reduced, requirements.scales, strict=True)}
     rows = int(summary[L.S_HISTORY_ROWS])
     orbit = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_ORBIT
-    pointing = bool(np.isfinite(inputs.mission[L.M_POINTING_FROM]))
     wheels = inputs.wheels.shape[0] > 0
     local = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_LOCAL
-    return FlightResult(summary, pulses, history[:rows], mode_names, orbit, pointing, wheels, local)
+    window = bool(np.isfinite(inputs.mission[L.M_POINTING_FROM]))
+    result = FlightResult(summary, pulses, history[:rows], mode_names, orbit, window, wheels, local, values)
+    result.pointing_record = record  # the error samples at the control rate (core.pointing.Record)
+    return result
 
 
 def keyed_uniforms(entropy, count):
@@ -237,7 +273,8 @@ def _flight_argument_types():
         return np.empty(shape, dtype=np.int64 if name == "allocation" else np.float64)
 
     inputs = RunInputs(**{name: table(name) for name in RunInputs._fields})
-    arguments = (inputs, np.int64(0), np.int64(1), np.empty(0), np.empty(0, dtype=np.int64), np.empty((0, 0)))
+    record = pointing.empty_record()
+    arguments = (inputs, np.int64(0), np.int64(1), np.empty(0), np.empty(0, dtype=np.int64), np.empty((0, 0)), record)
     return tuple(numba.typeof(argument) for argument in arguments)
 
 

@@ -1059,3 +1059,31 @@ def entry_actuate(command, deflection, blocked, blocked_deflection, rates, time_
         step = (command[i] - deflection[i]) * share
         out.append(deflection[i] + max(-rates[i] * dt, min(rates[i] * dt, step)))
     return np.array(out)
+
+
+# --------------------------------------------------------------------------------------------
+# First-order Gauss-Markov knowledge error (core.navigation; Farrenkopf, Markley NASA 20000086664)
+# --------------------------------------------------------------------------------------------
+
+
+def gauss_markov_variance(sigma, dt, tau, steps):
+    """The variance of x_k after ``steps`` exact updates x_{k+1} = a x_k + sqrt(1 - a^2) sigma w_k
+    from the stationary start Var x_0 = sigma^2: v_{k+1} = a^2 v_k + (1 - a^2) sigma^2, a = e^(-dt/tau)."""
+    a = math.exp(-dt / tau)
+    variance = sigma * sigma
+    for _ in range(steps):
+        variance = a * a * variance + (1.0 - a * a) * sigma * sigma
+    return variance
+
+
+def gauss_markov_path(sigma, dt, tau, steps, noise):
+    """A Gauss-Markov path of ``steps + 1`` samples from the stationary start (x_0 = sigma n_0), each
+    next x = a x + sqrt(1 - a^2) sigma n; ``noise``: a SplitMix64 in the kernel's order."""
+    a = math.exp(-dt / tau)
+    drive = math.sqrt(1.0 - a * a)
+    x = sigma * noise.normal()
+    path = [x]
+    for _ in range(steps):
+        x = a * x + drive * sigma * noise.normal()
+        path.append(x)
+    return np.array(path)

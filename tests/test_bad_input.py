@@ -170,6 +170,69 @@ CASES = [
 ]
 
 
+def _pointing(**fields):
+    """SMOKE with a pointing requirement (issue 35, docs/pointing.md) after its own; ``fields``
+    replace the defaults; the value None drops a field."""
+    record = {
+        "index": "APE",
+        "error": "total",
+        "bound_deg": "0.5",
+        "p_c": "0.9973",
+        "interpretation": "temporal",
+        "window": "{modes: [GEEM]}",
+    }
+    record.update(fields)
+    items = [f"{key}: {value}" for key, value in record.items() if value is not None]
+    return SMOKE + "  - " + "\n    ".join(items) + "\n"
+
+
+def _pointing_line(key):
+    """The line of ``key`` in :func:`_pointing`'s text (the record starts after SMOKE's last line)."""
+    keys = ["index", "error", "bound_deg", "p_c", "interpretation", "window"]
+    return len(SMOKE.splitlines()) + 1 + keys.index(key)
+
+
+_NO_ATTITUDE_KNOWLEDGE = "  navigation.attitude_bias_deg: {dist: normal, mean: [0, 0, 0], sigma: [0.5, 0.5, 0.5]}\n"
+CASES += [
+    (
+        "pointing-unknown-index",
+        _pointing(index="APX"),
+        [],
+        [f":{_pointing_line('index')}:", "requirements.2.index", "expected one of APE, MPE, RPE, PDE, PRE"],
+    ),
+    (
+        "pointing-unknown-interpretation",
+        _pointing(interpretation="worst"),
+        [],
+        [f":{_pointing_line('interpretation')}:", "requirements.2.interpretation", "temporal, ensemble, mixed"],
+    ),
+    (
+        "pointing-p-c-one",
+        _pointing(p_c="1.0"),
+        [],
+        [f":{_pointing_line('p_c')}:", "requirements.2.p_c", "expected a value < 1.0, got 1.0"],
+    ),
+    (
+        "pointing-p-c-zero",
+        _pointing(p_c="0"),
+        [],
+        [f":{_pointing_line('p_c')}:", "requirements.2.p_c", "expected a value > 0.0, got 0"],
+    ),
+    (
+        "pointing-window-names-no-mode",
+        _pointing(window="{modes: [science]}"),
+        [],
+        [f":{_pointing_line('window')}:", "requirements.2.window.modes.0", "no mode 'science' in the mission"],
+    ),
+    (
+        "pointing-knowledge-without-navigation",
+        _pointing(index="AKE").replace(_NO_ATTITUDE_KNOWLEDGE, ""),
+        [],
+        [f":{_pointing_line('index') - 1}:", "requirements.2.index", "AKE is a knowledge index"],
+    ),
+]
+
+
 @pytest.fixture
 def existing_out(tmp_path):
     out = tmp_path / "out"

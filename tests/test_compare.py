@@ -408,8 +408,9 @@ def test_the_stored_baseline_is_the_smoke_campaign():
 # --- other missions: compared by their own metrics ----------------------------------------------------
 
 OWN_MISSIONS = {  # campaign file: (runs flown, requirement metric the regression is injected into, factor)
-    # IRASSI: the largest pointing error 30 % larger in every run, against its 0.4 arcsec requirement
-    "irassi-fine-pointing.yaml": (10, "pointing_max_arcsec", 1.3),
+    # IRASSI: the time the wheels are held at a limit twice as long in every run, against its 600 s
+    # requirement (its pointing requirement is an ECSS record, docs/pointing.md, which compare does not read)
+    "irassi-fine-pointing.yaml": (10, "wheel_saturated_s", 2.0),
     # SPORE: the engine pointing during the burn twice as large: +0.4 deg at the median, more than a
     # tenth of its 1.5 deg margin to the 2 deg requirement (REQUIREMENT_MARGIN_SHARE)
     "spore-deorbit-iss.yaml": (8, "burn_pointing_max_deg", 2.0),
@@ -454,7 +455,7 @@ def test_other_missions_are_compared_by_their_own_metrics(own_mission):
     metrics = [m.metric for m in result.metrics]
     requirements = load_campaign(ROOT / "campaigns" / name)["requirements"]
     judged = []
-    for text in requirements:
+    for text in filter(lambda item: isinstance(item, str), requirements):  # not the pointing records
         metric = text.split()[0]
         if metric != "success_rate" and metric.rsplit(".", 1)[0] not in judged:
             judged.append(metric.rsplit(".", 1)[0])

@@ -46,7 +46,7 @@ def state(q=(0.0, 0.0, 0.0, 1.0), rate=(0.0, 0.0, 0.0)):
 def measure(x, nav, time_calibrating, seed=12345):
     rng_state = np.array([seed], dtype=np.uint64)
     q_out, rate_out, work4 = np.empty(4), np.empty(3), np.empty(4)
-    navigation.measure(x, nav, time_calibrating, rng_state, q_out, rate_out, work4)
+    navigation.measure(x, nav, time_calibrating, rng_state, np.zeros(navigation.KNOWLEDGE_SIZE), q_out, rate_out, work4)
     return q_out, rate_out, int(rng_state[0])
 
 
@@ -113,7 +113,7 @@ def test_noise_has_the_configured_sigma():
     att, rates = np.empty((n, 3)), np.empty((n, 3))
     x = state()
     for k in range(n):
-        navigation.measure(x, nav, 0.0, rng_state, q_out, rate_out, work4)
+        navigation.measure(x, nav, 0.0, rng_state, np.zeros(navigation.KNOWLEDGE_SIZE), q_out, rate_out, work4)
         att[k] = error_vector(x[0:4], q_out)
         rates[k] = rate_out
     for samples, sigma in ((att, sigma_att), (rates, sigma_rate)):

@@ -12,7 +12,7 @@ from refexmc import simulate
 from refexmc.campaign import storage
 from refexmc.campaign.sampling import Sampler
 from refexmc.campaign.seeding import run_seed
-from refexmc.config import dispersions, requirements
+from refexmc.config import dispersions, pointing, requirements
 from refexmc.config.pack import mode_names, pack
 
 
@@ -28,6 +28,9 @@ class RunPlan:
         self.mode_names = mode_names(campaign["mission"])
         options = requirements.column_options(campaign["vehicle"], campaign["mission"])
         self.value_columns = requirements.run_value_columns(self.mode_names, **options)
+        # pointing requirements, computed in the flight (config.pointing): one runs column each
+        self.pointing = pointing.plan(pointing.of_campaign(campaign), campaign["mission"])
+        self.value_columns += list(self.pointing.columns)
         self.wheels = options["wheels"]  # the runs table has a failed_wheels column
         self.family = simulate.flight_family(self.nominal_inputs)  # every run's: dispersions keep it
         self._warm_up()
@@ -116,7 +119,7 @@ class RunPlan:
             if isinstance(prepared, Exception):
                 raise prepared
             seed, failed, params, inputs = prepared
-            result = simulate.fly(inputs, nav_seed=seed, history_rate_hz=history_rate_hz, mode_names=self.mode_names)
+            result = simulate.fly(inputs, seed, history_rate_hz, mode_names=self.mode_names, requirements=self.pointing)
             reason = result.non_finite_reason()
         except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
             reason = f"{type(exc).__name__}: {exc}"

@@ -278,7 +278,7 @@ def manifest(campaign_file, campaign, chunk_size, status, started, finished=None
 def output_names(campaign):
     """The names the outputs take from the campaign's files: ``modes`` (display names in flight
     order, the history's ``mode`` values) and ``columns`` (the runs table's numeric columns)."""
-    from refexmc.config import derived, dispersions, requirements  # config: what the files declare
+    from refexmc.config import derived, dispersions, pointing, requirements  # config: what the files declare
 
     vehicle, mission = campaign["vehicle"], campaign["mission"]
     parameters = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
@@ -289,6 +289,7 @@ def output_names(campaign):
     modes = [mode["name"] for mode in mission["modes"]]
     options = requirements.column_options(vehicle, mission)
     columns = requirements.runs_metric_columns(modes, derived.thruster_count(vehicle), parameters, **options)
+    columns += [req.column for req in pointing.of_campaign(campaign)]  # pointing requirements' columns
     return {"modes": modes, "columns": {"runs": columns}}
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import yaml
 
 from refexmc import smallmatrix
-from refexmc.config import design_checks, entry, published, requirements, schema
+from refexmc.config import design_checks, entry, pointing, published, requirements, schema
 from refexmc.config import feed as config_feed
 from refexmc.config.derived import (
     allocation_table,
@@ -820,6 +820,8 @@ def load_campaign(path, warnings=None):
     mode_names = [mode["name"] for mode in mission["modes"]]
     options = requirements.column_options(vehicle, mission)
     columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
+    pointed = pointing.parse(campaign["requirements"], mission, campaign["dispersions"], path, lines)
+    columns += [req.column for req in pointed]  # their runs columns (docs/pointing.md)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     published.check_published(campaign.get("published", []), columns, path, lines)
     if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
@@ -970,6 +972,14 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
         _check_entry_draws(specs.get(key), key, limit, vehicle, mission, path, lines.get(("dispersions", key)))
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     columns = requirements.entry_metric_columns(parameter_columns)
+    for i, item in enumerate(campaign["requirements"]):
+        if pointing.is_pointing(item):
+            raise ConfigError(
+                "an entry campaign takes no pointing requirement (its flight has no attitude reference to point)",
+                file=path,
+                line=lines.get(("requirements", i)),
+                path=("requirements", i),
+            )
     requirements.check_requirements(campaign["requirements"], columns, path, lines)
     if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
         from refexmc.config import sweep

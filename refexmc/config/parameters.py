@@ -216,6 +216,10 @@ def _table():
         config_key("navigation.local_position_noise_m", SCALAR, "nav", "local_position_noise_m"),
         config_key("navigation.local_velocity_noise_m_s", SCALAR, "nav", "local_velocity_noise_m_s"),
         config_key("navigation.tank_pressure_noise_pa", SCALAR, "nav", "tank_pressure_noise_pa"),
+        config_key("navigation.attitude_gm_sigma_deg", SCALAR, "nav", "attitude_gm_sigma_rad", DEG),
+        config_key("navigation.attitude_gm_tau_s", SCALAR, "nav", "attitude_gm_tau_s"),
+        config_key("navigation.rate_gm_sigma_deg_s", SCALAR, "nav", "rate_gm_sigma_rad_s", DEG),
+        config_key("navigation.rate_gm_tau_s", SCALAR, "nav", "rate_gm_tau_s"),
         dispersion_only(
             "atmosphere.density_scale",
             "-",

@@ -277,10 +277,13 @@ def runs_metric_columns(
 
 
 def check_requirements(requirements, columns, file=None, lines=None):
-    """Parse a campaign file's ``requirements`` (ConfigError with file, line and key path)."""
+    """Parse a campaign file's ``'METRIC OP VALUE'`` requirements (ConfigError with file, line and
+    key path); its pointing records (mappings) are ``config.pointing``'s."""
     lines = lines or {}
     parsed = []
     for i, text in enumerate(requirements):
+        if isinstance(text, dict):  # a pointing requirement (config.pointing checks it)
+            continue
         line = lines.get(("requirements", i))
         parsed.append(parse_requirement(text, columns, "campaign", file=file, line=line, path=("requirements", i)))
     return parsed

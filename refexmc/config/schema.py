@@ -690,6 +690,7 @@ MODE_KINDS = {
     },
 }
 # kinds of the local trajectory only
+GAUSS_MARKOV_KEYS = ("attitude_gm_sigma_deg", "attitude_gm_tau_s", "rate_gm_sigma_deg_s", "rate_gm_tau_s")
 LOCAL_NAVIGATION_KEYS = ("local_position_noise_m", "local_velocity_noise_m_s", "tank_pressure_noise_pa")
 LOCAL_KINDS = ("translate",)
 # targets computed from the trajectory (a vehicle without one cannot use them)
@@ -950,6 +951,22 @@ MISSION = obj(
                     minimum=0.0,
                     default=0.0,
                 ),
+                "attitude_gm_sigma_deg": number(
+                    "attitude knowledge error, first-order Gauss-Markov: stationary 1 sigma per axis; 0: none [deg]",
+                    minimum=0.0,
+                    default=0.0,
+                ),
+                "attitude_gm_tau_s": number(
+                    "its correlation time, sqrt(N) / sigma_v of a gyro-stellar estimator (Farrenkopf) [s]",
+                    exclusive_minimum=0.0,
+                    default=1.0,
+                ),
+                "rate_gm_sigma_deg_s": number(
+                    "rate knowledge error, first-order Gauss-Markov: stationary 1 sigma per axis; 0: none [deg/s]",
+                    minimum=0.0,
+                    default=0.0,
+                ),
+                "rate_gm_tau_s": number("its correlation time [s]", exclusive_minimum=0.0, default=1.0),
             },
             optional=(
                 "gps_position_bias_m",
@@ -957,6 +974,7 @@ MISSION = obj(
                 "gps_velocity_bias_m_s",
                 "gps_velocity_noise_m_s",
                 *LOCAL_NAVIGATION_KEYS,
+                *GAUSS_MARKOV_KEYS,
             ),
         ),
         "disturbances": obj(
@@ -1113,6 +1131,58 @@ ENTRY_MISSION = obj(
 )
 
 
+POINTING_INDICES = ("APE", "MPE", "RPE", "PDE", "PRE")  # ECSS-E-ST-60-10C performance error indices
+KNOWLEDGE_INDICES = ("AKE", "MKE", "RKE", "KDE", "KRE")  # the same on the knowledge error, in that order
+POINTING_ERRORS = ("total", "los", "x", "y", "z")
+INTERPRETATIONS = ("temporal", "ensemble", "mixed")
+PROBABILITY = {"exclusiveMinimum": 0.0, "exclusiveMaximum": 1.0}
+
+# a pointing requirement of a campaign's `requirements` (config.pointing, docs/pointing.md)
+POINTING_REQUIREMENT = obj(
+    "a pointing requirement as ECSS-E-ST-60-10C states one: index, error, bound, P_C, interpretation, window",
+    {
+        "index": string("the error index", enum=POINTING_INDICES + KNOWLEDGE_INDICES),
+        "error": string(
+            "what |e| is: total (3-axis rotation angle), los (boresight to where the reference points it) "
+            "or the component about body axis x, y or z",
+            enum=POINTING_ERRORS,
+        ),
+        "boresight": vector("error los: the line of sight, body axes (normalised) [-]"),
+        "bound_arcsec": number("the bound on the index [arcsec]", exclusive_minimum=0.0),
+        "bound_deg": number("the bound on the index [deg]", exclusive_minimum=0.0),
+        "p_c": {**number("the probability P_C the bound is met with [-]"), **PROBABILITY},
+        "interpretation": string("the statistical interpretation", enum=INTERPRETATIONS),
+        "window": obj(
+            "the observation window: control steps in one of these modes and from_s <= t <= to_s",
+            {
+                "modes": {
+                    "type": "array",
+                    "items": string("a mode name of the mission"),
+                    "minItems": 1,
+                    "description": "the modes that count; default all",
+                },
+                "from_s": number("window start [s]", minimum=0.0),
+                "to_s": number("window end [s]", minimum=0.0),
+            },
+            optional=("modes", "from_s", "to_s"),
+        ),
+        "delta_t_s": number(
+            "MPE, RPE, PDE (and MKE, RKE, KDE): the averaging interval; default the observation period [s]",
+            exclusive_minimum=0.0,
+        ),
+        "confidence": {**number("the verdict's confidence level [-]", default=0.95), **PROBABILITY},
+        "runs": string("the runs judged: all, or failure_free (no injected failure)", enum=["all", "failure_free"]),
+        "runs_fraction": {
+            **number("temporal: the fraction of runs that must meet the bound [-]", default=0.99),
+            "exclusiveMinimum": 0.0,
+            "maximum": 1.0,
+        },
+        "name": string("a suffix that tells apart two requirements of the same index, error and interpretation"),
+    },
+    optional=("boresight", "bound_arcsec", "bound_deg", "delta_t_s", "confidence", "runs", "runs_fraction", "name"),
+)
+
+
 _reference = {
     "oneOf": [{"type": "string"}, {"type": "object"}],
     "description": "path relative to the campaign file, or an inline mapping",
@@ -1213,8 +1283,11 @@ CAMPAIGN = obj(
         ),
         "requirements": {
             "type": "array",
-            "items": string("'METRIC OP VALUE'"),
-            "description": "requirement verdicts for the report",
+            "items": {
+                "type": ["string", "object"],
+                "description": "'METRIC OP VALUE', or a pointing requirement (POINTING_REQUIREMENT)",
+            },
+            "description": "requirement verdicts for the report (docs/report.md, docs/pointing.md)",
         },
         "published": {
             "type": "array",

@@ -42,6 +42,7 @@ from refexmc.core import (
     navigation,
     orbit,
     orbit_flight,
+    pointing,
     pulse_modulation,
     quaternion,
     rcs,
@@ -199,6 +200,7 @@ class Sensed(NamedTuple):
     now: np.ndarray  # modes.NOW_* (time in mode, altitude, climb rate, dynamic pressure)
     rng_state: np.ndarray  # navigation noise generator
     work4: np.ndarray
+    knowledge: np.ndarray  # the Gauss-Markov knowledge errors (navigation.KNOWLEDGE_SIZE)
 
 
 class Guide(NamedTuple):
@@ -268,7 +270,7 @@ def family(inputs):
 
 def kernel(actuation, trajectory, wheels_flown, feed_model=FEED_CONSTANT):
     """The flight kernel of one vehicle family, made once per process (disk-cached per family):
-    ``run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history)``.
+    ``run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record)``.
 
     ``actuation``: layout.ACTUATION_*; ``trajectory``: layout.TRAJECTORY_*; ``wheels_flown``:
     1 when the vehicle has reaction wheels (``inputs.wheels`` has rows); ``feed_model``:
@@ -298,9 +300,9 @@ def _make_kernel(actuation, trajectory, wheels_flown, feed_model):
     WHEELS = wheels_flown  # noqa: N806
     FEED = feed_model  # noqa: N806
 
-    def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history):
+    def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record):
         """Fly ``inputs`` (``core.inputs.RunInputs``) of this kernel's family; fill ``summary``,
-        ``pulse_counts`` and ``history``.
+        ``pulse_counts``, ``history`` and the pointing requirements' samples (``core.pointing.Record``).
 
         ``summary`` has ``layout.summary_size(n_modes)`` slots; ``history`` one row per
         ``history_every`` control steps (plus the final state) until it is full;
@@ -318,7 +320,14 @@ def _make_kernel(actuation, trajectory, wheels_flown, feed_model):
                 np.zeros((2, 3)),
             ),
             np.empty(environment.TRAJECTORY_STATE_SIZE),
-            Sensed(np.zeros(4), np.zeros(3), np.zeros(modes.NOW_SIZE), np.empty(1, dtype=np.uint64), np.zeros(4)),
+            Sensed(
+                np.zeros(4),
+                np.zeros(3),
+                np.zeros(modes.NOW_SIZE),
+                np.empty(1, dtype=np.uint64),
+                np.zeros(4),
+                np.zeros(navigation.KNOWLEDGE_SIZE),
+            ),
             Guide(
                 np.zeros(guidance.GUIDANCE_STATE_SIZE),
                 np.zeros(4),
@@ -386,7 +395,7 @@ def _make_kernel(actuation, trajectory, wheels_flown, feed_model):
             loc = None
         _fly(
             inputs, nav_seed, history_every, summary, pulse_counts, history, work, fire, table, opt, wh, traj, orb,
-            tank, loc,
+            tank, loc, pointing_record,
         )  # fmt: skip
 
     return jit(run_flight)
@@ -420,6 +429,7 @@ def _start(
             act.gains[lv, 1, i] = levels[lv, LV_KD + i]
             guide.accels[lv, i] = margin * levels[lv, LV_ACCEL_MAX + i]
     sensed.rng_state[0] = np.uint64(nav_seed)
+    navigation.start(inputs.nav, fsw[F_CONTROL_PERIOD], sensed.rng_state, sensed.knowledge)
 
     if traj is not None:  # trajectory planar_drag
         span = mission[M_TRAJECTORY_STEP]
@@ -493,7 +503,10 @@ def _navigate(mission, vehicle, atmosphere, nav, x, traj_state, traj, orb, sense
     sensed.now[modes.NOW_TIME] = t
     if loc is not None:
         local_flight.navigate(nav, loc, tank, sensed.rng_state, sensed.now)
-    navigation.measure(x, nav, status[ST_CALIBRATING], sensed.rng_state, sensed.q_meas, sensed.rate_meas, sensed.work4)
+    calibrating = status[ST_CALIBRATING]
+    navigation.measure(
+        x, nav, calibrating, sensed.rng_state, sensed.knowledge, sensed.q_meas, sensed.rate_meas, sensed.work4
+    )
 
 
 @jit_noalloc(force_inline=True)
@@ -783,7 +796,8 @@ def _integrate(
 
 @jit_noalloc
 def _fly(
-    inputs, nav_seed, history_every, summary, pulse_counts, history, w, fire, table, opt, wh, traj, orb, tank, loc
+    inputs, nav_seed, history_every, summary, pulse_counts, history, w, fire, table, opt, wh, traj, orb, tank, loc,
+    pointing_record,
 ):  # fmt: skip
     """The run loop of a :func:`kernel`'s ``run_flight`` on the work arrays it allocated (no
     allocation, no reference counting: see ``refexmc._jit.jit_noalloc``). Each step gets the
@@ -827,7 +841,7 @@ def _fly(
         if loc is not None:
             local_flight.start(mission, inputs.modes, loc, tank)
     pointing_from = mission[M_POINTING_FROM]
-    pointing = act.rotvec  # free between history rows (_record fills it when it writes one)
+    window_error = act.rotvec  # free between history rows (_record fills it when it writes one)
     theta_handover = math.nan
     rows = 0
     step = 0
@@ -897,11 +911,13 @@ def _fly(
                 status, dt,
             )  # fmt: skip
         if t >= pointing_from and has_reference:  # true attitude against the reference (001: PE)
-            angle = _pointing(body.x[0:4], guide.q_ref, sensed.work4, pointing)
+            angle = _pointing(body.x[0:4], guide.q_ref, sensed.work4, window_error)
             for i in range(3):
-                status[ST_POINTING_WINDOW_SUM2 + i] += pointing[i] * pointing[i]
+                status[ST_POINTING_WINDOW_SUM2 + i] += window_error[i] * window_error[i]
             status[ST_POINTING_WINDOW_COUNT] += 1.0
             status[ST_POINTING_WINDOW_MAX] = max(status[ST_POINTING_WINDOW_MAX], angle)
+        if pointing_record.table.shape[0] > 0:  # pointing requirements (core.pointing), at the control rate
+            pointing.record(pointing_record, body.x[0:4], guide.q_ref, sensed.q_meas, has_reference, flown, t)
 
         finished = done or status[ST_FAILURE] != FAIL_NONE
         if record:
@@ -963,9 +979,9 @@ def _fly(
         summary[S_POINTING_RMS + i] = math.nan
     summary[S_POINTING_MAX] = math.nan
     if has_reference:
-        _pointing(body.x[0:4], guide.q_ref, sensed.work4, pointing)
+        _pointing(body.x[0:4], guide.q_ref, sensed.work4, window_error)
         for i in range(3):
-            summary[S_POINTING_END + i] = pointing[i] * _ARCSEC
+            summary[S_POINTING_END + i] = window_error[i] * _ARCSEC
     count = status[ST_POINTING_WINDOW_COUNT]
     if count > 0.0:
         for i in range(3):

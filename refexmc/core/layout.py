@@ -245,7 +245,40 @@ N_GPS_VELOCITY_NOISE = NAV.add("gps_velocity_noise_m_s")
 N_LOCAL_POSITION_NOISE = NAV.add("local_position_noise_m")  # local trajectory: 1 sigma per axis and period
 N_LOCAL_VELOCITY_NOISE = NAV.add("local_velocity_noise_m_s")
 N_TANK_PRESSURE_NOISE = NAV.add("tank_pressure_noise_pa")  # the translation law's pressure transducer
+# first-order Gauss-Markov knowledge error (core.navigation; Farrenkopf, Markley NASA 20000086664):
+# per axis x_{k+1} = a x_k + sqrt(1 - a^2) sigma w_k, a = exp(-dt / tau); sigma 0: none (no draws)
+N_ATT_GM_SIGMA = NAV.add("attitude_gm_sigma_rad")
+N_ATT_GM_TAU = NAV.add("attitude_gm_tau_s")
+N_RATE_GM_SIGMA = NAV.add("rate_gm_sigma_rad_s")
+N_RATE_GM_TAU = NAV.add("rate_gm_tau_s")
 NAV_SIZE = NAV.size
+
+# --- pointing requirements: one row per requirement (core.pointing, config.pointing) ---------
+POINTING = Fields()
+P_INDEX = POINTING.add("index_id")  # POINTING_INDEX_*: what is computed from e(t)
+P_KNOWLEDGE = POINTING.add("knowledge")  # 1: e = estimated - true attitude (AKE, ...); 0: true - reference
+P_ERROR = POINTING.add("error_id")  # ERROR_*: what |e| is
+P_AXIS = POINTING.add("axis", 3)  # ERROR_AXIS: the unit body axis; ERROR_LOS: the boresight, body axes
+P_WINDOW_FROM = POINTING.add("window_from_s")  # the window: from <= t <= to, in a mode of the mask
+P_WINDOW_TO = POINTING.add("window_to_s")
+P_MODE_MASK = POINTING.add("mode_mask")  # bit m: mode m counts (the mode flown); all bits: any mode
+P_DELTA_T = POINTING.add("delta_t_s")  # MPE, RPE, PDE: the averaging interval; inf: the observation period
+P_INTERPRETATION = POINTING.add("interpretation_id")  # INTERPRETATION_*
+P_PROBABILITY = POINTING.add("p_c")  # the temporal quantile's probability
+P_BOUND = POINTING.add("bound_rad")  # mixed: the bound the fraction of time above is counted against
+POINTING_SIZE = POINTING.size
+
+POINTING_INDEX_ABSOLUTE = 0  # APE / AKE: |e(t)|
+POINTING_INDEX_MEAN = 1  # MPE / MKE: |mean of e over each interval delta_t|
+POINTING_INDEX_RELATIVE = 2  # RPE / RKE: |e(t) - mean of e over the interval containing t|
+POINTING_INDEX_DRIFT = 3  # PDE / KDE: |difference of consecutive interval means| in one observation period
+POINTING_INDEX_REPRODUCIBILITY = 4  # PRE / KRE: |difference of consecutive observation periods' means|
+ERROR_TOTAL = 0  # the rotation vector of the error (3-axis angle)
+ERROR_AXIS = 1  # its component about one body axis
+ERROR_LOS = 2  # the angle between the boresight and where the reference points it
+INTERPRETATION_TEMPORAL = 0  # the P_C time quantile of the per-sample values
+INTERPRETATION_ENSEMBLE = 1  # their largest
+INTERPRETATION_MIXED = 2  # the fraction of them above the bound
 
 # --- nominal deorbit burn: one row per guidance period, ignition to cut-off (core.deorbit) ---
 NOMINAL = Fields()

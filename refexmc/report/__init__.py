@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from refexmc.campaign.storage import write_text_atomic
-from refexmc.report import data, studies
+from refexmc.report import data, pointing, studies
 from refexmc.report import summary as summary_module
 from refexmc.report import text as text_module
 from refexmc.report.requirements import CAMPAIGN_METRICS, evaluate, overall_verdict, parse_requirement, split_metric
@@ -37,6 +37,8 @@ def load_requirements(campaign, require=()):
     listed = campaign.resolved.get("requirements") or []
     parsed = []
     for i, text in enumerate(listed):
+        if isinstance(text, dict):  # a pointing requirement (report.pointing)
+            continue
         line = campaign.resolved_lines.get(("requirements", i))
         parsed.append(parse_requirement(text, columns, "campaign", file=resolved, line=line, path=("requirements", i)))
     for text in require:
@@ -53,6 +55,8 @@ def make_report(out, require=(), html=True):
     requirements = load_requirements(campaign, require)
     verdicts = [evaluate(r, campaign, summary_module.campaign_metrics(campaign)) for r in requirements]
     summary = summary_module.build(campaign, verdicts)
+    pointed = [pointing.evaluate(r, campaign) for r in pointing.requirements_of(campaign)]
+    verdicts += pointed  # ECSS pointing requirements beside the 'METRIC OP VALUE' ones (docs/pointing.md)
     summary["requirements"] = verdicts
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
     if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
@@ -77,6 +81,7 @@ def make_report(out, require=(), html=True):
         page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures])
         page = studies.insert_section(page, studies.stopping_html(summary), "<h2>Requirements</h2>")
         page = studies.insert_section(page, studies.sobol_html(summary), "</body>")
+        page = studies.insert_section(page, pointing.html_section(pointed), "</body>")
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)
@@ -85,6 +90,8 @@ def make_report(out, require=(), html=True):
     text = (
         text_module.format_summary(summary, report_dir) + studies.stopping_text(summary) + studies.sobol_text(summary)
     )
+    if pointed:
+        text += "\n\npointing requirements (docs/pointing.md):\n" + "\n".join(pointing.text_lines(pointed))
     return {
         "summary": clean,
         "requirements": clean["requirements"],
@@ -202,14 +209,20 @@ def render_figures(campaign, summary):
         result += entry_figures.figures_of(campaign, summary, bounds_of)
     if histories is not None:
         shown, left_out = aggregate.modes_with_samples(histories, len(campaign.ok))
-        arcsec = any(plan["units"].get(c) == "arcsec" for c in plan["requirement_columns"])
+        pointed = [r for r in summary["requirements"] if r.get("kind") == "pointing"]  # report.pointing
+        arcsec = any(plan["units"].get(c) == "arcsec" for c in plan["requirement_columns"]) or any(
+            r["unit"] == "arcsec" for r in pointed
+        )
         unit, scale = ("arcsec", ARCSEC_PER_DEG) if arcsec else ("deg", 1.0)
         lines = []
         if arcsec:
             seen = set()
             for r in summary["requirements"]:
                 column = split_metric(r["metric"])[0] if r["metric"] not in CAMPAIGN_METRICS else ""
-                if plan["units"].get(column) == "arcsec" and r["value"] not in seen:
+                in_arcsec = (
+                    r["unit"] == "arcsec" if r.get("kind") == "pointing" else plan["units"].get(column) == "arcsec"
+                )
+                if in_arcsec and r["value"] not in seen:
                     seen.add(r["value"])
                     lines.append((r["value"], f"{r['value']:g}″ required ({r['requirement']})"))
         png_bytes = figures.modes_figure(histories, shown, unit=unit, unit_scale=scale, lines=lines)
