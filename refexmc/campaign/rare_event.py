@@ -335,15 +335,22 @@ def study_record(study, event, flown):
             }
         )
     lo, hi = study.ci95
+    reached = study.probability > 0.0
+    below = 1.0
+    for level in study.levels[:-1]:
+        below *= level.probability
     return {
         "event": event.text,
         "method": "subset",
         "proposal": study.design.proposal,
         "per_level": study.design.per_level,
         "p0": study.design.p0,
-        "probability": study.probability,
-        "ci95": [lo, hi if math.isfinite(hi) else None],
-        "cov": study.cov if math.isfinite(study.cov) else None,
+        # no flight in the event: no estimate (never a confident 0), only the last threshold's probability above it
+        "probability": study.probability if reached else None,
+        "ci95": [lo, hi] if reached else None,
+        "cov": study.cov if reached else None,
+        "last_threshold": study.levels[-1].threshold,
+        "last_threshold_probability": below,
         "interval": "Au & Beck (2001) c.o.v. with each level's chain correlation, levels taken as independent; "
         "lognormal 95 % interval P exp(+-1.96 sqrt(ln(1 + cov^2)))",
         "flights": int(flown),
@@ -462,11 +469,8 @@ def _fly_study(campaign_file, campaign, out, design, execution, options, previou
                         zip(table.column("run_id").to_pylist(), table.column("margin").to_pylist(), strict=True)
                     )
         if step in (0, design.steps - 1):
-            failing = sum(margins[i] <= 0.0 for i in ids)
-            notify(
-                f"rare event: level {level} {'flown' if step == 0 else 'done'} "
-                f"({len(margins)} flights so far; {failing} of this round's {len(ids)} in the event)"
-            )
+            in_event = sum(margin <= 0.0 for margin in margins.values())
+            notify(f"rare event: level {level} flown, {len(margins)} flights so far, {in_event} of them in the event")
         return np.array([margins[i] for i in ids], dtype=float)
 
     try:
@@ -526,13 +530,14 @@ def rerun_plan(out, campaign, run_id):
 
 def format_study(record):
     """Lines for the terminal after a study: P, interval and the levels."""
-    lo, hi = record["ci95"]
     p = record["probability"]
-    head = (
-        f"rare event {record['event']}: P = {p:.3g}" if p > 0 else f"rare event {record['event']}: no flight reached it"
-    )
-    if p > 0:
-        head += f", 95 % interval [{lo:.3g}, {hi:.3g}], c.o.v. {record['cov']:.2f}"
+    head = f"rare event {record['event']}: "
+    if p is None:
+        bound = f"P(margin <= {record['last_threshold']:.4g}) ~ {record['last_threshold_probability']:.2g}"
+        head += f"no flight reached it; P <= {bound}"
+    else:
+        lo, hi = record["ci95"]
+        head += f"P = {p:.3g}, 95 % interval [{lo:.3g}, {hi:.3g}], c.o.v. {record['cov']:.2f}"
     lines = [f"{head} from {record['flights']} flights in {len(record['levels'])} levels ({record['stopped']})"]
     for level in record["levels"]:
         threshold = "-" if level["threshold"] is None else f"{level['threshold']:.4g}"

@@ -57,6 +57,10 @@ def make_report(out, require=(), html=True):
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
     if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
         summary["until_decided"] = studies.stopping(campaign)
+    if "rare_event" in campaign.resolved:  # a rare-event study (issue 36): P, its levels, what drives it
+        from refexmc.report import rare_event
+
+        summary["rare_event"] = rare_event.section(campaign)
     sobol_indices = studies.sobol_section(campaign)  # sampling saltelli: Sobol' indices
     if sobol_indices is not None:
         summary["sobol"] = sobol_indices
@@ -77,6 +81,10 @@ def make_report(out, require=(), html=True):
         page = html_module.page(summary, [(t, c, b) for t, c, b, _ in figures])
         page = studies.insert_section(page, studies.stopping_html(summary), "<h2>Requirements</h2>")
         page = studies.insert_section(page, studies.sobol_html(summary), "</body>")
+        if summary.get("rare_event"):
+            from refexmc.report import rare_event
+
+            page = studies.insert_section(page, rare_event.html(summary), "<h2>Requirements</h2>")
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)
@@ -85,6 +93,10 @@ def make_report(out, require=(), html=True):
     text = (
         text_module.format_summary(summary, report_dir) + studies.stopping_text(summary) + studies.sobol_text(summary)
     )
+    if summary.get("rare_event"):
+        from refexmc.report import rare_event
+
+        text += rare_event.text(summary)
     return {
         "summary": clean,
         "requirements": clean["requirements"],
