@@ -68,7 +68,9 @@ def test_every_flight_is_a_run_with_its_level_chain_step_and_margin(flown):
     assert (table["level"] == 0).sum() == 100 and list(result["runs"]["run_id"]) == list(range(100))
     later = table[table["level"] > 0]
     assert len(later) > 0
-    expected = [subset.run_index(design, lv, st, ch) for lv, st, ch in zip(later.level, later.step, later.chain)]
+    expected = [
+        subset.run_index(design, lv, st, ch) for lv, st, ch in zip(later.level, later.step, later.chain, strict=True)
+    ]
     assert list(later["run_id"]) == expected
     ok = table[table["status"] == "ok"]
     np.testing.assert_array_equal(ok["margin"], ok["fuel_remaining"] - FUEL_EVENT)  # the event's margin, its unit
