@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
-from refexmc.campaign import rare_event, storage, subset
+from refexmc.campaign import rare_event, storage, study_plan, subset
 from refexmc.campaign.rerun import rerun
 from refexmc.campaign.sweep import run_campaign_or_sweep
 from refexmc.cli import main
@@ -151,12 +151,12 @@ def test_the_report_judges_level_0_and_reports_the_estimate(flown):
 def test_random_failures_move_through_their_uniforms():
     """The failed set of ``failed_from_uniforms``: the count from u[0] through the cumulative
     probabilities, the units of smallest u[1:]; uniform u give each unit equal odds."""
-    assert rare_event.failed_from_uniforms(np.array([0.5, 0.3, 0.1, 0.9]), [0.4, 0.6]) == (2,)
-    assert rare_event.failed_from_uniforms(np.array([0.1, 0.3, 0.1, 0.9]), [0.4, 0.6]) == ()
+    assert study_plan.failed_from_uniforms(np.array([0.5, 0.3, 0.1, 0.9]), [0.4, 0.6]) == (2,)
+    assert study_plan.failed_from_uniforms(np.array([0.1, 0.3, 0.1, 0.9]), [0.4, 0.6]) == ()
     rng = np.random.default_rng(0)
     counts = np.zeros(6)
     for _ in range(3000):
-        for unit in rare_event.failed_from_uniforms(rng.random(7), [0.0, 0.5, 0.5]):
+        for unit in study_plan.failed_from_uniforms(rng.random(7), [0.0, 0.5, 0.5]):
             counts[unit - 1] += 1
     # 4500 failed units over 6: 750 each, binomial sd ~25
     assert np.all(np.abs(counts - 750) < 5 * 25), counts

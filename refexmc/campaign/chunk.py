@@ -142,9 +142,9 @@ def plan_for(campaign):
     """
     global _last_plan
     if "rare_event" in campaign:  # a rare-event study's round (issue 36): rows with level, chain, step, margin
-        from refexmc.campaign.rare_event import study_plan_for
+        from refexmc.campaign.study_plan import study_plan_for
 
-        return study_plan_for(campaign)
+        return study_plan_for(campaign, RunPlan)
     key = pickle.dumps(campaign, protocol=pickle.HIGHEST_PROTOCOL)
     if _last_plan[0] != key:
         if "entry_flight" in campaign["mission"]:  # an entry campaign (issue 24): core.entry_flight

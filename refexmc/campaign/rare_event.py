@@ -30,22 +30,16 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from refexmc.campaign import lock, storage, subset
-from refexmc.campaign.chunk import RunPlan
-from refexmc.campaign.sampling import _TINY, Sampler, keyed_uniforms_for_runs
+from refexmc.campaign.sampling import _TINY, Sampler
+from refexmc.campaign.study_plan import LEVEL0_ROUND, ROUND_KEY, StudySampler, failure_block
 from refexmc.config import dispersions
 from refexmc.config.derived import unphysical_inertias
 from refexmc.config.errors import ConfigError
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES
 from refexmc.config.rare_event import event_of
 
-ROUND_KEY = "_rare_event_round"  # the round a chunk belongs to, in the campaign a worker gets (never stored)
 MANIFEST_KEY = "rare_event"
 STUDY_COLUMNS = ("level", "chain", "step", "margin")
-
-
-def failure_block(kind):
-    """The name of the uniforms behind a campaign's random ``kind`` failures (count, then one per unit)."""
-    return f"{kind.key}.uniforms"
 
 
 def layout(campaign):
@@ -66,89 +60,6 @@ def layout(campaign):
 def design_of(campaign):
     spec = campaign["rare_event"]
     return subset.Design(spec["per_level"], spec["p0"], spec["max_levels"], spec["proposal"])
-
-
-def failed_from_uniforms(u, count_probabilities):
-    """Failed unit ids (1-based, ascending): the count from u[0], the set the units of smallest u[1:]."""
-    cumulative = np.cumsum(count_probabilities)
-    count = min(int(np.searchsorted(cumulative, u[0], side="right")), len(cumulative) - 1)
-    return tuple(sorted(int(k) + 1 for k in np.argsort(u[1:], kind="stable")[:count]))
-
-
-class StudySampler(Sampler):
-    """The campaign's sampler, with the uniforms of a round's proposals given (``uniforms``: {run id:
-    {block: uniforms}}) and random failures drawn from uniforms as well."""
-
-    def __init__(self, campaign, uniforms=None):
-        super().__init__(campaign)
-        self.given = uniforms or {}
-
-    def uniforms_for_runs(self, path, run_ids, count):
-        if not any(run_id in self.given for run_id in run_ids):
-            if path.endswith(".uniforms"):  # a failure block: keyed like a dispersion
-                return np.clip(keyed_uniforms_for_runs(self.seed, run_ids, path, count), _TINY, 1.0 - _TINY)
-            return super().uniforms_for_runs(path, run_ids, count)
-        return np.array([self.given[run_id][path] for run_id in run_ids]).reshape(len(run_ids), count)
-
-    def _failed_units(self, failures, kind, n_units, sets, run_id):
-        if failures["mode"] != "random":
-            return super()._failed_units(failures, kind, n_units, sets, run_id)
-        u = self.uniforms_for_runs(failure_block(kind), [run_id], 1 + n_units)[0]
-        return failed_from_uniforms(u, failures["count_probabilities"])
-
-
-LEVEL0_ROUND = {"level": 0, "step": 0, "chains": {}, "uniforms": {}}
-
-
-class StudyRunPlan(RunPlan):
-    """:class:`RunPlan` of one round of a study: its sampler takes the round's uniforms, its rows
-    carry ``level``, ``chain``, ``step`` and the event's ``margin``."""
-
-    def __init__(self, campaign):
-        study_round = campaign.get(ROUND_KEY) or LEVEL0_ROUND
-        campaign = {key: value for key, value in campaign.items() if key != ROUND_KEY}
-        super().__init__(campaign)
-        self.event = event_of(campaign, storage.output_names(campaign)["columns"]["runs"])
-        self.set_round(study_round)
-
-    def set_round(self, study_round):
-        """Fly round ``study_round`` (level, step, chains and uniforms by run id) from now on."""
-        self.round = study_round
-        self.sampler = StudySampler(self.campaign, study_round["uniforms"])
-
-    def _study_columns(self, run_id, row):
-        level = self.round["level"]
-        chain = run_id if level == 0 else self.round["chains"][run_id]
-        margin = float(self.event.margins([row.get(self.event.metric, math.nan)])[0])
-        if row["status"] == "error":
-            margin = -math.inf  # no value of its own: it counts as the event (the report says so)
-        row.update({"level": level, "chain": chain, "step": self.round["step"], "margin": margin})
-        return row
-
-    def fly_run(self, run_id, history_rate_hz, prepared=None):
-        row, result = super().fly_run(run_id, history_rate_hz, prepared)
-        return self._study_columns(run_id, row), result
-
-    def error_row(self, run_id, reason):
-        return self._study_columns(run_id, super().error_row(run_id, reason))
-
-
-_last_study_plan = (None, None)  # (the campaign's pickle without its round, its StudyRunPlan)
-
-
-def study_plan_for(campaign):
-    """The :class:`StudyRunPlan` of a round's campaign: built once per study in a worker (3-6 ms and
-    a pack), then given each round's uniforms (``chunk.plan_for`` for a rare-event campaign)."""
-    import pickle
-
-    global _last_study_plan
-    base = {key: value for key, value in campaign.items() if key != ROUND_KEY}
-    key = pickle.dumps(base, protocol=pickle.HIGHEST_PROTOCOL)
-    if _last_study_plan[0] != key:
-        _last_study_plan = (key, StudyRunPlan(base))
-    plan = _last_study_plan[1]
-    plan.set_round(campaign.get(ROUND_KEY) or LEVEL0_ROUND)
-    return plan
 
 
 def level0_normals(campaign, blocks, run_ids):
@@ -257,7 +168,7 @@ def round_chunks(design, chunk_size, level, step, run_ids):
 def round_campaign(campaign, blocks, level, step, z, run_ids, design):
     """The campaign a worker flies round (level, step) with: the proposals' uniforms by run id."""
     if level == 0:
-        return {**campaign, ROUND_KEY: {"level": 0, "step": 0, "chains": {}, "uniforms": {}}}
+        return {**campaign, ROUND_KEY: LEVEL0_ROUND}
     first = subset.run_index(design, level, step, 0)
     u = uniforms_of(z)
     return {
@@ -515,8 +426,10 @@ def read_study_runs(out):
 
 def rerun_plan(out, campaign, run_id):
     """The plan that flies run ``run_id`` of the study in OUT again (its round replayed from OUT)."""
+    from refexmc.campaign.chunk import plan_for  # the flying machinery: only to fly
+
     if run_id < design_of(campaign).per_level:
-        return StudyRunPlan(campaign)
+        return plan_for(campaign)
     margins = stored_margins(out)
     if run_id not in margins:
         raise ConfigError(
@@ -525,7 +438,7 @@ def rerun_plan(out, campaign, run_id):
             file=out,
             path=("RUN_ID",),
         )
-    return StudyRunPlan(replay(campaign, margins, stop_at=run_id))
+    return plan_for(replay(campaign, margins, stop_at=run_id))
 
 
 def format_study(record):

@@ -1244,7 +1244,7 @@ CAMPAIGN = obj(
                 "event": string("the event on one run, 'METRIC OP VALUE' (a runs column; OP <= < >= >)"),
                 "method": string("the estimator", enum=["subset"], default="subset"),
                 "per_level": {**integer("flights per level; level 0 is an ordinary random draw", 20), "default": 1000},
-                "p0": number("conditional probability of each level, 0 < p0 <= 0.5", None, 0.5, 0.0, 0.1),
+                "p0": number("conditional probability of each level, 0 < p0 <= 0.5 [-]", None, 0.5, 0.0, 0.1),
                 "max_levels": {**integer("most levels (level 0 included); P down to about p0^max_levels", 1, 40)},
                 "proposal": string(
                     "the Markov-chain move in the standard-normal space of the inputs: pcn (preconditioned "
