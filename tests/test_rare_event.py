@@ -211,3 +211,27 @@ def test_the_shipped_studies_validate():
         campaign = load_campaign(ROOT / "campaigns" / name)
         assert campaign["runs"] == campaign["rare_event"]["per_level"]
         assert math.isclose(campaign["rare_event"]["p0"], 0.1)
+
+
+@pytest.mark.slow
+def test_dask_gives_the_same_table(flown, tmp_path):
+    """On a Dask LocalCluster (one for the whole study): the loky table, row for row."""
+    pytest.importorskip("distributed")
+    _, result = flown
+    other = _fly(tmp_path, "dask", jobs=2, backend="dask", scheduler="local:2")
+    pd.testing.assert_frame_equal(_sorted(result["study_runs"]), _sorted(other["study_runs"]))
+
+
+def test_margins_of_events_and_requirements_are_signed_distances_in_the_metric_unit():
+    from refexmc.config.rare_event import parse_event, requirement_event
+    from refexmc.config.requirements import parse_requirement
+
+    columns = ["fuel_remaining", "position_error_end_m"]
+    low = parse_event("fuel_remaining <= 0.0", columns)
+    np.testing.assert_array_equal(low.margins([0.3, 0.0, -0.0, np.nan]), [0.3, 0.0, 0.0, -np.inf])
+    high = parse_event("position_error_end_m > 0.05", columns)
+    np.testing.assert_allclose(high.margins([0.01, 0.07]), [0.04, -0.02])
+    required = requirement_event(parse_requirement("fuel_remaining.min >= 0.2", columns))
+    assert (required.metric, required.op) == ("fuel_remaining", "<")
+    np.testing.assert_allclose(required.margins([0.5, 0.1]), [0.3, -0.1])
+    assert requirement_event(parse_requirement("success_rate >= 0.9", columns)) is None

@@ -23,7 +23,7 @@ missing ones. ``rerun`` replays the study up to the run's round and flies it aga
 import math
 import os
 import shutil
-from contextlib import closing
+from contextlib import closing, contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -330,7 +330,6 @@ def run_rare_event(
 
 def _fly_study(campaign_file, campaign, out, design, execution, options, previous, chunk_size, notify):
     from refexmc.campaign import run as run_module
-    from refexmc.campaign.backends import BACKENDS
     from refexmc.campaign.worker import Guard
 
     if previous:
@@ -366,8 +365,7 @@ def _fly_study(campaign_file, campaign, out, design, execution, options, previou
         todo = run_module.chunks_to_fly(out, chunks, notify) if previous else chunks
         if todo:
             flown_campaign = round_campaign(campaign, blocks, level, step, z, ids, design)
-            backend = BACKENDS[execution["backend"]](flown_campaign, todo, execution["jobs"], guard, **options)
-            with closing(backend) as flown:
+            with closing(fly_round(flown_campaign, todo)) as flown:
                 for chunk, rows, runs, history in flown:
                     name = storage.part_name(chunk)
                     storage.write_bytes_atomic(history, out / "histories" / name)
@@ -385,10 +383,11 @@ def _fly_study(campaign_file, campaign, out, design, execution, options, previou
         return np.array([margins[i] for i in ids], dtype=float)
 
     try:
-        z0 = level0_normals(campaign, blocks, np.arange(design.per_level))
-        study = subset.subset_simulation(
-            design, campaign["seed"], z0.shape[1], evaluate, z0=z0, in_support=support_check(campaign, blocks)
-        )
+        with round_flyer(execution, options, guard) as fly_round:
+            z0 = level0_normals(campaign, blocks, np.arange(design.per_level))
+            study = subset.subset_simulation(
+                design, campaign["seed"], z0.shape[1], evaluate, z0=z0, in_support=support_check(campaign, blocks)
+            )
     except run_module.CampaignInterrupted:
         write_manifest("interrupted")
         raise
@@ -414,6 +413,25 @@ def _fly_study(campaign_file, campaign, out, design, execution, options, previou
         "campaign": campaign,
         MANIFEST_KEY: record,
     }
+
+
+@contextmanager
+def round_flyer(execution, options, guard):
+    """``fly_round(campaign, chunks)``: the backend's generator of flown chunks for one round. On Dask,
+    one client for the whole study (a ``local:N`` cluster started once, not once per round)."""
+    from refexmc.campaign.backends import BACKENDS
+
+    if execution["backend"] != "dask":
+        yield lambda campaign, chunks: BACKENDS[execution["backend"]](
+            campaign, chunks, execution["jobs"], guard, **options
+        )
+        return
+    from refexmc.campaign import dask_backend
+
+    distributed = dask_backend.require_distributed()
+    remote = guard._replace(state_dir=None)  # the parent's work directory is not on the workers' disks
+    with dask_backend.connect(options["scheduler"], execution["jobs"]) as client:
+        yield lambda campaign, chunks: dask_backend._fly_chunks(distributed, client, campaign, chunks, remote)
 
 
 def read_study_runs(out):

@@ -5,7 +5,8 @@ An event is written like a requirement on one run, ``'METRIC OP VALUE'``: METRIC
 of the runs table, OP one of ``<= < >= >``. Its **margin** is the signed distance to VALUE in the
 metric's unit, ``<= 0`` where the event happens: ``metric - VALUE`` for ``<=``/``<``, ``VALUE -
 metric`` for ``>=``/``>``. A flight that failed keeps the margin of its flown value; a run with no
-value (an errored run) has margin ``-inf``: it counts as the event, and the report says so.
+value (an errored run) has margin ``-inf``: it counts as the event, and the report says so. A
+requirement on a runs column has the margin of the event that fails it (:func:`requirement_event`).
 """
 
 import math
@@ -100,6 +101,23 @@ def check_rare_event(data, campaign, columns, file, lines):
             fail("rare_event cannot move enumerated failures; use mode random or fixed", key, "mode")
     campaign["runs"] = spec["per_level"]
     return spec
+
+
+_VIOLATION = {">=": "<", ">": "<=", "<=": ">", "<": ">="}  # a requirement's OP -> its failing run's
+
+
+def requirement_event(requirement):
+    """The event a run fails requirement ``METRIC.STAT OP VALUE`` by (a ``config.requirements.Requirement``
+    on a runs column), so that its per-run margin is the requirement's: ``fuel_remaining.min >= 0.2``
+    gives ``fuel_remaining < 0.2``, margin ``fuel_remaining - 0.2``. None for a campaign metric
+    (``success_rate``) or ``==``, which have no per-run margin."""
+    from refexmc.config.requirements import split_metric
+
+    column, stat = split_metric(requirement.metric)
+    if stat is None or requirement.op not in _VIOLATION:
+        return None
+    op = _VIOLATION[requirement.op]
+    return Event(f"{column} {op} {requirement.value:g}", column, op, requirement.value)
 
 
 def event_of(campaign, columns):
