@@ -5,8 +5,8 @@ Acceptance (issue 36): over 50 independent studies, the estimates' mean is withi
 the stated 95 % interval covers P in at least 85 % of them. The coverage is counted over 200
 studies (the first 50 of which give the mean): Au & Beck's c.o.v. treats the levels as
 independent and is a little low (measured: ~0.28 stated against ~0.35 observed on the parabola),
-so the interval covers ~89-91 %, and 50 studies alone would put that to a coin toss against 85 %
-(binomial sd 4.4 %). The pure function is the campaign's own algorithm
+so the interval covers ~88-92 % (docs/rare-events.md sec. 4), and 50 studies alone would fall
+below 85 % one time in four (binomial sd 4.6 %). The pure function is the campaign's own algorithm
 (refexmc.campaign.rare_event calls it with flown margins).
 """
 
