@@ -320,7 +320,8 @@ def run_rare_event(
                     campaign_file, campaign, out, design, execution, options, previous, chunk_size, notify
                 )
         except run_module.CampaignInterrupted as exc:
-            exc.out, exc.total = out, "?"
+            most = design.per_level + (design.max_levels - 1) * (design.per_level - design.chains)
+            exc.out, exc.total = out, f"at most {most}"  # the levels still to fly are not known
             exc.done = len(stored_margins(out)) if storage.is_output(out) else 0
             raise
         finally:
