@@ -271,9 +271,9 @@ def study_record(study, event, flown):
 
 
 def run_rare_event(
-    campaign_file,
-    campaign,
-    out,
+    campaign_file=None,
+    out=None,
+    seed=None,
     jobs=None,
     backend="loky",
     scheduler=None,
@@ -282,15 +282,25 @@ def run_rare_event(
     progress=None,
     chunk_size=None,
     notify=None,
-    **_ignored,
+    strict=False,
+    runs=None,
 ):
-    """Fly (or finish, ``resume``) the study of the validated ``campaign`` into OUT; the result of
+    """Fly (or finish, ``resume``) the rare-event study of ``campaign_file`` into OUT; the result of
     ``run.run_campaign`` (``runs``: level 0's table, the campaign's ordinary statistics) with
-    ``rare_event`` (:func:`study_record`) and ``study_runs`` (every flight)."""
+    ``rare_event`` (:func:`study_record`) and ``study_runs`` (every flight). The options are
+    :func:`refexmc.campaign.run.run_campaign`'s (``progress``: the levels are reported to ``notify``
+    instead; ``runs``: refused, a study's are ``per_level`` a level)."""
     from refexmc.campaign import run as run_module
     from refexmc.campaign.backends import check_backend, start_workers, stop_workers
+    from refexmc.config.design_checks import strict_error
 
     notify = notify or run_module.notify_stderr
+    design_warnings = []
+    campaign_file, campaign = run_module.resolve_campaign(campaign_file, runs, seed, design_warnings)
+    if strict and design_warnings:
+        raise strict_error(design_warnings)
+    for warning in design_warnings:
+        notify(f"warning: {warning}")
     jobs = run_module.default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
@@ -298,6 +308,7 @@ def run_rare_event(
     out = Path(out) if out is not None else run_module.default_output(campaign)
     design = design_of(campaign)
     execution = {
+        "design_warnings": [str(w) for w in design_warnings],
         "jobs": jobs,
         "backend": backend,
         "scheduler": scheduler,
