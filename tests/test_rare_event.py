@@ -33,6 +33,7 @@ dispersions:
   inertia_kg_m2: {{dist: inertia, moments_sigma_fraction: [0.033, 0.033, 0.033], axes_sigma_deg: [0.5, 0.5, 0.5]}}
   rcs.propellant_kg: {{dist: truncnorm, sigma: 0.0253, low: 0.57, high: 0.95}}
   navigation.rate_noise_deg_s: {{dist: uniform, low: 0.0, high: 0.02}}
+  atmosphere.density_scale: {{dist: constant, value: 1.0}}
 output:
   history_rate_hz: 0.5
 requirements:

@@ -361,7 +361,8 @@ def _fly_study(campaign_file, campaign, out, design, execution, options, previou
             info[MANIFEST_KEY] = record
         storage.write_manifest(out, info)
 
-    storage.remove_report(out)
+    if not previous or previous.get("status") != "complete":
+        storage.remove_report(out)  # it would describe other contents
     write_manifest("running")
     margins = stored_margins(out) if previous else {}
     blocks = layout(campaign)

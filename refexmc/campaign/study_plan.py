@@ -40,7 +40,7 @@ class StudySampler(Sampler):
         self.given = uniforms or {}
 
     def uniforms_for_runs(self, path, run_ids, count):
-        if not any(run_id in self.given for run_id in run_ids):
+        if count == 0 or not any(run_id in self.given for run_id in run_ids):  # a constant draws none
             if path.endswith(".uniforms"):  # a failure block: keyed like a dispersion
                 return np.clip(keyed_uniforms_for_runs(self.seed, run_ids, path, count), _TINY, 1.0 - _TINY)
             return super().uniforms_for_runs(path, run_ids, count)
