@@ -186,7 +186,8 @@ def load(out):
     if "rare_event" in (resolved or {}) and "level" in runs.columns:  # the statistics are level 0's (issue 36)
         study_runs = runs
         runs = runs[runs["level"] == 0].drop(columns=list(STUDY_COLUMNS)).reset_index(drop=True)
-        level0_parts = -(-len(runs) // max(1, int(manifest.get("chunk_size") or len(runs) or 1)))
+        per_level = int(resolved.get("runs") or len(runs) or 1)  # a study's runs: per_level (config.rare_event)
+        level0_parts = -(-per_level // max(1, int(manifest.get("chunk_size") or per_level)))
         history_parts = [p for p in history_parts if int(p.stem.split("-")[1]) < level0_parts]
     names = mode_names(manifest, runs.columns, file=manifest_path)
     missing = [mode_time_column(name) for name in names if mode_time_column(name) not in runs.columns]
