@@ -162,6 +162,10 @@ def run(
         if dask_local:
             dask_backend.stop_early()  # a cluster that no campaign took (bad input)
     click.echo(format_run_summary(result))
+    if "rare_event" in result:  # a rare-event study (docs/rare-events.md): its estimate and levels
+        from refexmc.campaign.rare_event import format_study
+
+        click.echo(format_study(result["rare_event"]))
     if until_decided:
         from refexmc.campaign.decided import format_stopping
 

@@ -46,9 +46,15 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
     campaign = load_campaign(resolved)
     if "sweep" in campaign:  # its runs are the points' (refexmc.campaign.sweep)
         raise ConfigError("a sweep's output: re-fly a run of one point, OUT/points/NNN", file=out)
-    if not 0 <= run_id < campaign["runs"]:
+    if "rare_event" in campaign:  # a study's run: its round replayed from OUT (refexmc.campaign.rare_event)
+        from refexmc.campaign.rare_event import rerun_plan
+
+        if run_id < 0:
+            raise ConfigError(f"expected a run id >= 0, got {run_id}", file=out, path=("RUN_ID",))
+        plan = rerun_plan(out, campaign, run_id)
+    elif not 0 <= run_id < campaign["runs"]:
         raise ConfigError(f"expected a run id 0..{campaign['runs'] - 1}, got {run_id}", file=out, path=("RUN_ID",))
-    if "entry_flight" in campaign["mission"]:  # an entry campaign (issue 24): its history is one row per second
+    elif "entry_flight" in campaign["mission"]:  # an entry campaign (issue 24): its history is one row per second
         from refexmc.campaign.entry_plan import EntryRunPlan
 
         plan = EntryRunPlan(campaign)

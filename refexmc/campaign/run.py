@@ -260,6 +260,10 @@ def run_campaign(
     jobs = default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
+    if "rare_event" in campaign:  # its levels follow one another (refexmc.campaign.rare_event)
+        raise ConfigError(
+            "a rare-event study flies level by level with `refexmc run` (not --until-decided)", file=campaign_file
+        )
     if "sweep" in campaign:  # every point a campaign of its own
         raise ConfigError(
             "a sweep flies with refexmc.campaign.sweep.run_campaign_or_sweep (`refexmc run`)", file=campaign_file

@@ -56,6 +56,10 @@ def run_campaign_or_sweep(campaign_file=None, out=None, runs=None, seed=None, **
     """:func:`run_sweep` for a campaign with a ``sweep``, else :func:`refexmc.campaign.run.run_campaign`
     (the same arguments)."""
     resolved_file, campaign = resolve_campaign(campaign_file, runs, seed)
+    if "rare_event" in campaign:  # levels of subset simulation (refexmc.campaign.rare_event)
+        from refexmc.campaign.rare_event import run_rare_event
+
+        return run_rare_event(campaign_file, out=out, runs=runs, seed=seed, **options)
     if "sweep" not in campaign:
         return run_campaign(campaign_file, out=out, runs=runs, seed=seed, **options)
     return run_sweep(resolved_file, campaign, out if out is not None else default_output(campaign), **options)

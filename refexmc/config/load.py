@@ -829,6 +829,10 @@ def load_campaign(path, warnings=None):
 
         campaign["sweep"] = data["sweep"]
         sweep.check_sweep(campaign, path, lines, columns)
+    if "rare_event" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
+        from refexmc.config.rare_event import check_rare_event
+
+        campaign["rare_event"] = check_rare_event(data, campaign, columns, path, lines)
     enumerated = enumerated_failures(campaign)
     if enumerated is not None:
         n_units = n_thrusters if enumerated is THRUSTER_FAILURES else len(wheel_units)
@@ -914,6 +918,13 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
                 line=lines.get((key,)),
                 path=(key,),
             )
+    if "rare_event" in data:
+        raise ConfigError(
+            "rare_event is not available with an entry mission yet (docs/rare-events.md)",
+            file=path,
+            line=lines.get(("rare_event",)),
+            path=("rare_event",),
+        )
     for key in ("sampling", "sobol"):
         if key in data and (key == "sobol" or data[key] == "saltelli"):
             raise ConfigError(
@@ -1073,6 +1084,8 @@ def _check_entry_sweep(campaign, path, lines):
 
 def apply_overrides(campaign, runs=None, seed=None):
     """Command-line ``--runs``/``--seed`` over the file's values; ConfigError when not allowed."""
+    if runs is not None and "rare_event" in campaign:
+        raise ConfigError("--runs cannot be used with rare_event (set rare_event.per_level)", path=("--runs",))
     if runs is not None:
         enumerated = enumerated_failures(campaign)
         if enumerated is not None:

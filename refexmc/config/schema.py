@@ -1310,6 +1310,24 @@ CAMPAIGN = obj(
                 },
             ),
         },
+        "rare_event": obj(
+            "estimate the probability of a rare event by subset simulation (Au & Beck 2001; "
+            "refexmc.config.rare_event, docs/rare-events.md); needs sampling random, nominal_first false, no runs",
+            {
+                "event": string("the event on one run, 'METRIC OP VALUE' (a runs column; OP <= < >= >)"),
+                "method": string("the estimator", enum=["subset"], default="subset"),
+                "per_level": {**integer("flights per level; level 0 is an ordinary random draw", 20), "default": 1000},
+                "p0": number("conditional probability of each level, 0 < p0 <= 0.5 [-]", None, 0.5, 0.0, 0.1),
+                "max_levels": {**integer("most levels (level 0 included); P down to about p0^max_levels", 1, 40)},
+                "proposal": string(
+                    "the Markov-chain move in the standard-normal space of the inputs: pcn (preconditioned "
+                    "Crank-Nicolson) or mma (component-wise modified Metropolis, Au & Beck sec. 3)",
+                    enum=["pcn", "mma"],
+                    default="pcn",
+                ),
+            },
+            optional=("method", "per_level", "p0", "max_levels", "proposal"),
+        ),
         "sweep": obj(
             "parameters varied over a grid, each point a full campaign (refexmc.config.sweep, docs/studies.md)",
             {
@@ -1383,5 +1401,6 @@ CAMPAIGN = obj(
         "published",
         "sweep",
         "sobol",
+        "rare_event",
     ),
 )

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from refexmc.campaign.storage import write_text_atomic
-from refexmc.report import data, pointing, studies
+from refexmc.report import data, pointing, rare_event, studies
 from refexmc.report import summary as summary_module
 from refexmc.report import text as text_module
 from refexmc.report.requirements import CAMPAIGN_METRICS, evaluate, overall_verdict, parse_requirement, split_metric
@@ -61,6 +61,8 @@ def make_report(out, require=(), html=True):
     summary["verdict"], summary["passed"], summary["banner"] = overall_verdict(summary["completeness"], verdicts)
     if studies.stopping(campaign):  # flown with --until-decided: how many runs, why it stopped
         summary["until_decided"] = studies.stopping(campaign)
+    if "rare_event" in campaign.resolved:  # a rare-event study (issue 36): P, its levels, what drives it
+        summary["rare_event"] = rare_event.section(campaign)
     sobol_indices = studies.sobol_section(campaign, summary["outputs"])  # sampling saltelli: Sobol' indices
     if sobol_indices is not None:
         summary["sobol"] = sobol_indices
@@ -82,6 +84,8 @@ def make_report(out, require=(), html=True):
         page = studies.insert_section(page, studies.stopping_html(summary), "<h2>Requirements</h2>")
         page = studies.insert_section(page, studies.sobol_html(summary), "</body>")
         page = studies.insert_section(page, pointing.html_section(pointed), "</body>")
+        if summary.get("rare_event"):
+            page = studies.insert_section(page, rare_event.html(summary), "<h2>Requirements</h2>")
         write_text_atomic(page, report_dir / "index.html")
         files.append(report_dir / "index.html")
     clean = summary_module.json_ready(summary)
@@ -92,6 +96,8 @@ def make_report(out, require=(), html=True):
     )
     if pointed:
         text += "\n\npointing requirements (docs/pointing.md):\n" + "\n".join(pointing.text_lines(pointed))
+    if summary.get("rare_event"):
+        text += rare_event.text(summary)
     return {
         "summary": clean,
         "requirements": clean["requirements"],

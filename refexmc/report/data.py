@@ -68,6 +68,7 @@ class Campaign:
     resolved_lines: dict  # key path -> line in campaign.resolved.yaml
     manifest: dict = field(default_factory=dict)
     history_parts: list = field(default_factory=list)
+    study_runs: pd.DataFrame | None = None  # a rare-event study's every flight; ``runs`` is its level 0
 
     # The populations are computed once per Campaign (the runs table is not changed after load);
     # a population that is the whole table is the table itself, not a copy: at 100,000 runs and
@@ -182,6 +183,13 @@ def load(out):
             runs[column] = runs[column].astype(object).where(runs[column].notna(), None)
     if "failed_thrusters" in runs:
         runs["failed_thrusters"] = runs["failed_thrusters"].fillna("")
+    study_runs, history_parts = None, sorted((out / "histories").glob("part-*.parquet"))
+    if "rare_event" in (resolved or {}) and "level" in runs.columns:  # the statistics are level 0's (issue 36)
+        study_runs = runs
+        runs = runs[runs["level"] == 0].drop(columns=list(STUDY_COLUMNS)).reset_index(drop=True)
+        per_level = int(resolved.get("runs") or len(runs) or 1)  # a study's runs: per_level (config.rare_event)
+        level0_parts = -(-per_level // max(1, int(manifest.get("chunk_size") or per_level)))
+        history_parts = [p for p in history_parts if int(p.stem.split("-")[1]) < level0_parts]
     names = mode_names(manifest, runs.columns, file=manifest_path)
     missing = [mode_time_column(name) for name in names if mode_time_column(name) not in runs.columns]
     if missing:
@@ -196,7 +204,8 @@ def load(out):
         resolved=resolved or {},
         resolved_lines=lines,
         manifest=manifest,
-        history_parts=sorted((out / "histories").glob("part-*.parquet")),
+        history_parts=history_parts,
+        study_runs=study_runs,
     )
 
 
@@ -228,6 +237,8 @@ def completeness(campaign):
     chunk_size = campaign.manifest.get("chunk_size") if campaign.manifest else None
     if planned is not None and isinstance(chunk_size, int) and chunk_size > 0:
         expected_parts = {storage.part_name(k) for k in range(-(-int(planned) // chunk_size))}
+    if campaign.study_runs is not None and expected_parts:  # a rare-event study: level 0's parts are the campaign's
+        runs_parts &= expected_parts
     missing_chunks = sorted((expected_parts - runs_parts) | ((runs_parts - history_parts) if history_parts else set()))
     if missing_chunks:
         problems.append(
@@ -252,6 +263,7 @@ def completeness(campaign):
 
 
 LISTED_IDS = 20
+STUDY_COLUMNS = ("level", "chain", "step", "margin")  # a rare-event study's own columns (campaign.rare_event)
 
 
 def resume_command(campaign):
