@@ -440,6 +440,10 @@ def test_every_dispersion_path_and_component_changes_the_flight(base):
     campaign = copy.deepcopy(base)
     # calibration time only acts on an attitude bias, noise only with a non-zero seed
     campaign["mission"]["navigation"]["attitude_bias_deg"] = [0.5, -0.4, 0.3]
+    # a correlation time only acts with a Gauss-Markov sigma (issue 35)
+    campaign["mission"]["navigation"].update(
+        attitude_gm_sigma_deg=0.01, attitude_gm_tau_s=5.0, rate_gm_sigma_deg_s=0.001, rate_gm_tau_s=5.0
+    )
     # the entry paths (an entry mission only): tests/test_x38_campaign.py
     others = ORBIT_PATHS + WHEEL_PATHS + LOCAL_PATHS + ("entry_flight.",)
     paths = [p for p in dispersions.PARAMETERS if not p.startswith(others)]

@@ -136,14 +136,15 @@ def test_a_translate_mode_flies_to_its_own_target(surveyor):
     assert alone.success and alone.runs_values()["switches_y"] <= 2
 
 
-REPORT_ONLY = [f"--tolerance={metric}=inf" for metric in ("t_hop_s", "t_end_s", "position_error_end_m", "pulses_total")]
+REPORT_ONLY = [f"--tolerance={metric}=inf" for metric in ("t_hop_s", "position_error_end_m")]  # as docs/cold-gas.md
 
 
 def test_compare_puts_the_law_and_pd_pwm_side_by_side(tmp_path):
     """`refexmc compare` of the two campaigns (12 runs each, the same draws): paired run by run,
-    the time to arrive and the gas as the mean of each runs table (computed here from the stored
-    tables), PD + PWM over twice as slow and under half the gas, and with the time metrics set to
-    report only (docs/cold-gas.md) the comparison passes: exit 0."""
+    the time to arrive and the gas as the median of each runs table's flown runs (the statistic
+    the paired difference is of; computed here from the stored tables), PD + PWM over twice as
+    slow and under half the gas, and with the time metrics set to report only (docs/cold-gas.md)
+    the comparison passes: exit 0."""
     outs = {}
     for name in ("surveyor-hop", "surveyor-hop-pd-pwm"):
         path = campaign_copy(f"{name}.yaml", tmp_path, replace=[("runs: 1000", "runs: 12")])
@@ -155,9 +156,11 @@ def test_compare_puts_the_law_and_pd_pwm_side_by_side(tmp_path):
     assert "paired run by run on 12 runs" in result.output
     rows = {line.split()[0]: line.split() for line in result.output.splitlines() if line.strip()}
     for metric in ("t_hop_s", "fuel_used_kg"):
-        law_mean, pd_mean = (np.nanmean(read_runs(out)[metric]) for out in (law, pd))
-        for printed, mean in ((rows[metric][1], law_mean), (rows[metric][2], pd_mean)):
+        law_median, pd_median = (
+            np.nanmedian(runs.loc[runs["status"] == "ok", metric]) for runs in map(read_runs, (law, pd))
+        )
+        for printed, median in ((rows[metric][1], law_median), (rows[metric][2], pd_median)):
             half_digit = 0.5 * 10.0 ** -len(printed.split(".")[1])  # rounded to the printed decimals
-            assert abs(float(printed) - mean) <= half_digit, (metric, printed, mean)
+            assert abs(float(printed) - median) <= half_digit, (metric, printed, median)
     assert float(rows["t_hop_s"][2]) > 2.0 * float(rows["t_hop_s"][1])
     assert float(rows["fuel_used_kg"][2]) < 0.5 * float(rows["fuel_used_kg"][1])

@@ -820,6 +820,11 @@ def load_campaign(path, warnings=None):
     mode_names = [mode["name"] for mode in mission["modes"]]
     options = requirements.column_options(vehicle, mission)
     columns = requirements.runs_metric_columns(mode_names, n_thrusters, parameter_columns, **options)
+    for i, item in enumerate(campaign["requirements"]):  # a pointing record: its schema, then its sense
+        if pointing.is_pointing(item):
+            prefix = ("requirements", i)
+            within = {key[2:]: line for key, line in lines.items() if key[:2] == prefix}
+            validate(item, schema.POINTING_REQUIREMENT, path, within, prefix=prefix)
     pointed = pointing.parse(campaign["requirements"], mission, campaign["dispersions"], path, lines)
     columns += [req.column for req in pointed]  # their runs columns (docs/pointing.md)
     requirements.check_requirements(campaign["requirements"], columns, path, lines)

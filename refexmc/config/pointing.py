@@ -110,17 +110,11 @@ def navigation_modelled(mission, dispersions=()):
     return declared or any(str(key).startswith("navigation.attitude_") for key in dispersions)
 
 
-def _sub_lines(lines, prefix):
-    n = len(prefix)
-    return {key[n:]: line for key, line in lines.items() if key[:n] == prefix}
-
-
 def parse(requirements, mission, dispersions=(), file=None, lines=None):
     """The pointing records of a campaign's ``requirements``, checked (ConfigError with file, line
-    and key path): schema, one bound, a boresight for los only, window modes of the mission,
-    window from < to, knowledge indices only where navigation is modelled, distinct columns."""
-    from refexmc.config.load import validate  # load imports this module's callers
-
+    and key path; ``load_campaign`` has validated each against ``schema.POINTING_REQUIREMENT``):
+    one bound, a boresight for los only, window modes of the mission, window from < to,
+    knowledge indices only where navigation is modelled, distinct columns."""
     lines = lines or {}
     mode_names = [mode["name"] for mode in mission["modes"]]
     parsed, columns = [], {}
@@ -134,7 +128,6 @@ def parse(requirements, mission, dispersions=(), file=None, lines=None):
             line = next((lines[full[:k]] for k in range(len(full), 0, -1) if full[:k] in lines), None)
             raise ConfigError(message, file=file, line=line, path=full)
 
-        validate(item, schema.POINTING_REQUIREMENT, file, _sub_lines(lines, prefix), prefix=prefix)
         bounds = [key for key in ("bound_arcsec", "bound_deg") if key in item]
         if len(bounds) != 1:
             fail("expected one bound: bound_arcsec or bound_deg", *(bounds[1:2] or []))
