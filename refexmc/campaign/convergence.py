@@ -19,7 +19,7 @@ import copy
 import math
 from dataclasses import dataclass
 
-from refexmc.config import requirements
+from refexmc.config import pointing, requirements
 
 FRACTION_LIMIT = 0.10  # a difference beyond 10 % of the margin warns (an error under --strict)
 REFINEMENT = 4  # the refined run's steps are the campaign's / 4
@@ -104,7 +104,14 @@ def step_convergence(campaign):
     coarse_row = _nominal_row(coarse_campaign)
     fine_row = _nominal_row(fine_campaign)
     comparisons = []
-    for text in campaign["requirements"]:
+    records = {req.position: req for req in pointing.of_campaign(campaign)}
+    for position, text in enumerate(campaign["requirements"]):
+        if position in records:  # a pointing record: its own runs column against its bound
+            req = records[position]
+            coarse, fine = float(coarse_row[req.column]), float(fine_row[req.column])
+            threshold = 1.0 - req.p_c if req.interpretation == "mixed" else req.bound  # mixed: time above
+            comparisons.append(Comparison(req.text(), coarse, fine, fraction_of_margin(coarse, fine, threshold)))
+            continue
         parsed = requirements.parse_requirement(text, list(coarse_row) + list(requirements.CAMPAIGN_METRICS))
         coarse = run_value(coarse_row, parsed.metric)
         fine = run_value(fine_row, parsed.metric)
