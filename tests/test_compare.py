@@ -409,7 +409,7 @@ def test_the_stored_baseline_is_the_smoke_campaign():
 
 OWN_MISSIONS = {  # campaign file: (runs flown, requirement metric the regression is injected into, factor)
     # IRASSI: the time the wheels are held at a limit twice as long in every run, against its 600 s
-    # requirement (its pointing requirement is an ECSS record, docs/pointing.md, which compare does not read)
+    # requirement; its pointing requirement (an ECSS record, docs/pointing.md) judges its own column
     "irassi-fine-pointing.yaml": (10, "wheel_saturated_s", 2.0),
     # SPORE: the engine pointing during the burn twice as large: +0.4 deg at the median, more than a
     # tenth of its 1.5 deg margin to the 2 deg requirement (REQUIREMENT_MARGIN_SHARE)
@@ -461,6 +461,12 @@ def test_other_missions_are_compared_by_their_own_metrics(own_mission):
             judged.append(metric.rsplit(".", 1)[0])
     # the rates, then the requirements' columns in their order; the hand-over angle only where flown
     assert metrics[:2] == ["success_rate", "error_rate"] and metrics[2 : 2 + len(judged)] == judged
+    # a pointing record's column is judged by its bound: lower is better, gated by its margin
+    from refexmc.config import pointing
+
+    for req in pointing.of_campaign(load_campaign(ROOT / "campaigns" / name)):
+        spec = by_metric(result)[req.column]
+        assert spec.better == "lower" and req.text() in spec.requirement, spec
     runs = data.load(root / "baseline").runs
     assert ("theta_t_handover_deg" in metrics) == bool(np.isfinite(runs["theta_t_handover_deg"]).any())
     # success over all runs, as the report counts it

@@ -50,7 +50,7 @@ import numpy as np
 
 from refexmc.config.errors import ConfigError
 from refexmc.config.requirements import parse_requirement
-from refexmc.report import data, outputs, stats, tails
+from refexmc.report import data, outputs, pointing, stats, tails
 from refexmc.report.stats import (
     ks_p,
     mcnemar_exact,
@@ -119,6 +119,9 @@ def _requirements(campaign):
         except ConfigError:
             continue
         result.append({"metric": r.metric, "op": r.op, "value": r.value, "requirement": r.text})
+    for req in pointing.requirements_of(campaign):  # a pointing record: its runs column, lower is better
+        limit = 1.0 - req.p_c if req.interpretation == "mixed" else req.bound
+        result.append({"metric": req.column, "op": "<=", "value": limit, "requirement": req.text()})
     return result
 
 

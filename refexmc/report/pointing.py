@@ -77,7 +77,7 @@ def evaluate(req, campaign):
         "source": "campaign",
         "metric": req.column,
         "op": "<=",
-        "value": req.bound,
+        "value": limit,  # in the column's unit (mixed: a fraction of the window's time)
         "kind": "pointing",
         "index": req.index,
         "error": req.error,
