@@ -141,7 +141,7 @@ def _hex_rows(rows):
 
 def test_irassi_runs_without_gauss_markov_error_keep_their_bits():
     """baselines/irassi-white: 5 runs of the IRASSI campaign as it was before issue 35, flown by
-    that code (white estimator noise, one undetected failed wheel in run 3)."""
+    the code just before issue 35 merged (white estimator noise, one undetected failed wheel in run 3)."""
     folder = ROOT / "baselines/irassi-white"
     campaign = load_campaign(folder / "campaign.yaml")
     rows, _ = fly_chunk(campaign, range(campaign["runs"]))
