@@ -1,6 +1,6 @@
 """Our subset simulation against OpenTURNS' ``SubsetSampling`` (an independent implementation of
 Au & Beck 2001) on the limit states of tests/test_subset.py. A dev extra: skipped without
-OpenTURNS (``pip install openturns``; not in the project's dependencies).
+OpenTURNS (``.venv/bin/pip install -e '.[reference]'``; not in ``make test``'s install).
 """
 
 import math
