@@ -121,7 +121,8 @@ def _requirements(campaign):
         result.append({"metric": r.metric, "op": r.op, "value": r.value, "requirement": r.text})
     for req in pointing.requirements_of(campaign):  # a pointing record: its runs column, lower is better
         limit = 1.0 - req.p_c if req.interpretation == "mixed" else req.bound
-        result.append({"metric": req.column, "op": "<=", "value": limit, "requirement": req.text()})
+        # as 'COLUMN.max <= limit': every run within the limit (its column and direction are what compare reads)
+        result.append({"metric": f"{req.column}.max", "op": "<=", "value": limit, "requirement": req.text()})
     return result
 
 
