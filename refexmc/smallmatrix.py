@@ -128,10 +128,23 @@ def pseudo_inverse(m):
     W = C F, C the independent columns (MacDuffee's formula)."""
     w = np.asarray(m, dtype=float)
     rows, columns = w.shape
+    largest = float(np.abs(w).max()) if w.size else 0.0
+    if largest == 0.0:
+        return np.zeros((columns, rows))
+    # computed on W 2^-e, largest entry in [0.5, 1): the products cannot under- or overflow (a
+    # 1e-162 column squared would), and a power of two changes no bit of the result otherwise
+    _, exponent = math.frexp(largest)
+    w = np.ldexp(w, -exponent)
     kept = _independent_columns(w)
     r = len(kept)
     if r == 0:
         return np.zeros((columns, rows))
+    return np.ldexp(_full_rank_pseudo_inverse(w, kept, rows, columns), -exponent)
+
+
+def _full_rank_pseudo_inverse(w, kept, rows, columns):
+    """:func:`pseudo_inverse` of ``w`` whose independent columns are ``kept``."""
+    r = len(kept)
     if r == rows:
         return matmul(w.T, inverse(matmul(w, w.T)))
     if r == columns:

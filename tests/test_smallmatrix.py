@@ -162,3 +162,16 @@ def test_symmetric_eigenvalues_of_a_stack_are_those_of_each_matrix_to_the_bit():
     batched = smallmatrix.symmetric_eigenvalues(stack)
     np.testing.assert_array_equal(batched.view(np.uint64), one_at_a_time.view(np.uint64))
     assert smallmatrix.symmetric_eigenvalues(np.zeros((0, 3, 3))).shape == (0, 3)
+
+
+def test_pseudo_inverse_of_a_tiny_matrix_neither_underflows_nor_changes_bits_by_scaling():
+    """Hypothesis found a 1.96e-162 column whose square underflowed (pinv nan/inf): the pseudo-inverse
+    is computed on W scaled by a power of two, which leaves a unit-scale matrix's bits alone."""
+    w = np.zeros((3, 1))
+    w[2, 0] = 1.959570537717581e-162
+    np.testing.assert_allclose(smallmatrix.pseudo_inverse(w), np.linalg.pinv(w), rtol=1e-15)
+    axes = _unit_columns(RNG.normal(size=(3, 4)))
+    for scale in (2.0**-600, 0.5, 1.0, 2.0**600):  # exact scalings: the result scales exactly
+        np.testing.assert_array_equal(
+            smallmatrix.pseudo_inverse(axes * scale), smallmatrix.pseudo_inverse(axes) / scale
+        )
