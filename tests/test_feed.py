@@ -169,22 +169,27 @@ def test_ramped_pulses_of_two_thrusters_match_the_integrated_tank(model):
     reference = naive.tank_history(
         open_sum,
         [*kinks, t_end],
-        {
-            "volume": f["tank_volume_m3"],
-            "gas_constant": f["gas_constant_j_kg_k"],
-            "gamma": f["heat_capacity_ratio"],
-            "temperature": f["temperature_k"],
-            "pressure": f["initial_pressure_pa"],
-            "throat_area": f["throat_area_m2"],
-            "thrust_coefficient": naive.textbook_thrust_coefficient(f["expansion_ratio"], f["heat_capacity_ratio"]),
-            "regulator": set_pressure,
-        },
+        _naive_tank(f, set_pressure),
     )
     if model == "regulated":  # it starts above the set pressure and ends below: both regimes flown
         assert reference[0] < set_pressure < f["initial_pressure_pa"]
     assert tank.state[feed.TK_PRESSURE] == pytest.approx(reference[0], rel=1e-9)
     assert used == pytest.approx(reference[1], rel=1e-9)
     assert tank.state[feed.TK_IMPULSE] == pytest.approx(reference[2], rel=1e-9)
+
+
+def _naive_tank(f, set_pressure):
+    """The feed ``f`` as naive.tank_history's parameters (the textbook C_F, set pressure or inf)."""
+    return {
+        "volume": f["tank_volume_m3"],
+        "gas_constant": f["gas_constant_j_kg_k"],
+        "gamma": f["heat_capacity_ratio"],
+        "temperature": f["temperature_k"],
+        "pressure": f["initial_pressure_pa"],
+        "throat_area": f["throat_area_m2"],
+        "thrust_coefficient": naive.textbook_thrust_coefficient(f["expansion_ratio"], f["heat_capacity_ratio"]),
+        "regulator": set_pressure,
+    }
 
 
 @pytest.mark.parametrize("model", ["blow_down", "regulated"])
@@ -210,16 +215,7 @@ def test_pressure_within_a_ramp_segment_is_the_integrated_tanks_and_ends_where_s
     reference = naive.tank_history(
         lambda t: 0.7 * min(t / 0.02, 1.0),
         [0.5 * t_end],
-        {
-            "volume": f["tank_volume_m3"],
-            "gas_constant": f["gas_constant_j_kg_k"],
-            "gamma": f["heat_capacity_ratio"],
-            "temperature": f["temperature_k"],
-            "pressure": f["initial_pressure_pa"],
-            "throat_area": f["throat_area_m2"],
-            "thrust_coefficient": naive.textbook_thrust_coefficient(f["expansion_ratio"], f["heat_capacity_ratio"]),
-            "regulator": set_pressure,
-        },
+        _naive_tank(f, set_pressure),
     )
     assert middle == pytest.approx(reference[0], rel=1e-12)
     assert middle < p0
