@@ -13,7 +13,7 @@ import numpy as np
 import yaml
 
 from refexmc import smallmatrix
-from refexmc.config import design_checks, entry, pointing, published, requirements, schema
+from refexmc.config import design_checks, entry, plausibility, pointing, published, requirements, schema
 from refexmc.config import feed as config_feed
 from refexmc.config.derived import (
     allocation_table,
@@ -206,12 +206,11 @@ def validate(data, schema_def, file, lines, prefix=()):
 def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
     """Checks the schema cannot express: an actuator for the actuation, the keys each actuator and
     controller take, thruster and wheel numbering, allocation ids, wheel axes, physical inertia;
-    then the design checks (config.design_checks), whose warnings go to the list ``warnings``."""
+    then the design checks (config.design_checks), whose warnings go to the list ``warnings``, after
+    the plausibility checks' (config.plausibility)."""
 
-    def fail(message, *path):
-        line = next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
-        raise ConfigError(message, file=file, line=line, path=prefix + path)
-
+    fail = _failing_at(file, lines, prefix)
+    plausible = plausibility.check_vehicle(vehicle, fail)
     fsw = vehicle["flight_software"]
     if "rcs" not in vehicle and "wheels" not in vehicle:
         fail("expected an actuator: 'rcs', 'wheels' or both")
@@ -223,6 +222,8 @@ def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
             if key not in fsw:
                 fail(f"'{key}' is required with an rcs (the thruster design, 000)", "flight_software")
         _check_rcs(vehicle, fail)
+        with plausibility.blamed(plausible):  # a tank in other units fails here: name its key
+            _check_feed(vehicle, fail)
     else:
         for key in (*schema.RCS_DESIGN_KEYS, "allocation"):
             if key in fsw:
@@ -266,7 +267,7 @@ def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
     entry.check(vehicle, fail)  # issue 24: entry aerodynamics and surfaces
     found = design_checks.check_vehicle(vehicle, fail)
     if warnings is not None:
-        warnings.extend(found)
+        warnings.extend(plausible + found)
 
 
 def _check_numbering(units, what, path, fail):
@@ -307,7 +308,6 @@ def _check_rcs(vehicle, fail):
         allocation_table(vehicle)
     except KeyError as missing:
         fail(f"expected an entry for the axis command '{missing.args[0]}'", "flight_software", "allocation")
-    _check_feed(vehicle, fail)
 
 
 def _check_feed(vehicle, fail):
@@ -432,9 +432,10 @@ def check_modes(modes, fail):
                 fail(message, "modes", m, "exit", g, predicate)
 
 
-def check_mission(mission, file, lines, prefix=()):
+def check_mission(mission, file, lines, prefix=(), warnings=None):
     """Checks the schema cannot express: the mode program, ascending atmosphere, non-zero sun and
-    gravity-gradient directions, one initial attitude, a pointing window inside the flight."""
+    gravity-gradient directions, one initial attitude, a pointing window inside the flight; the
+    plausibility warnings (config.plausibility) go to the list ``warnings``."""
 
     fail = _failing_at(file, lines, prefix)
     check_modes(mission["modes"], fail)
@@ -469,6 +470,8 @@ def check_mission(mission, file, lines, prefix=()):
             line=lines.get(("sun_direction",)),
             path=prefix + ("sun_direction",),
         )
+    if warnings is not None:
+        warnings.extend(plausibility.check_mission(mission, fail))
 
 
 def check_flight(vehicle, mission, fail_mission, fail_vehicle):
@@ -576,6 +579,8 @@ def _check_local(vehicle, mission, fail_mission, fail_vehicle):
     reserve = local.get("reserve_pressure_pa", 0.0)
     _, force, tau = config_pack.translation_design(vehicle)
     accel = [f / vehicle["mass_kg"] for f in force]
+    # the tank's keys live in the vehicle file: name them there too (issue 34)
+    tank = f"P0 = {p0:g} Pa at {fail_vehicle.where('rcs', 'feed', 'initial_pressure_pa')}"
     for axis in range(3):
         if accel[axis] == 0.0:
             continue
@@ -584,14 +589,14 @@ def _check_local(vehicle, mission, fail_mission, fail_vehicle):
         if reachable <= 0.0:
             fail_mission(
                 f"the initial speed along body {'xyz'[axis]} cannot be stopped by the tank (002 eq. 46: "
-                f"P0 - |v0|/(k tau) = {reachable:.6g} Pa)",
+                f"P0 - |v0|/(k tau) = {reachable:.6g} Pa; {tank})",
                 "local",
                 "velocity_m_s",
             )
         if reserve >= reachable:
             fail_mission(
                 f"expected a fuel reserve inside 002 eq. 45, 0 <= reserve < P0 - |v0|/(k tau) = {reachable:.6g} Pa "
-                f"(body {'xyz'[axis]}), got {reserve:g}",
+                f"(body {'xyz'[axis]}; {tank}), got {reserve:g}",
                 "local",
                 "reserve_pressure_pa",
             )
@@ -643,20 +648,21 @@ def load_vehicle(path, warnings=None):
     return data
 
 
-def load_mission(path):
+def load_mission(path, warnings=None):
+    """The validated mission file; its plausibility warnings are appended to the list ``warnings``."""
     data, lines = read_yaml(path)
     if isinstance(data, dict) and "entry_flight" in data:  # an entry mission (issue 24, docs/x38.md)
         validate(data, schema.ENTRY_MISSION, path, lines)
-        check_entry_mission(data, path, lines)
+        check_entry_mission(data, path, lines, warnings=warnings)
         return data
     validate(data, schema.MISSION, path, lines)
-    check_mission(data, path, lines)
+    check_mission(data, path, lines, warnings=warnings)
     return data
 
 
-def check_entry_mission(mission, file, lines, prefix=()):
+def check_entry_mission(mission, file, lines, prefix=(), warnings=None):
     """Checks of an entry mission the schema cannot express: the guidance schedules' axes
-    (Mach, speed) strictly increasing."""
+    (Mach, speed) strictly increasing; plausibility warnings go to the list ``warnings``."""
     fail = _failing_at(file, lines, prefix)
     flight = mission["entry_flight"]
     for key, axis in (("alpha_schedule", "mach"), ("bank_schedule", "speed_m_s")):
@@ -677,6 +683,8 @@ def check_entry_mission(mission, file, lines, prefix=()):
             "entry_flight",
             "floor_altitude_m",
         )
+    if warnings is not None:
+        warnings.extend(plausibility.check_mission(mission, fail))
 
 
 def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
@@ -688,18 +696,36 @@ def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
         checker(ref, campaign_file, part_lines, (key,))
         return ref, _failing_at(campaign_file, part_lines, (key,))
     path = (Path(campaign_file).parent / ref).resolve()
-    data, part_lines = read_yaml(path)
+    try:
+        data, part_lines = read_yaml(path)
+    except ConfigError as error:
+        if error.file != path or error.line is not None:
+            raise
+        # the file cannot be read at all: name the campaign line that refers to it (issue 34)
+        raise ConfigError(
+            f"{key} file {ref!r} ({path}): {error.message}", file=campaign_file, line=lines.get((key,)), path=(key,)
+        ) from None
     validate(data, part_schema, path, part_lines)
     checker(data, path, part_lines)
     return data, _failing_at(path, part_lines, ())
 
 
 def _failing_at(file, lines, prefix):
-    def fail(message, *path):
-        line = next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
-        raise ConfigError(message, file=file, line=line, path=prefix + path)
+    """fail(message, *key_path): raise ConfigError at the key path (the line of its nearest given
+    parent); ``fail.where(*key_path)`` is the place as text, for a message about another file."""
 
+    def fail(message, *path):
+        raise ConfigError(message, file=file, line=_line_of(lines, path), path=prefix + path)
+
+    def where(*path):
+        return str(ConfigError("", file=file, line=_line_of(lines, path), path=prefix + path)).rstrip(": ")
+
+    fail.where = where
     return fail
+
+
+def _line_of(lines, path):
+    return next((lines[path[:k]] for k in range(len(path), -1, -1) if path[:k] in lines), None)
 
 
 FAILURE_KEYS = {"none": (), "fixed": ("units",), "random": ("count_probabilities",), "enumerate": ("sizes",)}
@@ -778,9 +804,11 @@ def load_campaign(path, warnings=None):
     vehicle, fail_vehicle = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, checker)
     if _is_entry_mission(data["mission"], path):
         return _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, found)
-    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, check_mission)
-    check_flight(vehicle, mission, fail_mission, fail_vehicle)
-    found += design_checks.check_flight(vehicle, mission, fail_mission)
+    mission_checker = functools.partial(check_mission, warnings=found)
+    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, mission_checker)
+    with plausibility.blamed(found):  # a derived check that fails on an implausible value names it
+        check_flight(vehicle, mission, fail_mission, fail_vehicle)
+        found += design_checks.check_flight(vehicle, mission, fail_mission)
     campaign = {
         "name": data["name"],
         "runs": data.get("runs"),
@@ -815,7 +843,8 @@ def load_campaign(path, warnings=None):
             line=lines.get(("wheel_failures", "mode")),
             path=("wheel_failures", "mode"),
         )
-    dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
+    specs = dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
+    found += plausibility.check_dispersions(specs, lambda key: dispersions.nominal(key, vehicle, mission), path, lines)
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
     mode_names = [mode["name"] for mode in mission["modes"]]
     options = requirements.column_options(vehicle, mission)
@@ -913,7 +942,8 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
     core.entry_flight (campaign.entry_plan), its runs columns requirements.ENTRY_COLUMNS."""
     from refexmc.config import dispersions  # imports this module
 
-    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.ENTRY_MISSION, check_entry_mission)
+    mission_checker = functools.partial(check_entry_mission, warnings=found)
+    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.ENTRY_MISSION, mission_checker)
     for key in _ENTRY_CAMPAIGN_REFUSED:
         if key in data and data[key] != {"mode": "none"}:  # a resolved campaign says failures: none
             raise ConfigError(
@@ -984,6 +1014,7 @@ def _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, fou
             "rcs_delay_ms",
         )
     specs = dispersions.check(campaign["dispersions"], vehicle, mission, path, lines)
+    found += plausibility.check_dispersions(specs, lambda key: dispersions.nominal(key, vehicle, mission), path, lines)
     for key, limit in limits.items():
         _check_entry_draws(specs.get(key), key, limit, vehicle, mission, path, lines.get(("dispersions", key)))
     parameter_columns = [c for key in campaign["dispersions"] for c in dispersions.columns(key, vehicle)]
@@ -1135,5 +1166,5 @@ def load_any(path, warnings=None):
     if kind == "vehicle":
         return kind, load_vehicle(path, warnings)
     if kind == "mission":
-        return kind, load_mission(path)
+        return kind, load_mission(path, warnings)
     raise ConfigError("not a campaign, vehicle or mission file (no 'runs', 'rcs' or 'modes' key)", file=path, line=1)
