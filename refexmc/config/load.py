@@ -265,7 +265,8 @@ def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
     if message:
         fail(message, "inertia_kg_m2")
     entry.check(vehicle, fail)  # issue 24: entry aerodynamics and surfaces
-    found = design_checks.check_vehicle(vehicle, fail)
+    with plausibility.blamed(plausible):  # a thruster position in mm fails the allocation's signs: name it
+        found = design_checks.check_vehicle(vehicle, fail)
     if warnings is not None:
         warnings.extend(plausible + found)
 
