@@ -533,3 +533,83 @@ def test_bad_local_navigation_noise_is_refused_at_its_line(tmp_path, campaign, m
     assert f"{tmp_path / 'mission.yaml'}:{line}:" in result.output, result.output
     assert words in result.output
     assert "Traceback" not in result.output
+
+
+# --- plausibility (issue 34): a value in another unit, refused with --strict at the user's key ------
+
+SURVEYOR_TEXT = (ROOT / "configs/vehicles/cold-gas-surveyor.yaml").read_text()
+HOP_MISSION = ROOT / "configs/missions/surveyor-hop.yaml"
+
+
+def _hop_variant(tmp_path, old=None, new=None, dispersions="", vehicle="vehicle.yaml"):
+    """A new user's hop: the shipped surveyor with one value changed, the shipped hop mission."""
+    assert old is None or SURVEYOR_TEXT.count(old) == 1
+    (tmp_path / "vehicle.yaml").write_text(SURVEYOR_TEXT if old is None else SURVEYOR_TEXT.replace(old, new))
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(
+        f"name: my-hop\nvehicle: {vehicle}\nmission: {HOP_MISSION}\nruns: 5\nseed: 1\n"
+        + (f"dispersions:\n  {dispersions}\n" if dispersions else "")
+    )
+    return campaign
+
+
+# (case id, variant arguments, --strict needed, where the one line points, words it must contain)
+PLAUSIBILITY_CASES = [
+    (
+        "temperature-in-degC",
+        {"old": "temperature_k: 293.0", "new": "temperature_k: 20.0"},
+        True,
+        "vehicle.yaml:22: rcs.feed.temperature_k",
+        ["20 K: a temperature in degC?"],
+    ),
+    (
+        "truncnorm-excludes-nominal",
+        {"dispersions": "mass_kg: {dist: truncnorm, sigma: 0.4, low: 25.0, high: 30.0}"},
+        True,
+        "campaign.yaml:7: dispersions.mass_kg.low",
+        ["exclude the nominal 20"],
+    ),
+    (
+        "pressure-in-bar-fails-the-reserve",
+        {"old": "initial_pressure_pa: 5.0e6", "new": "initial_pressure_pa: 50.0"},
+        False,  # an error with or without --strict: the shipped mission's reserve check
+        "vehicle.yaml:23: rcs.feed.initial_pressure_pa",
+        ["50 Pa: a pressure in bar", "surveyor-hop.yaml:18: local.reserve_pressure_pa"],
+    ),
+    (
+        "missing-vehicle-file",
+        {"vehicle": "my-vehicle.yaml"},
+        False,
+        "campaign.yaml:2: vehicle",
+        ["vehicle file 'my-vehicle.yaml'", "file not found"],
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("variant", "strict", "where", "words"), [c[1:] for c in PLAUSIBILITY_CASES], ids=[c[0] for c in PLAUSIBILITY_CASES]
+)
+def test_implausible_input_is_refused_at_the_users_key_and_writes_nothing(
+    tmp_path, existing_out, variant, strict, where, words
+):
+    campaign = _hop_variant(tmp_path, **variant)
+    before = _snapshot(existing_out)
+    fresh = tmp_path / "fresh"
+    flags = ["--strict"] if strict else []
+    for args in (
+        ["validate", *flags, str(campaign)],
+        ["run", str(campaign), "-o", str(fresh), "--no-progress", *flags],
+        ["run", str(campaign), "-o", str(existing_out), "--overwrite", "--no-progress", *flags],
+    ):
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code == 2, result.output
+        lines = result.output.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in result.output, result.output
+        assert lines[0].startswith(f"error: {tmp_path / where}"), lines[0]
+        for word in words:
+            assert word in lines[0], (word, lines[0])
+    assert not fresh.exists()
+    assert _snapshot(existing_out) == before
+    if strict:  # without --strict: a warning, and the campaign validates
+        result = CliRunner().invoke(main, ["validate", str(campaign)])
+        assert result.exit_code == 0 and f"warning: {tmp_path / where}" in result.output, result.output
