@@ -67,6 +67,12 @@ def _one(warnings, path, line, key):
         ("throat_area_m2: 1.2e-7", "throat_area_m2: 0.12", "rcs.feed.throat_area_m2", ["0.12 m^2", "mm^2"]),
         ("on_delay: 5.0", "on_delay: 0.005", "rcs.valve_time_constants_ms.low.on_delay", ["0.005 ms", "in s?"]),
         ("min_on: 10.0", "min_on: 0.01", "rcs.switching_limits_ms.min_on", ["0.01 ms", "in s?"]),
+        (
+            "expansion_ratio: 50.0",
+            "expansion_ratio: 50.0\n    ambient_pressure_pa: 1.013",
+            "rcs.feed.ambient_pressure_pa",
+            ["1.013 Pa: a pressure in bar"],
+        ),
         ("mass_kg: 20.0", "mass_kg: 20000.0", "mass_kg", ["a mass in g?", "denser than solid steel"]),
         ("mass_kg: 20.0", "mass_kg: 0.02", "inertia_kg_m2", ["a mass in t?"]),
     ],
@@ -77,6 +83,7 @@ def _one(warnings, path, line, key):
         "gas-constant-as-molar-mass",
         "volume-in-litres",
         "throat-in-mm2",
+        "ambient-in-bar",
         "valve-delay-in-s",
         "switching-limit-in-s",
         "mass-in-g",
@@ -86,8 +93,8 @@ def _one(warnings, path, line, key):
 def test_a_unit_slip_in_the_vehicle_warns_at_its_key_with_the_likely_slip(tmp_path, old, new, key, words):
     assert _vehicle_warnings(SURVEYOR) == []
     path, line = _variant(tmp_path, SURVEYOR, old, new)
-    if key == "inertia_kg_m2":
-        line += 1  # the matrix's key line, below the mass
+    if key in ("inertia_kg_m2", "rcs.feed.ambient_pressure_pa"):
+        line += 1  # the line below the edited one: the matrix below the mass, the added key
     at_key = [w for w in _vehicle_warnings(path) if ".".join(map(str, w.path)) == key]
     message = _one(at_key, path, line, key)  # 20 m^3 also holds more gas than the vehicle's mass
     for word in words:

@@ -31,6 +31,7 @@ Bounds and why (SI values):
   them 50 times the ball's radius: beyond, a position in mm or cm?
 - valve time constants, switching limits and the modulator's pulses (ms) either 0 (ideal) or
   >= 0.1 ms (the fastest piezo valves); below: a time in s? Valve time constants <= 1000 ms.
+- an ambient pressure 0 (vacuum) or >= 10 Pa (Mars' summits ~30 Pa): below, bar?
 - a mission's fuel reserve (reserve_pressure_pa) 0 or >= 1 kPa, as the tank pressure.
 - an entry mission's angle-of-attack schedule with some |alpha| >= 1.6 deg (entry vehicles fly
   15-45 deg): every node under it is an angle in rad?
@@ -43,13 +44,14 @@ import contextlib
 import math
 from typing import NamedTuple
 
-from refexmc.config.design_checks import DesignWarning, _where
+from refexmc.config.design_checks import DesignWarning
 from refexmc.config.errors import ConfigError
 
 FEED_TEMPERATURE_K = (100.0, 1000.0)
 TANK_PRESSURE_PA = (1.0e3, 1.0e8)
 GAS_CONSTANT_J_KG_K = (50.0, 4200.0)
 UNIVERSAL_GAS_CONSTANT_J_KMOL_K = 8314.46
+AMBIENT_MIN_PA = 10.0  # Mars' surface ~600 Pa, its highest summits ~30 Pa; sea level in bar is 1.013
 TANK_VOLUME_MAX_M3 = 5.0
 THROAT_AREA_MAX_M2 = 1.0e-3
 BALL_DENSITY_KG_M3 = (0.1, 8000.0)
@@ -64,14 +66,17 @@ class PlausibilityWarning(DesignWarning):
     """A value whose size says a unit slip: ``str()`` is ``file:line: key.path: message``."""
 
 
-def _plausibility(warn):
-    """A warn(message, *path) that returns a PlausibilityWarning at the key path."""
+def _warning_at(fail):
+    """A warn(message, *path) that builds the PlausibilityWarning where ``fail`` would raise."""
 
-    def make(message, *path):
-        found = warn(message, *path)
-        return PlausibilityWarning(found.message, file=found.file, line=found.line, path=found.path)
+    def warn(message, *path):
+        try:
+            fail(message, *path)
+        except ConfigError as exc:
+            return PlausibilityWarning(exc.message, file=exc.file, line=exc.line, path=exc.path)
+        raise AssertionError("fail() must raise")  # pragma: no cover
 
-    return make
+    return warn
 
 
 class Range(NamedTuple):
@@ -102,12 +107,12 @@ def _temperature_range():
     )
 
 
-def _pressure_range(what="a tank pressure"):
+def _pressure_range():
     return Range(
         *TANK_PRESSURE_PA,
         "Pa",
         "a pressure in bar (x 1e5 Pa) or MPa (x 1e6 Pa)?",
-        f"above {what} any flight tank holds (COPVs ~70 MPa)",
+        "above any flight tank's rating (COPVs ~70 MPa)",
     )
 
 
@@ -144,7 +149,7 @@ def ball(mass, inertia):
 
 def check_vehicle(vehicle, fail):
     """Plausibility warnings of a vehicle (``fail(message, *path)`` raises at a key path of it)."""
-    warn = _plausibility(_where(fail))
+    warn = _warning_at(fail)
     out = []
     out += _mass_and_inertia(vehicle, warn)
     rcs = vehicle.get("rcs")
@@ -199,9 +204,14 @@ def _feed(vehicle, warn):
             if message:
                 out.append(warn(message, "rcs", "feed", key))
     ambient = feed.get("ambient_pressure_pa", 0.0)
-    if 0.0 < ambient < TANK_PRESSURE_PA[0] / 1e3:  # below 1 Pa and not vacuum: bar?
+    if 0.0 < ambient < AMBIENT_MIN_PA:
         out.append(
-            warn(f"{ambient:g} Pa: a pressure in bar (x 1e5 Pa)? (0 is vacuum)", "rcs", "feed", "ambient_pressure_pa")
+            warn(
+                f"{ambient:g} Pa: a pressure in bar (x 1e5 Pa)? (expected 0 for vacuum or >= {AMBIENT_MIN_PA:g} Pa)",
+                "rcs",
+                "feed",
+                "ambient_pressure_pa",
+            )
         )
     if all(key in feed for key in ("initial_pressure_pa", "tank_volume_m3", "gas_constant_j_kg_k", "temperature_k")):
         gas = (
@@ -251,11 +261,11 @@ def _positions(vehicle, warn):
 
 def check_mission(mission, fail):
     """Plausibility warnings of a mission (``fail(message, *path)`` raises at a key path of it)."""
-    warn = _plausibility(_where(fail))
+    warn = _warning_at(fail)
     out = []
     reserve = mission.get("local", {}).get("reserve_pressure_pa")
     if reserve is not None:
-        message = _pressure_range("a reserve").problem(reserve, zero_ok=True)
+        message = _pressure_range().problem(reserve, zero_ok=True)
         if message:
             out.append(warn(message, "local", "reserve_pressure_pa"))
     schedule = mission.get("entry_flight", {}).get("alpha_schedule", [])
