@@ -32,6 +32,8 @@ Bounds and why (SI values):
 - valve time constants, switching limits and the modulator's pulses (ms) either 0 (ideal) or
   >= 0.1 ms (the fastest piezo valves); below: a time in s? Valve time constants <= 1000 ms.
 - an ambient pressure 0 (vacuum) or >= 10 Pa (Mars' summits ~30 Pa): below, bar?
+- isp_s (rcs, main engine) >= 20 s (xenon cold gas ~30 s): below, an exhaust velocity in km/s?
+  propellant_kg below mass_kg (the propellant is part of it).
 - a mission's fuel reserve (reserve_pressure_pa) 0 or >= 1 kPa, as the tank pressure.
 - an entry mission's angle-of-attack schedule with some |alpha| >= 1.6 deg (entry vehicles fly
   15-45 deg): every node under it is an angle in rad?
@@ -57,6 +59,7 @@ THROAT_AREA_MAX_M2 = 1.0e-3
 BALL_DENSITY_KG_M3 = (0.1, 8000.0)
 POSITION_SIZE_FACTOR = 1.5  # times the largest of length_m, span_m
 POSITION_BALL_FACTOR = 50.0  # times the equivalent ball's radius, without length_m or span_m
+ISP_MIN_S = 20.0  # xenon cold gas ~30 s, the lowest specific impulse that flies
 SHORTEST_TIME_MS = 0.1
 LONGEST_VALVE_TIME_MS = 1000.0
 ALPHA_RAD_SUSPECT_DEG = 1.6  # a schedule whose every |alpha| is below pi/2 rad reads as radians
@@ -152,6 +155,7 @@ def check_vehicle(vehicle, fail):
     warn = _warning_at(fail)
     out = []
     out += _mass_and_inertia(vehicle, warn)
+    out += _propellant(vehicle, warn)
     rcs = vehicle.get("rcs")
     if rcs is not None:
         out += _feed(vehicle, warn)
@@ -193,6 +197,33 @@ def _mass_and_inertia(vehicle, warn):
             )
         ]
     return []
+
+
+def _propellant(vehicle, warn):
+    """isp_s and propellant_kg of the rcs (constant feed) and the main engine."""
+    out = []
+    for root in ("rcs", "main_engine"):
+        part = vehicle.get(root, {})
+        isp = part.get("isp_s")
+        if isp is not None and isp < ISP_MIN_S:
+            out.append(
+                warn(
+                    f"{isp:g} s: an exhaust velocity in km/s? (Isp = c / 9.80665 m/s^2; expected >= {ISP_MIN_S:g} s)",
+                    root,
+                    "isp_s",
+                )
+            )
+        propellant = part.get("propellant_kg")
+        if propellant is not None and propellant >= vehicle["mass_kg"]:
+            out.append(
+                warn(
+                    f"{propellant:g} kg of propellant in a vehicle of mass_kg {vehicle['mass_kg']:g} (the propellant "
+                    "is part of it): a mass in g, or the mass in t?",
+                    root,
+                    "propellant_kg",
+                )
+            )
+    return out
 
 
 def _feed(vehicle, warn):
