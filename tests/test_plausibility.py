@@ -234,6 +234,20 @@ def test_a_pressure_in_bar_that_fails_the_shipped_missions_reserve_check_names_t
     assert f"{HOP}:" in error.message and "local.reserve_pressure_pa" in error.message  # the check that failed
 
 
+def test_an_unrelated_implausible_value_does_not_take_the_blame(tmp_path):
+    """Valve delays in s (a warning) and a plausible 3 bar tank below the shipped 10 bar reserve:
+    the reserve's error stays in the mission file (the delays play no part in 002 eq. 45)."""
+    text = SURVEYOR.read_text().replace("initial_pressure_pa: 5.0e6", "initial_pressure_pa: 3.0e5")
+    vehicle = tmp_path / "vehicle.yaml"
+    vehicle.write_text(text.replace("on_delay: 5.0", "on_delay: 0.005"))
+    found = []
+    load_vehicle(vehicle, found)
+    assert [w.path[-1] for w in found] == ["on_delay"]
+    with pytest.raises(ConfigError) as caught:
+        load_campaign(_campaign(tmp_path, vehicle))
+    assert (caught.value.file, caught.value.path) == (HOP, ("local", "reserve_pressure_pa"))
+
+
 def test_the_reserve_check_names_the_vehicle_key_of_p0(tmp_path):
     """A plausible pressure (3 bar) below the shipped reserve (10 bar): no plausibility warning to
     blame, and the mission's error still names P0's file, line and key in the vehicle."""

@@ -222,8 +222,7 @@ def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
             if key not in fsw:
                 fail(f"'{key}' is required with an rcs (the thruster design, 000)", "flight_software")
         _check_rcs(vehicle, fail)
-        with plausibility.blamed(plausible):  # a tank in other units fails here: name its key
-            _check_feed(vehicle, fail)
+        _check_feed(vehicle, fail, plausible)
     else:
         for key in (*schema.RCS_DESIGN_KEYS, "allocation"):
             if key in fsw:
@@ -265,7 +264,7 @@ def check_vehicle(vehicle, file, lines, prefix=(), warnings=None):
     if message:
         fail(message, "inertia_kg_m2")
     entry.check(vehicle, fail)  # issue 24: entry aerodynamics and surfaces
-    with plausibility.blamed(plausible):  # a thruster position in mm fails the allocation's signs: name it
+    with plausibility.blamed(plausible, "position_m"):  # a position in mm turns the allocation: name it
         found = design_checks.check_vehicle(vehicle, fail)
     if warnings is not None:
         warnings.extend(plausible + found)
@@ -311,9 +310,11 @@ def _check_rcs(vehicle, fail):
         fail(f"expected an entry for the axis command '{missing.args[0]}'", "flight_software", "allocation")
 
 
-def _check_feed(vehicle, fail):
+def _check_feed(vehicle, fail, plausible=()):
     """rcs.feed: the keys its model takes; isp_s and propellant_kg given with the constant feed
-    only (a tank's are derived from it); no tank behind thrusters a wheel vehicle never fires."""
+    only (a tank's are derived from it); no tank behind thrusters a wheel vehicle never fires; a
+    regulated level below the full tank's thrust, refused at an implausible feed value behind it
+    (``plausible``: the vehicle's plausibility warnings)."""
     rcs = vehicle["rcs"]
     feed = rcs.get("feed", {})
     model = feed.get("model", "constant")
@@ -336,7 +337,9 @@ def _check_feed(vehicle, fail):
     if model == "regulated":
         full = config_feed.design(feed)["initial_thrust_n"]
         for level, thrust in rcs["thrust_n"].items():
-            if thrust >= full:
+            if thrust < full:
+                continue
+            with plausibility.blamed(plausible, "feed"):  # a tank pressure in bar fails here: name it
                 fail(
                     f"a regulated level needs less thrust than the full tank gives (C_F A_t P0 = {full:.6g} N), "
                     f"got {thrust:g}",
@@ -475,9 +478,11 @@ def check_mission(mission, file, lines, prefix=(), warnings=None):
         warnings.extend(plausibility.check_mission(mission, fail))
 
 
-def check_flight(vehicle, mission, fail_mission, fail_vehicle):
+def check_flight(vehicle, mission, fail_mission, fail_vehicle, plausible=()):
     """What a vehicle and a mission need of each other: a trajectory model and its inputs, given
-    gains for the pd controller. ``fail_*(message, *key_path)`` raise in the file concerned."""
+    gains for the pd controller. ``fail_*(message, *key_path)`` raise in the file concerned; a
+    derived check (the tank's reserve, the deorbit burn) that fails is refused at a plausibility
+    warning of ``plausible`` behind it (config.plausibility.blamed)."""
     levels = level_names(vehicle)
     for m, mode in enumerate(mission["modes"]):
         if "thrust" in mode and vehicle["flight_software"]["actuation"] == "wheels":
@@ -498,7 +503,7 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
         fail_vehicle("controller pd needs given gains (flight_software.gains)", "flight_software", "controller")
     trajectory = trajectory_model(vehicle)
     if trajectory == "local":
-        _check_local(vehicle, mission, fail_mission, fail_vehicle)
+        _check_local(vehicle, mission, fail_mission, fail_vehicle, plausible)
     else:
         if "local" in mission:
             fail_mission(
@@ -523,7 +528,7 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
             if mode.get("target", {}).get("type") in schema.ORBIT_TARGETS:
                 fail_mission("target burn_start needs the orbit trajectory", "modes", m, "target", "type")
     else:
-        _check_orbit(vehicle, mission, fail_mission, fail_vehicle)
+        _check_orbit(vehicle, mission, fail_mission, fail_vehicle, plausible)
         return
     if trajectory == "planar_drag":
         if "aerodynamics" not in vehicle:
@@ -552,7 +557,7 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle):
                     )
 
 
-def _check_local(vehicle, mission, fail_mission, fail_vehicle):
+def _check_local(vehicle, mission, fail_mission, fail_vehicle, plausible=()):
     """A local vehicle and mission: a tank (rcs.feed), the pwpf_table actuation and a translation
     law; the mission's local block; a fuel reserve the origin can be reached with (002 eq. 45-46)."""
     from refexmc.config import pack as config_pack
@@ -582,28 +587,29 @@ def _check_local(vehicle, mission, fail_mission, fail_vehicle):
     accel = [f / vehicle["mass_kg"] for f in force]
     # the tank's keys live in the vehicle file: name them there too (issue 34)
     tank = f"P0 = {p0:g} Pa at {fail_vehicle.where('rcs', 'feed', 'initial_pressure_pa')}"
-    for axis in range(3):
-        if accel[axis] == 0.0:
-            continue
-        # 002 eq. 45-46 on the scaled state: x3_0 - |x2_0| = k tau^2 (P0 - |v0| / (k tau))
-        reachable = p0 - abs(local["velocity_m_s"][axis]) / (accel[axis] * tau[axis])
-        if reachable <= 0.0:
-            fail_mission(
-                f"the initial speed along body {'xyz'[axis]} cannot be stopped by the tank (002 eq. 46: "
-                f"P0 - |v0|/(k tau) = {reachable:.6g} Pa; {tank})",
-                "local",
-                "velocity_m_s",
-            )
-        if reserve >= reachable:
-            fail_mission(
-                f"expected a fuel reserve inside 002 eq. 45, 0 <= reserve < P0 - |v0|/(k tau) = {reachable:.6g} Pa "
-                f"(body {'xyz'[axis]}; {tank}), got {reserve:g}",
-                "local",
-                "reserve_pressure_pa",
-            )
+    with plausibility.blamed(plausible, "feed", "mass_kg", "reserve_pressure_pa"):  # 002 eq. 45-46
+        for axis in range(3):
+            if accel[axis] == 0.0:
+                continue
+            # 002 eq. 45-46 on the scaled state: x3_0 - |x2_0| = k tau^2 (P0 - |v0| / (k tau))
+            reachable = p0 - abs(local["velocity_m_s"][axis]) / (accel[axis] * tau[axis])
+            if reachable <= 0.0:
+                fail_mission(
+                    f"the initial speed along body {'xyz'[axis]} cannot be stopped by the tank (002 eq. 46: "
+                    f"P0 - |v0|/(k tau) = {reachable:.6g} Pa; {tank})",
+                    "local",
+                    "velocity_m_s",
+                )
+            if reserve >= reachable:
+                fail_mission(
+                    f"expected a fuel reserve inside 002 eq. 45, 0 <= reserve < P0 - |v0|/(k tau) = {reachable:.6g} Pa "
+                    f"(body {'xyz'[axis]}; {tank}), got {reserve:g}",
+                    "local",
+                    "reserve_pressure_pa",
+                )
 
 
-def _check_orbit(vehicle, mission, fail_mission, fail_vehicle):
+def _check_orbit(vehicle, mission, fail_mission, fail_vehicle, plausible=()):
     """An orbit vehicle and mission: main engine, burn guidance, Earth and orbit; no planar-trajectory
     targets or dynamic pressure; ignition on a control step."""
     if "main_engine" not in vehicle:
@@ -618,7 +624,8 @@ def _check_orbit(vehicle, mission, fail_mission, fail_vehicle):
     try:
         deorbit_plan(vehicle, mission)
     except ConfigError as error:
-        fail_mission(error.message, "orbit", "deorbit")
+        with plausibility.blamed(plausible, "main_engine", "mass_kg"):  # an engine in other units
+            fail_mission(error.message, "orbit", "deorbit")
     period = 1.0 / vehicle["flight_software"]["control_rate_hz"]
     start = mission["orbit"]["deorbit"]["burn_start_s"]
     if abs(start / period - round(start / period)) > 1e-6:
@@ -807,9 +814,8 @@ def load_campaign(path, warnings=None):
         return _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, found)
     mission_checker = functools.partial(check_mission, warnings=found)
     mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, mission_checker)
-    with plausibility.blamed(found):  # a derived check that fails on an implausible value names it
-        check_flight(vehicle, mission, fail_mission, fail_vehicle)
-        found += design_checks.check_flight(vehicle, mission, fail_mission)
+    check_flight(vehicle, mission, fail_mission, fail_vehicle, plausible=found)
+    found += design_checks.check_flight(vehicle, mission, fail_mission)
     campaign = {
         "name": data["name"],
         "runs": data.get("runs"),

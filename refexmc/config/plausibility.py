@@ -6,8 +6,9 @@ with the range a GNC engineer would accept for it, and say the likely slip with 
 (docs/campaigns.md, "Plausibility checks"). They are warnings (DesignWarning, with file, line and
 key path): printed by ``validate``, ``inspect`` and ``run``, recorded in ``manifest.json``;
 ``--strict`` refuses them. A check that fails later (a derived check: the reserve a tank cannot
-hold, a regulated level the tank cannot give) is re-raised at the implausible value the user set
-(:func:`blamed`), so the error names that key and not only the file where the check lives.
+hold, a regulated level the tank cannot give, an allocation a thruster position in mm turns, the
+deorbit burn) is re-raised at the implausible value behind it (:func:`blamed`, only values the
+check reads), so the error names the key the user set and not only the file where the check lives.
 
 Bounds and why (SI values):
 - gas temperature 100..1000 K: below ~100 K nitrogen is liquid at tank pressure (critical point
@@ -371,13 +372,18 @@ def _bounds_exclude(spec, nominal, warn):
 
 
 @contextlib.contextmanager
-def blamed(found):
-    """Re-raise a ConfigError raised inside at the first plausibility warning of the list ``found``,
-    if any: a derived check that fails on an implausible value names the key the user set."""
+def blamed(found, *inputs):
+    """Re-raise a ConfigError raised inside at the first plausibility warning of the list ``found``
+    (of those whose key path holds one of the keys ``inputs``, when given): a derived check that
+    fails on an implausible value names the key the user set."""
     try:
         yield
     except ConfigError as error:
-        suspects = [w for w in found if isinstance(w, PlausibilityWarning)]
+        suspects = [
+            w
+            for w in found
+            if isinstance(w, PlausibilityWarning) and (not inputs or any(key in w.path for key in inputs))
+        ]
         if not suspects or isinstance(error, DesignWarning):
             raise
         first = suspects[0]
