@@ -283,12 +283,13 @@ def _positions(vehicle, warn):
     ]
     if "position_m" in vehicle.get("main_engine", {}):
         places.append((("main_engine", "position_m"), vehicle["main_engine"]["position_m"]))
-    out = []
-    for path, position in places:
-        distance = math.sqrt(sum(x * x for x in position))
-        if distance > limit:
-            out.append(warn(f"{distance:.4g} m from the centre of mass, beyond {why}: a position in mm or cm?", *path))
-    return out
+    far = [(path, math.sqrt(sum(x * x for x in position))) for path, position in places]
+    far = [(path, distance) for path, distance in far if distance > limit]
+    if not far:
+        return []
+    (path, distance), more = far[0], len(far) - 1  # one warning: the first, and how many more
+    also = f" (and {more} more position{'s' if more > 1 else ''})" if more else ""
+    return [warn(f"{distance:.4g} m from the centre of mass{also}, beyond {why}: a position in mm or cm?", *path)]
 
 
 def check_mission(mission, fail):
