@@ -321,8 +321,8 @@ DISPERSION_RANGES = {f"rcs.feed.{key}": limits for key, limits in FEED_RANGES.it
 
 def check_dispersions(specs, nominal, file, lines):
     """Plausibility warnings of a campaign's checked dispersions ``specs`` (config.dispersions.check):
-    a truncnorm or uniform whose bounds exclude the nominal value (``nominal(path)``: an array per
-    component) or the truncnorm's mean; a checked key's distribution that reaches outside its range."""
+    a truncnorm whose bounds exclude the nominal value (``nominal(path)``: an array per component)
+    or its mean; an rcs.feed key's constant, truncnorm or uniform that reaches outside its range."""
     out = []
     for path, spec in specs.items():
         where = ("dispersions", path)
