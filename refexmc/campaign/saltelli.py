@@ -18,6 +18,7 @@ import functools
 
 import numpy as np
 
+from refexmc import distributions
 from refexmc.config import dispersions
 from refexmc.config.errors import ConfigError
 
@@ -39,7 +40,7 @@ def layout(campaign, specs=None):
         specs = dispersions.check(campaign["dispersions"], vehicle, mission, None, {})
     out = []
     for path, spec in specs.items():
-        count = dispersions.uniforms_per_draw(spec, dispersions.size(path, vehicle))
+        count = distributions.uniforms_per_draw(spec, dispersions.size(path, vehicle))
         if count:
             out.append((path, count))
     return out

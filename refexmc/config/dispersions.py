@@ -3,12 +3,12 @@
 The paths, their units, ranges, nominal values and where they land in the packed run inputs are
 declared once, in ``config.parameters``; this module checks a campaign's ``dispersions`` against
 them (one function per distribution, ``DISTRIBUTIONS``), gives each path's nominal value and
-writes a drawn value into a run's inputs (``apply``). ``refexmc.campaign.sampling`` draws them.
+writes a drawn value into a run's inputs (``apply``). ``refexmc.campaign.sampling`` draws them through
+the distributions' arithmetic of ``refexmc.distributions``.
 """
 
 import difflib
 import math
-import statistics
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -31,9 +31,16 @@ from refexmc.config.parameters import (  # noqa: F401 - the table, also read thr
     put,
 )
 from refexmc.core import layout as L
+from refexmc.distributions import (  # noqa: F401 - the distributions' arithmetic, also read through this module
+    INERTIA_INDEX,
+    UNIFORM_EPS,
+    Z_MAX,
+    inertia_matrix,
+    inertia_tensors,
+    truncnorm_support,
+    uniforms_per_draw,
+)
 
-INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-INERTIA_ROWS, INERTIA_COLUMNS = (list(index) for index in zip(*INERTIA_INDEX, strict=True))
 _ENTRY_ONLY = ("entry_flight.density_scale", "entry_flight.coefficient_scale.")  # dispersion-only paths, nominal 1
 
 
@@ -60,11 +67,6 @@ DIST_DOC = {
     "inertia": "relative 1-sigma of the principal moments (< 0.5), principal-axis misalignment 1-sigma (<= 180 deg); "
     "draws that are not physical are redrawn",
 }
-# Uniforms are drawn inside [UNIFORM_EPS, 1 - UNIFORM_EPS], so a standard normal draw never
-# exceeds Z_MAX (8.2) in size: the exact support of normal and lognormal draws, checked
-# against each path's physical range.
-UNIFORM_EPS = 2.0**-53
-Z_MAX = -statistics.NormalDist().inv_cdf(UNIFORM_EPS) * (1.0 + 1e-12)  # 8.2095, rounded outward
 MAX_AXES_SIGMA_DEG = 180.0  # inertia: a larger 1-sigma principal-axis misalignment means nothing
 _SPECIAL = {"uniform_so3": "attitude", "inertia": "inertia"}
 
@@ -87,20 +89,6 @@ def components(path, vehicle):
 
 def size(path, vehicle):
     return max(1, len(components(path, vehicle)))
-
-
-def uniforms_per_draw(spec, n_components):
-    """Uniforms one draw of ``spec`` (a checked distribution) consumes (refexmc.campaign.sampling)."""
-    dist = spec["dist"]
-    if dist == "constant":
-        return 0
-    if dist == "choice":
-        return n_components if spec["per_component"] else 1
-    if dist == "uniform_so3":
-        return 3
-    if dist == "inertia":
-        return 6
-    return n_components
 
 
 def set_failed(inputs, failed, detected=False):
@@ -201,22 +189,6 @@ def _put(array, fields, name, values):
     array[offset : offset + count] = values
 
 
-def inertia_matrix(values):
-    """3x3 tensor from the (xx, yy, zz, xy, xz, yz) components."""
-    j = np.empty((3, 3))
-    for v, (a, b) in zip(values, INERTIA_INDEX, strict=True):
-        j[a, b] = j[b, a] = v
-    return j
-
-
-def inertia_tensors(rows):
-    """n x 3 x 3 tensors from the rows (xx, yy, zz, xy, xz, yz) of an n x 6 array (:func:`inertia_matrix` of each)."""
-    j = np.empty((len(rows), 3, 3))
-    j[:, INERTIA_ROWS, INERTIA_COLUMNS] = rows
-    j[:, INERTIA_COLUMNS, INERTIA_ROWS] = rows
-    return j
-
-
 def apply(inputs, path, values, nominal_atmosphere, levels=schema.REFEX_LEVEL_NAMES):
     """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays;
     ``levels``: the vehicle's thrust-level names, in order (``derived.level_names``). A path
@@ -265,35 +237,6 @@ def range_text(param):
     if param.upper != math.inf:
         return f"{low} and <= {param.upper:g}" if low else f"<= {param.upper:g}"
     return f"{low} and finite" if low else "any finite value"
-
-
-def _normal_cdf(z):
-    return 0.5 * math.erfc(-z / math.sqrt(2.0))
-
-
-def _lowest_draw_below(bound_z):
-    """Lowest standard draw of a normal truncated to (-inf, bound_z] that uniforms >= UNIFORM_EPS
-    reach: the inverse CDF at UNIFORM_EPS * Phi(bound_z), rounded outward; -inf where the
-    sampler's arithmetic underflows (a bound some 38 sigma on the far side of the mean)."""
-    p = UNIFORM_EPS * _normal_cdf(bound_z)
-    if p < 1e-300:
-        return -math.inf
-    return statistics.NormalDist().inv_cdf(p) * (1.0 + 1e-12)
-
-
-def truncnorm_support(mean, sigma, low, high):
-    """(lowest, highest) truncnorm draw per component: a given bound, or for a missing one
-    (+-inf) the exact extreme of the draws (Z_MAX-like, beyond 8.2 sigma when the other bound
-    cuts the distribution short)."""
-    lowest = [
-        lo if math.isfinite(lo) else m + s * _lowest_draw_below((hi - m) / s)
-        for m, s, lo, hi in zip(mean, sigma, low, high, strict=True)
-    ]
-    highest = [
-        hi if math.isfinite(hi) else m - s * _lowest_draw_below((m - lo) / s)
-        for m, s, lo, hi in zip(mean, sigma, low, high, strict=True)
-    ]
-    return np.array(lowest), np.array(highest)
 
 
 class _Dispersion(NamedTuple):

@@ -1039,8 +1039,8 @@ def _entry_limits(vehicle):
 def _check_entry_draws(spec, key, limit, vehicle, mission, path, line):
     """ConfigError at dispersions.<key> when the distribution ``spec`` (None: not dispersed)
     reaches outside ``limit``."""
-    from refexmc.campaign.sampling import transform  # the sampler's own arithmetic, monotone in u
     from refexmc.config import dispersions
+    from refexmc.distributions import transform  # the sampler's own arithmetic, monotone in u
 
     if spec is None:
         return
