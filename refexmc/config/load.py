@@ -13,7 +13,7 @@ import numpy as np
 import yaml
 
 from refexmc import smallmatrix
-from refexmc.config import design_checks, entry, pointing, published, requirements, schema
+from refexmc.config import design_checks, entry, pointing, published, requirements, saltelli, schema
 from refexmc.config import feed as config_feed
 from refexmc.config.derived import (
     allocation_table,
@@ -855,8 +855,6 @@ def load_campaign(path, warnings=None):
     if warnings is not None:
         warnings.extend(found)
     if campaign["sampling"] == "saltelli":  # the design's run count and what it cannot hold
-        from refexmc.campaign import saltelli
-
         saltelli.check(campaign, path, lines)
     if "sobol" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
         campaign["sobol"] = data["sobol"]
@@ -1099,8 +1097,6 @@ def apply_overrides(campaign, runs=None, seed=None):
             raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
         campaign["runs"] = runs
         if campaign["sampling"] == "saltelli":  # the design's run count (the rest was checked at load)
-            from refexmc.campaign import saltelli
-
             try:
                 saltelli.check(campaign)
             except ConfigError as exc:
