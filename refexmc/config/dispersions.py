@@ -16,6 +16,7 @@ import numpy as np
 
 from refexmc import crmath
 from refexmc.config import derived, schema
+from refexmc.config import feed as config_feed
 from refexmc.config.errors import ConfigError
 from refexmc.config.parameters import (  # noqa: F401 - the table, also read through this module
     AXES,
@@ -23,12 +24,14 @@ from refexmc.config.parameters import (  # noqa: F401 - the table, also read thr
     ENTRY_STATE_KEYS,
     INERTIA_COMPONENTS,
     MISSION_ROOTS,
+    NOZZLE_CONSTANTS,
     PARAMETERS,
     Parameter,
     declared,
     file_of,
     parameter,
     put,
+    schema_default,
 )
 from refexmc.core import layout as L
 from refexmc.distributions import (  # noqa: F401 - the distributions' arithmetic, also read through this module
@@ -131,8 +134,28 @@ def nominal(path, vehicle, mission):
         return np.full(len(rcs["thrusters"]), float(rcs["valve_time_constants_ms"][level][name]))
     if path == "separation.attitude_error_deg" and "attitude_euler_deg" in mission["separation"]:
         return np.degrees(derived.separation_rotation_vector(mission["separation"]))
-    value = declared(param, file_of(param, vehicle, mission))
+    root = file_of(param, vehicle, mission)
+    try:
+        value = declared(param, root)
+    except KeyError:
+        value = omitted_default(param, root)
     return np.atleast_1d(np.asarray(value, dtype=float)).copy()
+
+
+def omitted_default(param, root):
+    """The schema default of ``param``'s key where the file has its block but omits the key (what
+    the packer packs, ``parameters.configured``); KeyError where the file lacks the block or the
+    key declares no default."""
+    if param is None or param.key is None:  # no path, or a dispersion-only one: no file key
+        raise KeyError(param)
+    parent, _, _ = param.key.rpartition(".")
+    default = schema_default(param.key)
+    if not parent or "[]" in param.key or default is None:
+        raise KeyError(param.key)
+    node = root
+    for key in parent.split("."):
+        node = node[key]  # KeyError: no such block in the file
+    return default
 
 
 def _declared_instead(path, root):
@@ -168,6 +191,11 @@ def _undeclared(path, vehicle, mission):
     ):
         return f"'{path}' acts through the trajectory; vehicle {vehicle['name']} has none (trajectory: none)"
     feed_model = vehicle.get("rcs", {}).get("feed", {}).get("model", "constant")
+    if path.startswith("rcs.feed.") and feed_model == "constant" and "rcs" in vehicle:
+        return (
+            f"'{path}': vehicle {vehicle['name']} has the constant feed (rcs.feed.model): no tank or nozzle "
+            "to disperse (its thrust_n at isp_s)"
+        )
     if path.startswith("rcs.thrust_n.") and feed_model == "blow_down":
         return f"'{path}': vehicle {vehicle['name']} has a blow-down tank: its pressure gives the thrust"
     if path.startswith("rcs.") and "rcs" in vehicle and derived.flies_wheels(vehicle):
@@ -198,6 +226,11 @@ def apply(inputs, path, values, nominal_atmosphere, levels=schema.REFEX_LEVEL_NA
     param = parameter(path)
     if param.table is not None:
         put(getattr(inputs, param.table), param, values)
+        if param.special == NOZZLE_CONSTANTS:  # the packed C_F and Gamma of the drawn gamma and epsilon
+            vehicle = inputs.vehicle
+            vehicle[L.V_FEED_THRUST_COEFFICIENT], vehicle[L.V_FEED_FLOW_FACTOR] = config_feed.nozzle_constants(
+                float(vehicle[L.V_FEED_HEAT_CAPACITY_RATIO]), float(vehicle[L.V_FEED_EXPANSION_RATIO])
+            )
     elif path.startswith("rcs.thrust_n."):
         row = inputs.levels[list(levels).index(path.split(".")[2])]
         # a regulated feed delivers the level's thrust through its set pressure (config.feed.set_pressure)

@@ -37,10 +37,14 @@ def _part(path):
 
 
 def file_value(campaign, path):
-    """The value of ``path`` in the campaign's vehicle or mission file (KeyError when it has none)."""
+    """The value of ``path`` in the campaign's vehicle or mission file, its schema default where
+    the file has the key's block but omits the key (KeyError when it has none)."""
     node = campaign[_part(path)]
-    for key in path.split("."):
-        node = node[key]
+    try:
+        for key in path.split("."):
+            node = node[key]
+    except KeyError:
+        node = dispersions.omitted_default(dispersions.parameter(path), campaign[_part(path)])
     if isinstance(node, bool) or not isinstance(node, (int, float)):
         raise KeyError(path)
     return float(node)
