@@ -306,7 +306,7 @@ def _set(config, path, value):
     node = config
     for key in parents:
         node = node[key]
-    if isinstance(node[last], list):
+    if isinstance(node.get(last), list):  # a key the file omits (rcs.feed.ambient_pressure_pa) is set
         node[last][0] = value
     else:
         node[last] = value
