@@ -86,6 +86,30 @@ def truncnorm_support(mean, sigma, low, high):
     return np.array(lowest), np.array(highest)
 
 
+def support(spec):
+    """(lowest, highest) draw per component of a checked distribution ``spec`` (parameters as
+    arrays, one per component): the sampler's own arithmetic at the extreme uniforms (each
+    transform is monotone in u); None where there is no interval (any rotation; an inertia
+    tensor, redrawn until physical)."""
+    dist = spec["dist"]
+    if dist == "constant":
+        return spec["value"], spec["value"]
+    if dist == "normal":
+        mean, sigma = spec["mean"], spec["sigma"]
+        return mean - Z_MAX * sigma, mean + Z_MAX * sigma
+    if dist == "truncnorm":
+        return truncnorm_support(spec["mean"], spec["sigma"], spec["low"], spec["high"])
+    if dist == "uniform":
+        low, width = spec["low"], spec["high"] - spec["low"]
+        return low + width * UNIFORM_EPS, low + width * (1.0 - UNIFORM_EPS)
+    if dist == "lognormal":
+        spread = crmath.exp(Z_MAX * spec["sigma"])  # the sampler's exp: the same bits on every CPU
+        return spec["median"] / spread, spec["median"] * spread
+    if dist == "choice":
+        return spec["values"].min(axis=0), spec["values"].max(axis=0)
+    return None
+
+
 def so3_rotation_vector_deg(u):
     """Uniformly random rotation (Shoemake 1992, 'Uniform random rotations') as a rotation vector."""
     return so3_rotation_vectors_deg(np.asarray(u, dtype=float)[np.newaxis, :])[0]

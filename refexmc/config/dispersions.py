@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from refexmc import crmath
+from refexmc import distributions
 from refexmc.config import derived, schema
 from refexmc.config import feed as config_feed
 from refexmc.config.errors import ConfigError
@@ -285,8 +285,7 @@ class _Dispersion(NamedTuple):
 
 
 def _check_constant(d):
-    value = d.vector("value")
-    return {"value": value}, (value, value)
+    return {"value": d.vector("value")}
 
 
 def _mean_and_sigma(d, dist):
@@ -299,7 +298,7 @@ def _mean_and_sigma(d, dist):
 
 def _check_normal(d):
     mean, sigma = _mean_and_sigma(d, "normal")
-    return {"mean": mean, "sigma": sigma}, (mean - Z_MAX * sigma, mean + Z_MAX * sigma)
+    return {"mean": mean, "sigma": sigma}
 
 
 def _check_truncnorm(d):
@@ -310,7 +309,7 @@ def _check_truncnorm(d):
     high = d.vector("high") if "high" in d.spec else np.full(d.n, np.inf)
     if (low >= high).any():
         d.fail("expected low < high", "low")
-    return {"mean": mean, "sigma": sigma, "low": low, "high": high}, truncnorm_support(mean, sigma, low, high)
+    return {"mean": mean, "sigma": sigma, "low": low, "high": high}
 
 
 def _check_uniform(d):
@@ -319,9 +318,7 @@ def _check_uniform(d):
         d.fail("expected low <= high", "low")
     if not np.isfinite(high - low).all():
         d.fail("expected high - low to be a finite number (draws are low + (high - low) u)", "high")
-    # the sampler's own arithmetic at the extreme uniforms (it is monotone in u)
-    width = high - low
-    return {"low": low, "high": high}, (low + width * UNIFORM_EPS, low + width * (1.0 - UNIFORM_EPS))
+    return {"low": low, "high": high}
 
 
 def _check_lognormal(d):
@@ -331,8 +328,7 @@ def _check_lognormal(d):
         d.fail("expected a median > 0 (lognormal draws are positive)", "median" if "median" in d.spec else "dist")
     if (sigma < 0).any():
         d.fail(f"expected sigma >= 0 (of ln x), got {d.spec['sigma']!r}", "sigma")
-    spread = crmath.exp(Z_MAX * sigma)  # the sampler's exp: the same bits on every CPU
-    return {"median": median, "sigma": sigma}, (median / spread, median * spread)
+    return {"median": median, "sigma": sigma}
 
 
 def _check_choice(d):
@@ -365,11 +361,11 @@ def _check_choice(d):
         if abs(sum(probabilities) - 1.0) > 1e-9:
             d.fail(f"expected probabilities summing to 1, got {sum(probabilities):g}", "probabilities")
         resolved["probabilities"] = np.asarray(probabilities, dtype=float)
-    return resolved, (resolved["values"].min(axis=0), resolved["values"].max(axis=0))
+    return resolved
 
 
 def _check_uniform_so3(d):
-    return {}, None  # any rotation: no interval to check
+    return {}
 
 
 def _check_inertia(d):
@@ -379,10 +375,10 @@ def _check_inertia(d):
         d.fail("expected 0 <= moments_sigma_fraction < 0.5", "moments_sigma_fraction")
     if (axes < 0).any() or (axes > MAX_AXES_SIGMA_DEG).any():
         d.fail(f"expected 0 <= axes_sigma_deg <= {MAX_AXES_SIGMA_DEG:g} [deg]", "axes_sigma_deg")
-    return {"moments_sigma_fraction": moments, "axes_sigma_deg": axes}, None  # redrawn until physical
+    return {"moments_sigma_fraction": moments, "axes_sigma_deg": axes}
 
 
-# distribution -> its check: (resolved parameters, (lowest, highest) draw per component or None)
+# distribution -> its check: the resolved parameters (their support: distributions.support)
 _CHECKS = {
     "constant": _check_constant,
     "normal": _check_normal,
@@ -482,7 +478,8 @@ def check(dispersions, vehicle, mission, file, lines):
             return _parameter_vector(_spec, key, _n, _fail)
 
         dispersion = _Dispersion(spec, n, nominal(path, vehicle, mission), f" [{param.unit}]", fail, vector)
-        resolved, support = _CHECKS[dist](dispersion)
+        resolved = _CHECKS[dist](dispersion)
+        support = distributions.support({"dist": dist, **resolved})
         if support is not None:
             _check_support(param, path, vehicle, dist, support, fail)
         out[path] = {"dist": dist, **resolved}
