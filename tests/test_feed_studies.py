@@ -101,8 +101,9 @@ def test_every_feed_number_drawn_is_the_flight_of_a_file_that_says_it(tmp_path, 
     assert flown["dispersions"][path] == {"dist": "constant", "value": OTHER_VALUE[key]}
 
 
-def test_the_feed_of_a_constant_feed_vehicle_is_refused_by_name():
-    """ReFEx flies the constant feed: there is no tank to disperse (not 'the file does not declare it')."""
+def test_the_feed_of_a_constant_feed_vehicle_is_refused_by_name(tmp_path):
+    """ReFEx flies the constant feed: there is no tank to disperse or sweep (not 'the file does not
+    declare it')."""
     campaign = load_campaign(ROOT / "campaigns/nominal.yaml")
     with pytest.raises(ConfigError, match="has the constant feed"):
         dispersions.check(
@@ -112,6 +113,11 @@ def test_the_feed_of_a_constant_feed_vehicle_is_refused_by_name():
             None,
             {},
         )
+    axis = "sweep:\n  axes:\n    - parameter: rcs.feed.tank_volume_m3\n      values: [0.001, 0.002]\n"
+    path = campaign_copy("nominal.yaml", tmp_path)
+    path.write_text(path.read_text() + axis)
+    with pytest.raises(ConfigError, match=r"sweep\.axes\.0\.parameter: .* has the constant feed"):
+        load_campaign(path)
 
 
 def test_the_tank_volume_sets_the_blow_down_time_constant():

@@ -171,7 +171,7 @@ def _declared_instead(path, root):
     return ""
 
 
-def _undeclared(path, vehicle, mission):
+def undeclared(path, vehicle, mission):
     """Why ``path`` cannot be dispersed for this vehicle and mission (a quantity they do not
     have: no trajectory, no aerodynamics, no atmosphere), or None."""
     trajectory = derived.trajectory_model(vehicle)
@@ -445,7 +445,7 @@ def check(dispersions, vehicle, mission, file, lines):
             hint = f"; did you mean '{guess[0]}'?" if guess else "; see docs/campaigns.md for the dispersible paths"
             fail(f"unknown parameter path '{path}'{hint}")
         param = parameter(path)
-        missing = _undeclared(path, vehicle, mission)
+        missing = undeclared(path, vehicle, mission)
         if missing:
             fail(missing)
         if not isinstance(spec, dict):

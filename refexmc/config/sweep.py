@@ -150,7 +150,8 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
         try:
             file_value(campaign, path)
         except (KeyError, TypeError):
-            fail(f"the {_part(path)} file has no value at '{path}' to sweep", "axes", i, "parameter")
+            why = dispersions.undeclared(path, campaign["vehicle"], campaign["mission"])  # e.g. a constant feed
+            fail(why or f"the {_part(path)} file has no value at '{path}' to sweep", "axes", i, "parameter")
         if path in campaign["dispersions"]:
             fail(f"'{path}' is swept and dispersed; remove it from dispersions", "axes", i, "parameter")
         for value in axis_values(axis):
