@@ -62,11 +62,11 @@ def nominal_source(param):
 
 
 def lands_in(param):
-    """Where the value goes in the packed run inputs: a field, or the special case's reason."""
+    """Where the value goes in the packed run inputs: a field (and what else it sets), or the special case's reason."""
     if param.table is None:
         return param.special
     scale = "" if param.scale == 1.0 else " (deg to rad)" if param.scale == DEG else f" (times {param.scale:g})"
-    return f"`{param.table}.{param.field}`{scale}"
+    return f"`{param.table}.{param.field}`{scale}" + (f"; {param.special}" if param.special else "")
 
 
 def range_text(param):

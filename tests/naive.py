@@ -531,7 +531,7 @@ def keyed_doubles(entropy, n):
 
 
 def dispersed_inertia(nominal_components, moments_sigma_fraction, axes_sigma_deg, u):
-    """One inertia draw, one tensor at a time (refexmc.campaign.sampling.dispersed_inertia_rows):
+    """One inertia draw, one tensor at a time (refexmc.distributions.dispersed_inertia_rows):
     principal moments of the nominal tensor scaled by (1 + sigma z), its principal axes turned by
     the rotation vector axes_sigma z; z the standard normal quantiles of the 6 uniforms ``u``."""
     from scipy import special

@@ -45,6 +45,7 @@ DRAWS = """
 import sys
 import numpy as np
 from scipy import special
+from refexmc import distributions
 from refexmc.campaign import sampling
 from refexmc.config import dispersions
 from refexmc.config.load import load_campaign
@@ -68,7 +69,7 @@ for k, (path, spec) in enumerate(sampler.specs.items()):
     n = sampling.dims(spec, dispersions.size(path, campaign["vehicle"]))
     u = np.random.default_rng(k).random((rows.get(path, 20_000), n))
     u = np.clip(u, dispersions.UNIFORM_EPS, 1.0 - dispersions.UNIFORM_EPS)
-    out[path] = sampling.transform_rows(spec, u, sampler.nominal[path])
+    out[path] = distributions.transform_rows(spec, u, sampler.nominal[path])
     out[f"{path}/ndtri"] = special.ndtri(u)
 np.savez(sys.argv[1], **out)
 """
@@ -343,7 +344,7 @@ def test_crmath_sin_cos_atan2_are_libm_within_an_ulp():
 
 
 def test_symmetric_eigen_agrees_with_lapack():
-    from refexmc.campaign.sampling import symmetric_eigen
+    from refexmc.smallmatrix import symmetric_eigen
 
     rng = np.random.default_rng(3)
     matrices = [np.diag([6.92, 6.92, 3.72]), np.array([[20.04, 0.0, -1.5], [0.0, 243.85, 0.0], [-1.5, 0.0, 247.6]])]
@@ -363,7 +364,7 @@ def test_symmetric_eigen_agrees_with_lapack():
 def test_rotations_agree_with_scipy():
     from scipy.spatial.transform import Rotation
 
-    from refexmc.campaign.sampling import rotation_matrices, so3_rotation_vectors_deg
+    from refexmc.distributions import rotation_matrices, so3_rotation_vectors_deg
 
     rng = np.random.default_rng(4)
     rotvec = np.vstack([rng.normal(size=(2000, 3)), np.zeros((1, 3)), [[1e-300, 0.0, 0.0]], [[3.0, 0.0, 0.0]]])

@@ -15,11 +15,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from refexmc.campaign.sampling import Sampler, dims, transform, truncated_normal_ppf
+from refexmc.campaign.sampling import Sampler, dims
 from refexmc.config import dispersions, schema
 from refexmc.config.derived import inertia_problem
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_campaign, validate
+from refexmc.distributions import transform, truncated_normal_ppf
 
 ROOT = Path(__file__).resolve().parents[1]
 EPS = dispersions.UNIFORM_EPS
@@ -305,7 +306,7 @@ def _set(config, path, value):
     node = config
     for key in parents:
         node = node[key]
-    if isinstance(node[last], list):
+    if isinstance(node.get(last), list):  # a key the file omits (rcs.feed.ambient_pressure_pa) is set
         node[last][0] = value
     else:
         node[last] = value

@@ -424,7 +424,7 @@ def test_dispersing_a_regulated_level_scales_its_set_pressure():
     dispersions.apply(inputs, "rcs.thrust_n.high", [8.92 * 1.05], None)
     assert inputs.levels[1, L.LV_REGULATOR_PRESSURE] == pytest.approx(1.05 * nominal, rel=1e-12)
     blow_down = _vehicle(NITROGEN)
-    assert "blow-down tank" in dispersions._undeclared(
+    assert "blow-down tank" in dispersions.undeclared(
         "rcs.thrust_n.high", blow_down, load_mission(ROOT / "configs/missions/generic-slew.yaml")
     )
 

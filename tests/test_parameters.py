@@ -85,7 +85,7 @@ def test_every_declared_path_validates_at_its_nominal(flown):
     vehicle, mission, _ = flown
     checked = 0
     for path, param in PARAMETERS.items():
-        if dispersions._undeclared(path, vehicle, mission) is not None:  # noqa: SLF001 - not flown here
+        if dispersions.undeclared(path, vehicle, mission) is not None:  # not flown here
             continue
         value = dispersions.nominal(path, vehicle, mission)
         if param.shape == "inertia":
@@ -110,7 +110,7 @@ def test_the_nominal_applied_through_apply_is_the_packed_nominal_bit_for_bit(flo
     packed = _bits(inputs)
     checked = []
     for path, param in PARAMETERS.items():
-        if dispersions._undeclared(path, vehicle, mission) is not None:  # noqa: SLF001 - not flown here
+        if dispersions.undeclared(path, vehicle, mission) is not None:  # not flown here
             continue
         run = _copy(inputs)
         if param.table is not None:

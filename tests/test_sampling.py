@@ -15,11 +15,12 @@ from scipy.spatial.transform import Rotation
 
 from refexmc.campaign import sampling
 from refexmc.campaign.chunk import RunPlan, fly_chunk, plan_for
-from refexmc.campaign.sampling import Sampler, dims, keyed_rng, transform, truncated_normal_ppf
+from refexmc.campaign.sampling import Sampler, dims, keyed_rng
 from refexmc.config import dispersions
 from refexmc.config.derived import inertia_problem, unphysical_inertias
 from refexmc.config.load import failure_sets, load_campaign
 from refexmc.core import layout as L
+from refexmc.distributions import transform, truncated_normal_ppf
 from refexmc.simulate import fly
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,6 +17,7 @@ import pytest
 from scipy import integrate, stats
 
 from refexmc.campaign import subset
+from refexmc.config import rare_event
 
 BETA_LINEAR = 4.26  # P = Phi(-4.26) ~ 1.02e-5 (the case)
 BETA_PARABOLA, CURVATURE = 4.0, 0.3  # failure z2 >= beta - curvature z1^2 / 2
@@ -126,7 +127,7 @@ def test_an_unreachable_event_stops_at_max_levels_and_says_so():
     [(1000, 0.0, "0 < p0 <= 0.5"), (1000, 0.6, "0 < p0 <= 0.5"), (50, 0.1, "at least 10"), (1005, 0.1, "equal")],
 )
 def test_design_problems_are_named(per_level, p0, words):
-    assert words in subset.design_problem(per_level, p0)
+    assert words in rare_event.design_problem(per_level, p0)
 
 
 def test_interval_is_lognormal_and_positive():

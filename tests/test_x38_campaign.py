@@ -227,7 +227,7 @@ def test_every_entry_dispersion_path_changes_the_entry():
     vehicle, mission = campaign["vehicle"], campaign["mission"]
     reference = simulate.fly_entry(*plan.flight({})).summary
     paths = [p for p in dispersions.PARAMETERS if p.startswith("entry_flight.")] + ["mass_kg", "inertia_kg_m2"]
-    assert not [p for p in paths if dispersions._undeclared(p, vehicle, mission)]  # noqa: SLF001 - all flown here
+    assert not [p for p in paths if dispersions.undeclared(p, vehicle, mission)]  # all flown here
     # state, blocked flap, density, coefficient tables, RCS delay, mass, inertia
     assert len(paths) == 8 + 1 + 1 + 8 + 1 + 1 + 1
     for path in paths:

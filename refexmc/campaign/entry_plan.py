@@ -13,7 +13,7 @@ import copy
 
 import numpy as np
 
-from refexmc import simulate
+from refexmc import distributions, simulate
 from refexmc.campaign.sampling import Sampler
 from refexmc.campaign.seeding import run_seed
 from refexmc.config import dispersions, entry
@@ -78,7 +78,7 @@ class EntryRunPlan:
             vehicle, mission = copy.deepcopy(vehicle), copy.deepcopy(mission)
         for path, value in values.items():
             if path == "inertia_kg_m2":  # the truth's; the flight software keeps the vehicle file's
-                inertia = dispersions.inertia_matrix(np.atleast_1d(value))
+                inertia = distributions.inertia_matrix(np.atleast_1d(value))
                 continue
             number = float(np.atleast_1d(value)[0])
             if path == "mass_kg":

@@ -5,7 +5,7 @@ The study's inputs are the campaign's uniforms: every dispersed path that draws 
 as one draw of it consumes) and, with random failures, one uniform for the failure count and one
 per unit (the failed set: the ``count`` units of smallest uniform). Its standard-normal space is
 ``z = ndtri(u)``, and each flight's dispersed values are ``transform(ndtr(z))``
-(``sampling.transform_rows``). Level 0 is the campaign's ordinary random draw of run ids 0..N-1
+(``distributions.transform_rows``). Level 0 is the campaign's ordinary random draw of run ids 0..N-1
 (keyed uniforms; a non-physical inertia redrawn as always, its z that of the attempt flown).
 Later levels move in z: a proposal whose inertia is not physical lies outside the support and is
 rejected without flying; every other proposal flies as a run of its own run id
@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
+from refexmc import distributions
 from refexmc.campaign import lock, storage, subset
 from refexmc.campaign.sampling import _TINY, Sampler
 from refexmc.campaign.study_plan import LEVEL0_ROUND, ROUND_KEY, StudySampler, failure_block
@@ -48,7 +49,7 @@ def layout(campaign):
     sampler = Sampler(campaign)
     blocks = []
     for path, spec in sampler.specs.items():
-        count = dispersions.uniforms_per_draw(spec, dispersions.size(path, sampler.vehicle))
+        count = distributions.uniforms_per_draw(spec, dispersions.size(path, sampler.vehicle))
         if count:
             blocks.append((path, count, spec))
     for kind, units in ((THRUSTER_FAILURES, sampler.n_thrusters), (WHEEL_FAILURES, sampler.n_wheels)):
@@ -71,10 +72,8 @@ def level0_normals(campaign, blocks, run_ids):
     for name, count, spec in blocks:
         u = sampler.uniforms_for_runs(name, list(run_ids), count)
         if spec is not None and spec["dist"] == "inertia":
-            from refexmc.campaign.sampling import transform_rows
-
             u = u.copy()
-            tensors = dispersions.inertia_tensors(transform_rows(spec, u, sampler.nominal[name]))
+            tensors = distributions.inertia_tensors(distributions.transform_rows(spec, u, sampler.nominal[name]))
             for i in np.flatnonzero(unphysical_inertias(tensors)):
                 u[i] = _flown_attempt(sampler, name, spec, count, int(run_ids[i]))
         columns.append(u)
@@ -83,12 +82,12 @@ def level0_normals(campaign, blocks, run_ids):
 
 def _flown_attempt(sampler, path, spec, count, run_id):
     """The uniforms of the first physical redraw of run ``run_id``'s inertia (``Sampler._redrawn_inertia``)."""
-    from refexmc.campaign.sampling import INERTIA_MAX_ATTEMPTS, transform
+    from refexmc.campaign.sampling import INERTIA_MAX_ATTEMPTS
     from refexmc.config.derived import inertia_problem
 
     for attempt in range(1, INERTIA_MAX_ATTEMPTS + 1):
         u = sampler.uniforms(path, run_id, count, attempt)
-        if not inertia_problem(dispersions.inertia_matrix(transform(spec, u, sampler.nominal[path]))):
+        if not inertia_problem(distributions.inertia_matrix(distributions.transform(spec, u, sampler.nominal[path]))):
             return u
     return sampler.uniforms(path, run_id, count, 0)  # an error row: its margin is -inf anyway
 
@@ -110,8 +109,6 @@ def split(blocks, u_row):
 
 def support_check(campaign, blocks):
     """``in_support(z)``: False where a proposal's inertia is not physical (rejected, not flown)."""
-    from refexmc.campaign.sampling import transform_rows
-
     sampler = Sampler(campaign)
     inertia = [
         (k, name, count, spec) for k, (name, count, spec) in enumerate(blocks) if spec and spec["dist"] == "inertia"
@@ -122,7 +119,7 @@ def support_check(campaign, blocks):
         inside = np.ones(len(z), dtype=bool)
         for k, name, count, spec in inertia:
             u = uniforms_of(z[:, starts[k] : starts[k] + count])
-            tensors = dispersions.inertia_tensors(transform_rows(spec, u, sampler.nominal[name]))
+            tensors = distributions.inertia_tensors(distributions.transform_rows(spec, u, sampler.nominal[name]))
             inside &= ~np.asarray(unphysical_inertias(tensors), dtype=bool)
         return inside
 

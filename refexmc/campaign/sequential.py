@@ -23,7 +23,7 @@ final: ``<column>.min >= v`` (and ``max <= v``) fails for good once one run fail
 statistic (mean, std, ...) once a failed or errored run is stored (the report ranks it at the
 failing end, docs/report.md); otherwise they stay open until the budget.
 
-Everything here is plain Python on a runs table; the bounds are ``refexmc.report.stats``'s.
+Everything here is plain Python on a runs table; the bounds are ``refexmc.binomial``'s, the report's.
 """
 
 import math
@@ -31,9 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from refexmc.binomial import clopper_pearson_lower, clopper_pearson_upper
 from refexmc.config.errors import ConfigError
-from refexmc.config.requirements import parse_percentile_stat, split_metric
-from refexmc.report.stats import MOMENT_STATS, clopper_pearson_lower, clopper_pearson_upper
+from refexmc.config.requirements import MOMENT_STATS, parse_percentile_stat, split_metric
 
 DEFAULT_ALPHA = 0.05  # wrong-verdict rate of a requirement that states no confidence of its own
 STATED_ALPHA = 0.05  # the requirements named ``..._lower95``/``..._upper95`` state 95 % confidence

@@ -35,13 +35,13 @@ from refexmc import crmath
 PROPOSALS = ("mma", "pcn")
 DEFAULT_SPREAD = {"mma": 1.0, "pcn": 0.6}  # MMA: proposal sigma per component (Au & Beck sec. 5); pCN: step s
 PROPOSAL_KEY = 0x5B5E7  # the keyed stream of the proposals: SeedSequence([seed, PROPOSAL_KEY, level, step])
-MIN_CHAINS = 10  # fewer chains give no usable chain correlation (gamma) for the interval
 Z95 = 1.959963984540054  # the two-sided 95 % normal quantile
 
 
 @dataclass(frozen=True)
 class Design:
-    """A subset-simulation study: samples per level, conditional probability p0, level limit, proposal."""
+    """A subset-simulation study: samples per level, conditional probability p0, level limit, proposal
+    (what makes one unusable: refexmc.config.rare_event.design_problem)."""
 
     per_level: int = 1000
     p0: float = 0.1
@@ -63,24 +63,6 @@ class Design:
         return DEFAULT_SPREAD[self.proposal] if self.spread is None else self.spread
 
 
-def design_problem(per_level, p0):
-    """Why ``per_level`` samples cannot make a study with ``p0`` (a sentence), or None."""
-    if not 0.0 < p0 <= 0.5:
-        return f"expected 0 < p0 <= 0.5, got {p0}"
-    chains = p0 * per_level
-    if chains < MIN_CHAINS:
-        return (
-            f"per_level {per_level} with p0 {p0} gives {chains:g} chains; at least {MIN_CHAINS} are needed "
-            f"(per_level >= {math.ceil(MIN_CHAINS / p0)})"
-        )
-    if abs(chains - round(chains)) > 1e-9 or per_level % round(chains):
-        return (
-            f"per_level {per_level} with p0 {p0} does not split into chains of equal length: per_level * p0 "
-            f"must be a whole number that divides per_level (e.g. per_level {round(chains) * round(1 / p0)})"
-        )
-    return None
-
-
 def run_index(design, level, step, chain):
     """The sample's index in the study (a campaign's run id): level 0 sample ``chain`` is ``chain``;
     a later level's step ``step >= 1`` of chain ``chain`` follows every earlier round."""
@@ -96,7 +78,7 @@ def round_rng(seed, level, step):
 
 
 def standard_normals(rng, shape):
-    """Standard normals as ndtri of uniforms (the campaign's draws do the same: sampling.transform_rows)."""
+    """Standard normals as ndtri of uniforms (the campaign's draws do the same: distributions.transform_rows)."""
     from scipy import special
 
     return special.ndtri(np.clip(rng.random(shape), 1e-300, 1.0 - 2.0**-53))

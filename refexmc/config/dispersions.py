@@ -3,19 +3,20 @@
 The paths, their units, ranges, nominal values and where they land in the packed run inputs are
 declared once, in ``config.parameters``; this module checks a campaign's ``dispersions`` against
 them (one function per distribution, ``DISTRIBUTIONS``), gives each path's nominal value and
-writes a drawn value into a run's inputs (``apply``). ``refexmc.campaign.sampling`` draws them.
+writes a drawn value into a run's inputs (``apply``). ``refexmc.campaign.sampling`` draws them through
+the distributions' arithmetic of ``refexmc.distributions``.
 """
 
 import difflib
 import math
-import statistics
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
-from refexmc import crmath
+from refexmc import distributions
 from refexmc.config import derived, schema
+from refexmc.config import feed as config_feed
 from refexmc.config.errors import ConfigError
 from refexmc.config.parameters import (  # noqa: F401 - the table, also read through this module
     AXES,
@@ -23,17 +24,26 @@ from refexmc.config.parameters import (  # noqa: F401 - the table, also read thr
     ENTRY_STATE_KEYS,
     INERTIA_COMPONENTS,
     MISSION_ROOTS,
+    NOZZLE_CONSTANTS,
     PARAMETERS,
     Parameter,
     declared,
     file_of,
     parameter,
     put,
+    schema_default,
 )
 from refexmc.core import layout as L
+from refexmc.distributions import (  # noqa: F401 - the distributions' arithmetic, also read through this module
+    INERTIA_INDEX,
+    UNIFORM_EPS,
+    Z_MAX,
+    inertia_matrix,
+    inertia_tensors,
+    truncnorm_support,
+    uniforms_per_draw,
+)
 
-INERTIA_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-INERTIA_ROWS, INERTIA_COLUMNS = (list(index) for index in zip(*INERTIA_INDEX, strict=True))
 _ENTRY_ONLY = ("entry_flight.density_scale", "entry_flight.coefficient_scale.")  # dispersion-only paths, nominal 1
 
 
@@ -60,11 +70,6 @@ DIST_DOC = {
     "inertia": "relative 1-sigma of the principal moments (< 0.5), principal-axis misalignment 1-sigma (<= 180 deg); "
     "draws that are not physical are redrawn",
 }
-# Uniforms are drawn inside [UNIFORM_EPS, 1 - UNIFORM_EPS], so a standard normal draw never
-# exceeds Z_MAX (8.2) in size: the exact support of normal and lognormal draws, checked
-# against each path's physical range.
-UNIFORM_EPS = 2.0**-53
-Z_MAX = -statistics.NormalDist().inv_cdf(UNIFORM_EPS) * (1.0 + 1e-12)  # 8.2095, rounded outward
 MAX_AXES_SIGMA_DEG = 180.0  # inertia: a larger 1-sigma principal-axis misalignment means nothing
 _SPECIAL = {"uniform_so3": "attitude", "inertia": "inertia"}
 
@@ -87,20 +92,6 @@ def components(path, vehicle):
 
 def size(path, vehicle):
     return max(1, len(components(path, vehicle)))
-
-
-def uniforms_per_draw(spec, n_components):
-    """Uniforms one draw of ``spec`` (a checked distribution) consumes (refexmc.campaign.sampling)."""
-    dist = spec["dist"]
-    if dist == "constant":
-        return 0
-    if dist == "choice":
-        return n_components if spec["per_component"] else 1
-    if dist == "uniform_so3":
-        return 3
-    if dist == "inertia":
-        return 6
-    return n_components
 
 
 def set_failed(inputs, failed, detected=False):
@@ -143,8 +134,28 @@ def nominal(path, vehicle, mission):
         return np.full(len(rcs["thrusters"]), float(rcs["valve_time_constants_ms"][level][name]))
     if path == "separation.attitude_error_deg" and "attitude_euler_deg" in mission["separation"]:
         return np.degrees(derived.separation_rotation_vector(mission["separation"]))
-    value = declared(param, file_of(param, vehicle, mission))
+    root = file_of(param, vehicle, mission)
+    try:
+        value = declared(param, root)
+    except KeyError:
+        value = omitted_default(param, root)
     return np.atleast_1d(np.asarray(value, dtype=float)).copy()
+
+
+def omitted_default(param, root):
+    """The schema default of ``param``'s key where the file has its block but omits the key (what
+    the packer packs, ``parameters.configured``); KeyError where the file lacks the block or the
+    key declares no default."""
+    if param is None or param.key is None:  # no path, or a dispersion-only one: no file key
+        raise KeyError(param)
+    parent, _, _ = param.key.rpartition(".")
+    default = schema_default(param.key)
+    if not parent or "[]" in param.key or default is None:
+        raise KeyError(param.key)
+    node = root
+    for key in parent.split("."):
+        node = node[key]  # KeyError: no such block in the file
+    return default
 
 
 def _declared_instead(path, root):
@@ -160,7 +171,7 @@ def _declared_instead(path, root):
     return ""
 
 
-def _undeclared(path, vehicle, mission):
+def undeclared(path, vehicle, mission):
     """Why ``path`` cannot be dispersed for this vehicle and mission (a quantity they do not
     have: no trajectory, no aerodynamics, no atmosphere), or None."""
     trajectory = derived.trajectory_model(vehicle)
@@ -180,6 +191,11 @@ def _undeclared(path, vehicle, mission):
     ):
         return f"'{path}' acts through the trajectory; vehicle {vehicle['name']} has none (trajectory: none)"
     feed_model = vehicle.get("rcs", {}).get("feed", {}).get("model", "constant")
+    if path.startswith("rcs.feed.") and feed_model == "constant" and "rcs" in vehicle:
+        return (
+            f"'{path}': vehicle {vehicle['name']} has the constant feed (rcs.feed.model): no tank or nozzle "
+            "to disperse (its thrust_n at isp_s)"
+        )
     if path.startswith("rcs.thrust_n.") and feed_model == "blow_down":
         return f"'{path}': vehicle {vehicle['name']} has a blow-down tank: its pressure gives the thrust"
     if path.startswith("rcs.") and "rcs" in vehicle and derived.flies_wheels(vehicle):
@@ -201,22 +217,6 @@ def _put(array, fields, name, values):
     array[offset : offset + count] = values
 
 
-def inertia_matrix(values):
-    """3x3 tensor from the (xx, yy, zz, xy, xz, yz) components."""
-    j = np.empty((3, 3))
-    for v, (a, b) in zip(values, INERTIA_INDEX, strict=True):
-        j[a, b] = j[b, a] = v
-    return j
-
-
-def inertia_tensors(rows):
-    """n x 3 x 3 tensors from the rows (xx, yy, zz, xy, xz, yz) of an n x 6 array (:func:`inertia_matrix` of each)."""
-    j = np.empty((len(rows), 3, 3))
-    j[:, INERTIA_ROWS, INERTIA_COLUMNS] = rows
-    j[:, INERTIA_COLUMNS, INERTIA_ROWS] = rows
-    return j
-
-
 def apply(inputs, path, values, nominal_atmosphere, levels=schema.REFEX_LEVEL_NAMES):
     """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays;
     ``levels``: the vehicle's thrust-level names, in order (``derived.level_names``). A path
@@ -226,6 +226,11 @@ def apply(inputs, path, values, nominal_atmosphere, levels=schema.REFEX_LEVEL_NA
     param = parameter(path)
     if param.table is not None:
         put(getattr(inputs, param.table), param, values)
+        if param.special == NOZZLE_CONSTANTS:  # the packed C_F and Gamma of the drawn gamma and epsilon
+            vehicle = inputs.vehicle
+            vehicle[L.V_FEED_THRUST_COEFFICIENT], vehicle[L.V_FEED_FLOW_FACTOR] = config_feed.nozzle_constants(
+                float(vehicle[L.V_FEED_HEAT_CAPACITY_RATIO]), float(vehicle[L.V_FEED_EXPANSION_RATIO])
+            )
     elif path.startswith("rcs.thrust_n."):
         row = inputs.levels[list(levels).index(path.split(".")[2])]
         # a regulated feed delivers the level's thrust through its set pressure (config.feed.set_pressure)
@@ -267,35 +272,6 @@ def range_text(param):
     return f"{low} and finite" if low else "any finite value"
 
 
-def _normal_cdf(z):
-    return 0.5 * math.erfc(-z / math.sqrt(2.0))
-
-
-def _lowest_draw_below(bound_z):
-    """Lowest standard draw of a normal truncated to (-inf, bound_z] that uniforms >= UNIFORM_EPS
-    reach: the inverse CDF at UNIFORM_EPS * Phi(bound_z), rounded outward; -inf where the
-    sampler's arithmetic underflows (a bound some 38 sigma on the far side of the mean)."""
-    p = UNIFORM_EPS * _normal_cdf(bound_z)
-    if p < 1e-300:
-        return -math.inf
-    return statistics.NormalDist().inv_cdf(p) * (1.0 + 1e-12)
-
-
-def truncnorm_support(mean, sigma, low, high):
-    """(lowest, highest) truncnorm draw per component: a given bound, or for a missing one
-    (+-inf) the exact extreme of the draws (Z_MAX-like, beyond 8.2 sigma when the other bound
-    cuts the distribution short)."""
-    lowest = [
-        lo if math.isfinite(lo) else m + s * _lowest_draw_below((hi - m) / s)
-        for m, s, lo, hi in zip(mean, sigma, low, high, strict=True)
-    ]
-    highest = [
-        hi if math.isfinite(hi) else m - s * _lowest_draw_below((m - lo) / s)
-        for m, s, lo, hi in zip(mean, sigma, low, high, strict=True)
-    ]
-    return np.array(lowest), np.array(highest)
-
-
 class _Dispersion(NamedTuple):
     """One dispersion being checked: its spec, its path's nominal value and unit, and the checks'
     helpers (``fail(message, *key)`` raises the ConfigError; ``vector(key)`` reads a parameter)."""
@@ -309,8 +285,7 @@ class _Dispersion(NamedTuple):
 
 
 def _check_constant(d):
-    value = d.vector("value")
-    return {"value": value}, (value, value)
+    return {"value": d.vector("value")}
 
 
 def _mean_and_sigma(d, dist):
@@ -323,7 +298,7 @@ def _mean_and_sigma(d, dist):
 
 def _check_normal(d):
     mean, sigma = _mean_and_sigma(d, "normal")
-    return {"mean": mean, "sigma": sigma}, (mean - Z_MAX * sigma, mean + Z_MAX * sigma)
+    return {"mean": mean, "sigma": sigma}
 
 
 def _check_truncnorm(d):
@@ -334,7 +309,7 @@ def _check_truncnorm(d):
     high = d.vector("high") if "high" in d.spec else np.full(d.n, np.inf)
     if (low >= high).any():
         d.fail("expected low < high", "low")
-    return {"mean": mean, "sigma": sigma, "low": low, "high": high}, truncnorm_support(mean, sigma, low, high)
+    return {"mean": mean, "sigma": sigma, "low": low, "high": high}
 
 
 def _check_uniform(d):
@@ -343,9 +318,7 @@ def _check_uniform(d):
         d.fail("expected low <= high", "low")
     if not np.isfinite(high - low).all():
         d.fail("expected high - low to be a finite number (draws are low + (high - low) u)", "high")
-    # the sampler's own arithmetic at the extreme uniforms (it is monotone in u)
-    width = high - low
-    return {"low": low, "high": high}, (low + width * UNIFORM_EPS, low + width * (1.0 - UNIFORM_EPS))
+    return {"low": low, "high": high}
 
 
 def _check_lognormal(d):
@@ -355,8 +328,7 @@ def _check_lognormal(d):
         d.fail("expected a median > 0 (lognormal draws are positive)", "median" if "median" in d.spec else "dist")
     if (sigma < 0).any():
         d.fail(f"expected sigma >= 0 (of ln x), got {d.spec['sigma']!r}", "sigma")
-    spread = crmath.exp(Z_MAX * sigma)  # the sampler's exp: the same bits on every CPU
-    return {"median": median, "sigma": sigma}, (median / spread, median * spread)
+    return {"median": median, "sigma": sigma}
 
 
 def _check_choice(d):
@@ -389,11 +361,11 @@ def _check_choice(d):
         if abs(sum(probabilities) - 1.0) > 1e-9:
             d.fail(f"expected probabilities summing to 1, got {sum(probabilities):g}", "probabilities")
         resolved["probabilities"] = np.asarray(probabilities, dtype=float)
-    return resolved, (resolved["values"].min(axis=0), resolved["values"].max(axis=0))
+    return resolved
 
 
 def _check_uniform_so3(d):
-    return {}, None  # any rotation: no interval to check
+    return {}
 
 
 def _check_inertia(d):
@@ -403,10 +375,10 @@ def _check_inertia(d):
         d.fail("expected 0 <= moments_sigma_fraction < 0.5", "moments_sigma_fraction")
     if (axes < 0).any() or (axes > MAX_AXES_SIGMA_DEG).any():
         d.fail(f"expected 0 <= axes_sigma_deg <= {MAX_AXES_SIGMA_DEG:g} [deg]", "axes_sigma_deg")
-    return {"moments_sigma_fraction": moments, "axes_sigma_deg": axes}, None  # redrawn until physical
+    return {"moments_sigma_fraction": moments, "axes_sigma_deg": axes}
 
 
-# distribution -> its check: (resolved parameters, (lowest, highest) draw per component or None)
+# distribution -> its check: the resolved parameters (their support: distributions.support)
 _CHECKS = {
     "constant": _check_constant,
     "normal": _check_normal,
@@ -473,7 +445,7 @@ def check(dispersions, vehicle, mission, file, lines):
             hint = f"; did you mean '{guess[0]}'?" if guess else "; see docs/campaigns.md for the dispersible paths"
             fail(f"unknown parameter path '{path}'{hint}")
         param = parameter(path)
-        missing = _undeclared(path, vehicle, mission)
+        missing = undeclared(path, vehicle, mission)
         if missing:
             fail(missing)
         if not isinstance(spec, dict):
@@ -506,7 +478,8 @@ def check(dispersions, vehicle, mission, file, lines):
             return _parameter_vector(_spec, key, _n, _fail)
 
         dispersion = _Dispersion(spec, n, nominal(path, vehicle, mission), f" [{param.unit}]", fail, vector)
-        resolved, support = _CHECKS[dist](dispersion)
+        resolved = _CHECKS[dist](dispersion)
+        support = distributions.support({"dist": dist, **resolved})
         if support is not None:
             _check_support(param, path, vehicle, dist, support, fail)
         out[path] = {"dist": dist, **resolved}

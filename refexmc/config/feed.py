@@ -54,6 +54,12 @@ def flow_factor(gamma):
     return math.sqrt(gamma * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (gamma - 1.0)))
 
 
+def nozzle_constants(heat_capacity_ratio, expansion_ratio):
+    """(C_F, Gamma) the core takes from the gas's gamma and the nozzle's area ratio: the vacuum
+    thrust coefficient (002 eq. 15) and the flow factor (eq. 10)."""
+    return thrust_coefficient(expansion_ratio, heat_capacity_ratio), flow_factor(heat_capacity_ratio)
+
+
 def design(feed):
     """Derived quantities of a ``rcs.feed`` block that is not ``constant``, SI units."""
     gamma, eps = feed["heat_capacity_ratio"], feed["expansion_ratio"]

@@ -13,7 +13,16 @@ import numpy as np
 import yaml
 
 from refexmc import smallmatrix
-from refexmc.config import design_checks, entry, plausibility, pointing, published, requirements, schema
+from refexmc.config import (
+    design_checks,
+    entry,
+    plausibility,
+    pointing,
+    published,
+    requirements,
+    saltelli,
+    schema,
+)
 from refexmc.config import feed as config_feed
 from refexmc.config.derived import (
     allocation_table,
@@ -891,8 +900,6 @@ def load_campaign(path, warnings=None):
     if warnings is not None:
         warnings.extend(found)
     if campaign["sampling"] == "saltelli":  # the design's run count and what it cannot hold
-        from refexmc.campaign import saltelli
-
         saltelli.check(campaign, path, lines)
     if "sobol" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
         campaign["sobol"] = data["sobol"]
@@ -1077,8 +1084,8 @@ def _entry_limits(vehicle):
 def _check_entry_draws(spec, key, limit, vehicle, mission, path, line):
     """ConfigError at dispersions.<key> when the distribution ``spec`` (None: not dispersed)
     reaches outside ``limit``."""
-    from refexmc.campaign.sampling import transform  # the sampler's own arithmetic, monotone in u
     from refexmc.config import dispersions
+    from refexmc.distributions import transform  # the sampler's own arithmetic, monotone in u
 
     if spec is None:
         return
@@ -1137,8 +1144,6 @@ def apply_overrides(campaign, runs=None, seed=None):
             raise ConfigError(f"expected runs >= 1, got {runs}", path=("--runs",))
         campaign["runs"] = runs
         if campaign["sampling"] == "saltelli":  # the design's run count (the rest was checked at load)
-            from refexmc.campaign import saltelli
-
             try:
                 saltelli.check(campaign)
             except ConfigError as exc:

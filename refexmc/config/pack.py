@@ -14,7 +14,6 @@ import numpy as np
 from refexmc import smallmatrix
 from refexmc.config import deorbit, derived, parameters, schema
 from refexmc.config import feed as config_feed
-from refexmc.config.feed import AMBIENT_PRESSURE_DEFAULT_PA
 from refexmc.core import layout as L
 from refexmc.core import modes as core_modes
 from refexmc.core.inputs import RunInputs
@@ -160,9 +159,9 @@ def _pack_feed(out, feed):
     _put(out, L.VEHICLE, "propellant_kg", design["gas_kg"])
     _put(out, L.VEHICLE, "feed_model_id", config_feed.MODELS[feed["model"]])
     for key in schema.FEED_TANK_KEYS:
-        if f"rcs.feed.{key}" not in parameters.PARAMETERS:  # else packed with the parameters
+        param = parameters.PARAMETERS.get(f"rcs.feed.{key}")
+        if param is None or param.special:  # else packed with the parameters (pack_nominal)
             _put(out, L.VEHICLE, "feed_" + key, feed[key])
-    _put(out, L.VEHICLE, "feed_ambient_pressure_pa", feed.get("ambient_pressure_pa", AMBIENT_PRESSURE_DEFAULT_PA))
     _put(out, L.VEHICLE, "feed_thrust_coefficient", design["thrust_coefficient"])
     _put(out, L.VEHICLE, "feed_flow_factor", design["flow_factor"])
 

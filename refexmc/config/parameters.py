@@ -120,6 +120,7 @@ def dispersion_only(path, unit, doc, shape, table=None, field=None, *, lower=-ma
 FLIGHT_SOFTWARE_KEEPS = "the flight software keeps the nominal"
 TRANSLATION_KEEPS = "the truth; the translation law keeps the file's value (docs/cold-gas.md)"
 ENTRY = "the true entry vehicle (campaign.entry_plan builds it)"
+NOZZLE_CONSTANTS = "the nozzle's C_F and Gamma follow it (config.feed.nozzle_constants)"
 
 
 def _table():
@@ -243,11 +244,36 @@ def _table():
             key="wheels.units[].initial_momentum_n_m_s",
             note="per wheel, independent draws; the flight software is not told",
         ),
+        # every number of a blow-down or regulated feed (rcs.feed, core.feed: the tank's gas and
+        # tau follow from them at t = 0); the model itself is a choice of kernel, not a number
+        config_key("rcs.feed.tank_volume_m3", SCALAR, "vehicle", "feed_tank_volume_m3", note=TRANSLATION_KEEPS),
+        config_key(
+            "rcs.feed.gas_constant_j_kg_k", SCALAR, "vehicle", "feed_gas_constant_j_kg_k", note=TRANSLATION_KEEPS
+        ),
+        config_key(
+            "rcs.feed.heat_capacity_ratio",
+            SCALAR,
+            "vehicle",
+            "feed_heat_capacity_ratio",
+            note=TRANSLATION_KEEPS,
+            special=NOZZLE_CONSTANTS,
+        ),
         config_key(
             "rcs.feed.initial_pressure_pa", SCALAR, "vehicle", "feed_initial_pressure_pa", note=TRANSLATION_KEEPS
         ),
         config_key("rcs.feed.temperature_k", SCALAR, "vehicle", "feed_temperature_k", note=TRANSLATION_KEEPS),
         config_key("rcs.feed.throat_area_m2", SCALAR, "vehicle", "feed_throat_area_m2", note=TRANSLATION_KEEPS),
+        config_key(
+            "rcs.feed.expansion_ratio",
+            SCALAR,
+            "vehicle",
+            "feed_expansion_ratio",
+            note=TRANSLATION_KEEPS,
+            special=NOZZLE_CONSTANTS,
+        ),
+        config_key(
+            "rcs.feed.ambient_pressure_pa", SCALAR, "vehicle", "feed_ambient_pressure_pa", note=TRANSLATION_KEEPS
+        ),
         config_key("local.position_m", VECTOR, "mission", "local_position_m", note="trajectory local"),
         config_key("local.velocity_m_s", VECTOR, "mission", "local_velocity_m_s", note="trajectory local"),
     ]

@@ -18,6 +18,7 @@ import numpy as np
 from refexmc.config.errors import ConfigError
 
 EVENT_OPERATORS = ("<=", "<", ">=", ">")
+MIN_CHAINS = 10  # fewer chains give no usable chain correlation (gamma) for the interval
 DEFAULTS = {"method": "subset", "per_level": 1000, "p0": 0.1, "max_levels": 10, "proposal": "pcn"}
 _EVENT = re.compile(r"^\s*(?P<metric>[^\s<>=!]+)\s*(?P<op>[<>=!]+)\s*(?P<value>\S+)\s*$")
 
@@ -66,11 +67,27 @@ def parse_event(text, columns, file=None, line=None, path=()):
     return Event(text.strip(), metric, op, value)
 
 
+def design_problem(per_level, p0):
+    """Why ``per_level`` samples cannot make a study with ``p0`` (a sentence), or None."""
+    if not 0.0 < p0 <= 0.5:
+        return f"expected 0 < p0 <= 0.5, got {p0}"
+    chains = p0 * per_level
+    if chains < MIN_CHAINS:
+        return (
+            f"per_level {per_level} with p0 {p0} gives {chains:g} chains; at least {MIN_CHAINS} are needed "
+            f"(per_level >= {math.ceil(MIN_CHAINS / p0)})"
+        )
+    if abs(chains - round(chains)) > 1e-9 or per_level % round(chains):
+        return (
+            f"per_level {per_level} with p0 {p0} does not split into chains of equal length: per_level * p0 "
+            f"must be a whole number that divides per_level (e.g. per_level {round(chains) * round(1 / p0)})"
+        )
+    return None
+
+
 def check_rare_event(data, campaign, columns, file, lines):
     """The resolved ``rare_event`` of campaign file ``data`` (defaults filled in); ConfigError (file,
     line, key path) for a study that cannot be flown. Sets ``campaign['runs']`` to ``per_level``."""
-    from refexmc.campaign.subset import design_problem
-
     spec = {**DEFAULTS, **data["rare_event"]}
 
     def fail(message, *key):

@@ -37,10 +37,14 @@ def _part(path):
 
 
 def file_value(campaign, path):
-    """The value of ``path`` in the campaign's vehicle or mission file (KeyError when it has none)."""
+    """The value of ``path`` in the campaign's vehicle or mission file, its schema default where
+    the file has the key's block but omits the key (KeyError when it has none)."""
     node = campaign[_part(path)]
-    for key in path.split("."):
-        node = node[key]
+    try:
+        for key in path.split("."):
+            node = node[key]
+    except KeyError:
+        node = dispersions.omitted_default(dispersions.parameter(path), campaign[_part(path)])
     if isinstance(node, bool) or not isinstance(node, (int, float)):
         raise KeyError(path)
     return float(node)
@@ -146,7 +150,8 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
         try:
             file_value(campaign, path)
         except (KeyError, TypeError):
-            fail(f"the {_part(path)} file has no value at '{path}' to sweep", "axes", i, "parameter")
+            why = dispersions.undeclared(path, campaign["vehicle"], campaign["mission"])  # e.g. a constant feed
+            fail(why or f"the {_part(path)} file has no value at '{path}' to sweep", "axes", i, "parameter")
         if path in campaign["dispersions"]:
             fail(f"'{path}' is swept and dispersed; remove it from dispersions", "axes", i, "parameter")
         for value in axis_values(axis):

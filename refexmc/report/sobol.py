@@ -158,7 +158,7 @@ def campaign_indices(resolved, runs, plan, seed=0):
 
     ``resolved``: the resolved campaign; ``runs``: its runs table (any order); ``plan``: the
     report's ``outputs.plan`` (the mission's requirement columns and other outputs)."""
-    from refexmc.campaign.saltelli import layout, runs_needed
+    from refexmc.config.saltelli import layout, runs_needed
 
     groups = layout(resolved)
     runs = runs.sort_values("run_id")

@@ -1,4 +1,4 @@
-"""Statistics of a campaign: binomial intervals, sample statistics, tolerance bounds, sensitivity,
+"""Statistics of a campaign: binomial intervals (refexmc.binomial), sample statistics, tolerance bounds, sensitivity,
 and the intervals and tests that compare two campaigns (``refexmc compare``).
 
 Every function takes plain numbers or numpy arrays; NaN means "not computable" (too few runs).
@@ -9,13 +9,18 @@ import math
 import numpy as np
 from scipy import stats as sps
 
-from refexmc.config.requirements import BASIC_STATS, BOUND_STATS, PERCENTILE_STATS, parse_percentile_stat  # noqa: F401
+from refexmc.binomial import CONFIDENCE, clopper_pearson, clopper_pearson_lower, clopper_pearson_upper  # noqa: F401
+from refexmc.config.requirements import (  # noqa: F401
+    BASIC_STATS,
+    BOUND_STATS,
+    MOMENT_STATS,
+    PERCENTILE_STATS,
+    parse_percentile_stat,
+)
 
-CONFIDENCE = 0.95
 THREE_SIGMA_LOW_FRACTION = 0.00135  # P(Z < -3) of a normal distribution: the "3-sigma" tail, 0.135 %
 THREE_SIGMA_COVERAGE = 1.0 - THREE_SIGMA_LOW_FRACTION
 TOLERANCE_COVERAGE = 0.99  # the statistics tables' tolerance bound: 99 % of flights, 95 % confidence
-MOMENT_STATS = ("mean", "std", "three_sigma", "mean_minus_3sd", "mean_plus_3sd", "tol_lower", "tol_upper")
 # the statistics of each tail (refexmc.report.tails): summary.json "columns" holds these
 TAIL_STATS = {
     "upper": (
@@ -61,37 +66,6 @@ TAIL_STATS = {
         "mean_plus_3sd",
     ),
 }
-
-
-def clopper_pearson(successes, n, confidence=CONFIDENCE):
-    """Two-sided Clopper-Pearson ("exact") interval of a binomial proportion; (nan, nan) for n = 0."""
-    if n == 0:
-        return math.nan, math.nan
-    alpha = 1.0 - confidence
-    low = 0.0 if successes == 0 else float(sps.beta.ppf(alpha / 2, successes, n - successes + 1))
-    high = 1.0 if successes == n else float(sps.beta.ppf(1 - alpha / 2, successes + 1, n - successes))
-    return low, high
-
-
-def clopper_pearson_lower(successes, n, confidence=CONFIDENCE):
-    """One-sided Clopper-Pearson lower bound: P(true rate >= bound) >= confidence.
-
-    With no failure in n runs it is (1 - confidence)^(1/n), about 1 - 3/n at 95 % ("rule of three").
-    """
-    if n == 0:
-        return math.nan
-    if successes == 0:
-        return 0.0
-    return float(sps.beta.ppf(1.0 - confidence, successes, n - successes + 1))
-
-
-def clopper_pearson_upper(successes, n, confidence=CONFIDENCE):
-    """One-sided Clopper-Pearson upper bound: P(true rate <= bound) >= confidence."""
-    if n == 0:
-        return math.nan
-    if successes == n:
-        return 1.0
-    return float(sps.beta.ppf(confidence, successes + 1, n - successes))
 
 
 def normal_tolerance_factor(n, coverage=THREE_SIGMA_COVERAGE, confidence=CONFIDENCE):
