@@ -338,6 +338,10 @@ def design(vehicle):
         out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
     if "wheels" in vehicle:
         out["wheels"] = _wheel_design(vehicle)
+    if "translation" in fsw:
+        out["translation"] = _translation_design(vehicle)
+        # a hop's vehicle: no torque to control (gains all zero), the translation law drives the valves
+        out["attitude_controlled"] = any(any(out["gains"][level][k]) for level in out["gains"] for k in ("kp", "kd"))
     if "rcs" in vehicle:
         out.update(_rcs_design(vehicle))
         feed = vehicle["rcs"].get("feed", {})
@@ -349,6 +353,34 @@ def design(vehicle):
                 out["feed"]["set_pressure_pa"] = {
                     level: config_feed.set_pressure(vehicle, level) for level in vehicle["rcs"]["thrust_n"]
                 }
+    return out
+
+
+def _translation_design(vehicle):
+    """The translation law of translate modes (trajectory local; 002 sec. 4, config.pack): per body
+    axis the thrusters pushing + and -, n C_F A_t, the blow-down time constant with the + set open
+    and the acceleration at the initial tank pressure (vacuum, nominal mass)."""
+    from refexmc.config import pack
+
+    law = vehicle["flight_software"]["translation"]
+    masks, force_per_pa, tau = pack.translation_design(vehicle)
+    pressure0 = vehicle["rcs"]["feed"]["initial_pressure_pa"]
+    out = {
+        "law": law["law"],
+        "deadband_position_m": law.get("deadband_position_m", 0.0),
+        "deadband_speed_m_s": law.get("deadband_speed_m_s", 0.0),
+        "thrusters": [
+            {sense: [i + 1 for i in range(64) if (masks[2 * axis + k] >> i) & 1] for k, sense in enumerate("+-")}
+            for axis in range(3)
+        ],
+        "force_per_pa_n_pa": list(force_per_pa),
+        "time_constant_s": list(tau),
+        "initial_accel_m_s2": [f * pressure0 / vehicle["mass_kg"] for f in force_per_pa],
+    }
+    if law["law"] == "pd_pwm":
+        for key in ("position_gain_s2", "velocity_gain_s", "pwm_period_s"):
+            if key in law:
+                out[key] = law[key]
     return out
 
 
