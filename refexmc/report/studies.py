@@ -222,8 +222,9 @@ def _series(summary):
     return [(f"{axes[1]} = {v:g}", [r["values"][axes[0]] for r in group], group) for v, group in series.items()]
 
 
-SWEEP_COLUMNS = 2  # panels per row: the figure fits the page's 1300 px at 100 dpi
+SWEEP_COLUMNS = 2  # panels per row: the figure fits the page's 1300 px at SWEEP_DPI
 SWEEP_FIGURE_WIDTH_IN = 12.8
+SWEEP_DPI = 100
 
 
 def sweep_bounds(summary):
@@ -244,8 +245,16 @@ def sweep_bounds(summary):
 
 
 def sweep_figure(summary):
+    """:func:`sweep_matplotlib_figure` as PNG bytes."""
+    buffer = io.BytesIO()
+    sweep_matplotlib_figure(summary).savefig(buffer, format="png", dpi=SWEEP_DPI)
+    return buffer.getvalue()
+
+
+def sweep_matplotlib_figure(summary):
     """P(success) with its 95 % Clopper-Pearson band, and each metric's p50 with its p1-p99 band,
-    against the first axis (one line per value of the second); PNG bytes."""
+    against the first axis (one line per value of the second), at most ``SWEEP_COLUMNS`` panels
+    a row; dashed red: the requirement bounds on each panel's metric."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -287,9 +296,7 @@ def sweep_figure(summary):
         ax.grid(alpha=0.3)
     if not bounds.get("success_rate"):
         axes[0].legend(fontsize="small")
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=100)
-    return buffer.getvalue()
+    return figure
 
 
 def sweep_page(summary, png_bytes):
