@@ -468,7 +468,7 @@ def test_the_hop_report_draws_distance_speed_and_tank_pressure_with_their_bounds
         "position_z_m",
         "tank_pressure_pa",
     ]
-    assert "The mission's target: (3, 1, 0) m." in page
+    assert "The target of the mission: (3, 1, 0) m." in page
 
 
 @pytest.mark.slow

@@ -119,7 +119,7 @@ def _target_text(campaign):
     target = local.get("target_position_m")
     if not target:
         return ""
-    return " The mission's target: (" + ", ".join(f"{v:g}" for v in target) + ") m."
+    return " The target of the mission: (" + ", ".join(f"{v:g}" for v in target) + ") m."
 
 
 def figures_of(campaign, summary, bounds_of):
