@@ -10,6 +10,7 @@ import itertools
 import numpy as np
 
 from refexmc import crmath, smallmatrix
+from refexmc.config import feed as config_feed
 from refexmc.config.schema import DEFAULT_TRAJECTORY, WHEELS_LEVEL
 
 
@@ -346,8 +347,6 @@ def design(vehicle):
         out.update(_rcs_design(vehicle))
         feed = vehicle["rcs"].get("feed", {})
         if feed.get("model", "constant") != "constant":
-            from refexmc.config import feed as config_feed
-
             out["feed"] = {"model": feed["model"], **config_feed.design(feed)}
             if feed["model"] == "regulated":
                 out["feed"]["set_pressure_pa"] = {
@@ -356,14 +355,32 @@ def design(vehicle):
     return out
 
 
+def translation_design(vehicle):
+    """Per body axis: the thruster bit masks pushing + and - (unit direction within 1e-6 of the
+    axis), and for the + set the law's constants (core.time_optimal.scale): force per pascal
+    n C_F A_t and blow-down time constant tau / n, n thrusters open (vacuum, nominal); the
+    acceleration per pascal at t = 0 is the force per pascal over mass_kg."""
+    design = config_feed.design(vehicle["rcs"]["feed"])
+    directions = unit_directions(vehicle)
+    masks, accel, tau = [], [], []
+    for axis in range(3):
+        counts = []
+        for sense in (1.0, -1.0):
+            ids = [i for i, d in enumerate(directions) if abs(d[axis] - sense) < 1e-6]
+            masks.append(sum(1 << i for i in ids))
+            counts.append(len(ids))
+        n = counts[0]
+        accel.append(n * design["thrust_coefficient"] * vehicle["rcs"]["feed"]["throat_area_m2"])
+        tau.append(design["blow_down_time_constant_s"] / n if n else 0.0)
+    return masks, accel, tau
+
+
 def _translation_design(vehicle):
     """The translation law of translate modes (trajectory local; 002 sec. 4, config.pack): per body
     axis the thrusters pushing + and -, n C_F A_t, the blow-down time constant with the + set open
     and the acceleration at the initial tank pressure (vacuum, nominal mass)."""
-    from refexmc.config import pack
-
     law = vehicle["flight_software"]["translation"]
-    masks, force_per_pa, tau = pack.translation_design(vehicle)
+    masks, force_per_pa, tau = translation_design(vehicle)
     pressure0 = vehicle["rcs"]["feed"]["initial_pressure_pa"]
     out = {
         "law": law["law"],
