@@ -80,7 +80,7 @@ def _figures(present):
             (
                 "Tank pressure",
                 "Pressure of the cold-gas tank over time (blow-down: it falls as gas leaves, and the thrust "
-                "with it). Dashed red: the requirement on the pressure left at the end.",
+                "with it). Dashed red: the requirements on the pressure left at the end, where the campaign has one.",
                 TANK_SIGNALS,
                 TANK_LAYOUT,
                 "tank",
@@ -108,9 +108,9 @@ def _bounds(summary, bounds_of, signals):
             bounds.setdefault(signal, []).append((value, label))
     for column, prefix in WHEEL_REQUIREMENTS.items():
         for value, label in bounds_of(column, summary):
-            for k, name in enumerate(n for n in signals if n.startswith(prefix + "_")):
-                bounds.setdefault(name, []).append((value, label if k == 0 else "_" + label))
-                bounds[name].append((-value, "_" + label))
+            for name in (n for n in signals if n.startswith(prefix + "_")):  # each panel its own legend
+                bounds.setdefault(name, []).append((value, label))
+                bounds[name].append((-value, "_" + label))  # the - side: no second legend entry
     return bounds
 
 
