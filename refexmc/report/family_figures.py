@@ -14,6 +14,7 @@ from refexmc.report import data, entry_figures, entry_histories
 
 AXES = "xyz"
 WHEEL_MOMENTUM = re.compile(r"^wheel_momentum_(\d+)_n_m_s$")
+WHEELS_PER_ROW = 2
 
 # name -> spec of entry_histories.ENTRY_SIGNALS: (columns, compute, unit, label, x axis, signed)
 TRANSLATION_SIGNALS = {
@@ -45,18 +46,19 @@ BANDS_TEXT = (
 
 
 def wheel_signals(present):
-    """The wheels' signals ({name: spec}) and layout (momenta row, torques row) of the columns ``present``."""
+    """The wheels' signals ({name: spec}) and layout (momenta rows, then torques rows, ``WHEELS_PER_ROW``
+    panels a row: room for each panel's legend) of the columns ``present``."""
     wheels = sorted(int(m.group(1)) for m in map(WHEEL_MOMENTUM.match, present) if m)
     specs = {}
     for i in wheels:
         momentum, torque = f"wheel_momentum_{i}_n_m_s", f"wheel_torque_{i}_n_m"
         specs[momentum] = ((momentum,), None, "N m s", f"wheel {i} momentum I_w Ω", "t", False)
         specs[torque] = ((torque,), None, "N m", f"wheel {i} motor torque", "t", False)
-    layout = (
-        tuple(f"wheel_momentum_{i}_n_m_s" for i in wheels),
-        tuple(f"wheel_torque_{i}_n_m" for i in wheels),
-    )
-    return specs, layout
+    names = [f"wheel_momentum_{i}_n_m_s" for i in wheels] + [f"wheel_torque_{i}_n_m" for i in wheels]
+    momenta_rows = -(-len(wheels) // WHEELS_PER_ROW)
+    rows = [names[: len(wheels)][k * WHEELS_PER_ROW : (k + 1) * WHEELS_PER_ROW] for k in range(momenta_rows)]
+    rows += [names[len(wheels) :][k * WHEELS_PER_ROW : (k + 1) * WHEELS_PER_ROW] for k in range(momenta_rows)]
+    return specs, tuple(tuple(row) for row in rows)
 
 
 def _figures(present):
