@@ -89,7 +89,10 @@ def _panel(ax, aggregate, name, bounds, changes, sequence):
         ax.set_xlabel(aggregate.get("x_label", "time since the entry interface [s]"), fontsize=8)
         ax.set_ylabel(f"{aggregate['labels'][name]} [{unit}]", fontsize=8)
         threshold = _symlog_threshold(q)
-        if threshold is not None:  # transients far above the steady errors: both readable
+        positive = bool(np.isfinite(q[:, 0]).any() and np.nanmin(q[:, 0]) > 0.0)
+        if name in aggregate.get("log_signals", ()) and positive:  # a distance falling by decades (a hop)
+            ax.set_yscale("log")
+        elif threshold is not None:  # transients far above the steady errors: both readable
             ax.set_yscale("symlog", linthresh=threshold, linscale=1.0)
         if bounds:
             finite = q[np.isfinite(q[:, 0])]

@@ -22,6 +22,7 @@ TRANSLATION_SIGNALS = {
     "speed_m_s": (("speed_m_s",), None, "m/s", "speed", "t", False),
     **{f"position_{a}_m": ((f"position_{a}_m",), None, "m", f"position {a} (local frame)", "t", False) for a in AXES},
 }
+LOG_SIGNALS = ("position_error_m",)  # metres to centimetres: the bound readable on a log axis
 TANK_SIGNALS = {"tank_pressure_pa": (("tank_pressure_pa",), None, "Pa", "tank pressure", "t", False)}
 TRANSLATION_LAYOUT = (("position_error_m", "speed_m_s"), tuple(f"position_{a}_m" for a in AXES))
 TANK_LAYOUT = (("tank_pressure_pa",),)
@@ -137,6 +138,7 @@ def figures_of(campaign, summary, bounds_of):
         if aggregate is None or not aggregate["signals"]:
             continue
         aggregate["x_label"] = "time since the start of the flight [s]"
+        aggregate["log_signals"] = LOG_SIGNALS
         png_bytes = entry_figures.entry_figure(aggregate, layout, _bounds(summary, bounds_of, aggregate["signals"]))
         if png_bytes is None:
             continue
