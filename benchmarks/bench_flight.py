@@ -197,7 +197,7 @@ def bench_flight_vs_rk4(reps, cpu):
     every = history_every(inputs, campaign["output"]["history_rate_hz"])
     summary = np.zeros(L.summary_size(inputs.modes.shape[0]))
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
-    history = np.zeros((result.history.shape[0] + 3, L.HISTORY_SIZE))
+    history = np.zeros((result.history.shape[0] + 3, result.history.shape[1]))  # the family's width
     kernel_args = (inputs, np.int64(0), np.int64(every), summary, pulses, history)
     try:  # since issue 35 the kernel also takes the pointing requirements' record (none here)
         from refexmc.core.pointing import empty_record

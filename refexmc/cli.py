@@ -612,11 +612,19 @@ def _format_attitude_design(name, info):
         return "  ".join(format(v, fmt) if v is not None else "-".rjust(width) for v in residue_free(values, fmt))
 
     lines = [f"vehicle {name}"]
-    if "lever_arms_m" in info:
+    if "lever_arms_m" in info and info.get("attitude_controlled", True):
         lines.append(f"  lever arms l [m]              {vec(info['lever_arms_m'], '8.3f')}")
         lines.append(f"  thrusters per axis n_t        {vec(info['thrusters_per_axis'], '8d')}")
     if "feed" in info:
         lines += _format_feed(info["feed"])
+    if "translation" in info:
+        lines += _format_translation(info["translation"], vec)
+    if not info.get("attitude_controlled", True):  # a hop: no attitude gains, PWPF or allocation to show
+        lines.append(
+            f"  attitude: not controlled (flight_software gains all zero); actuation {info['actuation']} opens the "
+            "valves the translation law asks for"
+        )
+        return "\n".join(lines)
     lines.append(f"  controller {info['controller']}, gains {info['gains_source']}, actuation {info['actuation']}")
     if "smc" in info:
         smc = info["smc"]
@@ -693,6 +701,37 @@ def _format_feed(feed):
         f"    regulated {level}: chamber held at {pressure / 1e5:.4g} bar while the tank is above it"
         for level, pressure in feed.get("set_pressure_pa", {}).items()
     ]
+
+
+def _format_translation(translation, vec):
+    """The translation law of translate modes (trajectory local; 002 sec. 4; config.derived)."""
+    law = translation["law"]
+    what = {
+        "time_optimal": "002 eq. 44 per body axis, coasts on sigma0, keeps the reserve on sigma1, brakes on sigma2",
+        "bang_bang": "-sign(sigma2) per body axis (002 Fig. 8's comparison)",
+        "pd_pwm": "a = -kp e - kd v per body axis, pulse-width modulated over whole control periods",
+    }[law]
+    lines = [
+        f"  translation law {law} of translate modes: {what}",
+        f"    deadband                    {translation['deadband_position_m']:g} m and "
+        f"{translation['deadband_speed_m_s']:g} m/s per axis: within both the axis coasts",
+        "    axis  thrusters +     thrusters -     n C_F A_t [N/Pa]  tau [s]   accel at P0 [m/s^2]",
+    ]
+    for axis, name in enumerate("xyz"):
+        plus, minus = translation["thrusters"][axis]["+"], translation["thrusters"][axis]["-"]
+        lines.append(
+            f"    {name:4s}  {', '.join(map(str, plus)) or '-':14s}  {', '.join(map(str, minus)) or '-':14s}  "
+            f"{translation['force_per_pa_n_pa'][axis]:16.4g}  {translation['time_constant_s'][axis]:7.4g}   "
+            f"{translation['initial_accel_m_s2'][axis]:.4g}"
+        )
+    if law == "pd_pwm":
+        gains = ", ".join(
+            f"{key} {translation[key]:g}"
+            for key in ("position_gain_s2", "velocity_gain_s", "pwm_period_s")
+            if key in translation
+        )
+        lines.append(f"    {gains}")
+    return lines
 
 
 def _format_wheels(wheels, vec):

@@ -18,6 +18,7 @@ from refexmc.config.requirements import (
 )
 from refexmc.core import flight, pointing
 from refexmc.core import layout as L
+from refexmc.core import modes as core_modes
 
 AXES = "xyz"
 
@@ -42,10 +43,14 @@ class FlightResult:
         wheels=False,
         local=False,
         requirement_values=None,
+        trajectory=L.TRAJECTORY_PLANAR_DRAG,
+        tank=False,
+        attitude=True,
+        thrusters=True,
     ):
         self.summary = summary  # layout.SUMMARY then per-mode values
         self.pulse_counts = pulse_counts  # valve open commands sent, per thruster
-        self.history = history  # rows x layout.HISTORY_SIZE
+        self.history = history  # rows x layout.history_size(wheels)
         self.mode_names = list(mode_names)
         self.orbit = orbit  # the orbit trajectory: entry-state values (config.requirements.ORBIT_COLUMNS)
         self.pointing = pointing  # a pointing window: config.requirements.POINTING_COLUMNS
@@ -53,6 +58,10 @@ class FlightResult:
         self.local = local  # the local trajectory: config.requirements.LOCAL_COLUMNS
         # the pointing requirements' per-run values by runs column (config.pointing, core.pointing)
         self.requirement_values = dict(requirement_values or {})
+        self.trajectory = trajectory  # layout.TRAJECTORY_*: which of altitude_m, qbar_pa the flight has
+        self.tank = tank  # a blow-down or regulated feed: tank_pressure_pa
+        self.attitude = attitude  # some mode controls the attitude: the attitude columns
+        self.thrusters = thrusters  # thrusters fire (not actuation wheels): propellant, valves, pulses
 
     def value(self, name):
         """A summary value by name; ``t_mode_s`` and ``t1_mode_s`` give one value per mode."""
@@ -127,8 +136,13 @@ class FlightResult:
             return f"non-finite state at t = {self.column('t_s')[row]:.3f} s"
         return None
 
+    @property
+    def wheel_count(self):
+        return (self.history.shape[1] - L.HISTORY_SIZE) // L.HISTORY_PER_WHEEL
+
     def history_columns(self):
-        """History signals by output column name (interface.md ``histories``, without run_id).
+        """History signals by output column name (interface.md ``histories``, without run_id): the
+        columns the flight's family produces, no others (a hop has no attitude error or altitude).
 
         ``mode`` is the index into :attr:`mode_names`; time is float64, the sampled signals
         float32 (7 significant digits: far below any sensor or model accuracy).
@@ -139,23 +153,40 @@ class FlightResult:
             values = col(name) if k is None else col(name)[:, k]
             return values.astype(np.float32)
 
-        columns = {
-            "t_s": col("t_s").copy(),
-            "mode": col("mode").astype(np.int32),
-            "theta_t_deg": signal("theta_t_deg"),
-            "omega_m_deg_s": signal("omega_m_deg_s"),
-        }
-        for k, axis in enumerate(AXES):
-            columns[f"theta_e_{axis}_deg"] = signal("theta_e_deg", k)
-        for k, axis in enumerate(AXES):
-            columns[f"omega_e_{axis}_deg_s"] = signal("omega_e_deg_s", k)
-        columns["fuel_remaining"] = signal("fuel_remaining")
-        halves = col("valves_open").astype(np.int64)  # bits 0-31 and 32-62 of the mask
-        columns["valves_open"] = halves[:, 0] | (halves[:, 1] << 32)
-        for k, axis in enumerate(AXES):
-            columns[f"pulse_{axis}"] = col("pulse_command")[:, k].astype(np.int8)
-        columns["altitude_m"] = signal("altitude_m")
-        columns["qbar_pa"] = signal("qbar_pa")
+        columns = {"t_s": col("t_s").copy(), "mode": col("mode").astype(np.int32)}
+        if self.attitude:  # a hop (translate modes only) controls no attitude and reads no rate
+            columns["theta_t_deg"] = signal("theta_t_deg")
+            columns["omega_m_deg_s"] = signal("omega_m_deg_s")
+            for k, axis in enumerate(AXES):
+                columns[f"theta_e_{axis}_deg"] = signal("theta_e_deg", k)
+            for k, axis in enumerate(AXES):
+                columns[f"omega_e_{axis}_deg_s"] = signal("omega_e_deg_s", k)
+        if self.thrusters:
+            columns["fuel_remaining"] = signal("fuel_remaining")
+            halves = col("valves_open").astype(np.int64)  # bits 0-31 and 32-62 of the mask
+            columns["valves_open"] = halves[:, 0] | (halves[:, 1] << 32)
+        if self.attitude and self.thrusters:
+            for k, axis in enumerate(AXES):
+                columns[f"pulse_{axis}"] = col("pulse_command")[:, k].astype(np.int8)
+        if self.trajectory in (L.TRAJECTORY_PLANAR_DRAG, L.TRAJECTORY_ORBIT):
+            columns["altitude_m"] = signal("altitude_m")
+        if self.trajectory == L.TRAJECTORY_PLANAR_DRAG:
+            columns["qbar_pa"] = signal("qbar_pa")
+        if self.tank:
+            columns["tank_pressure_pa"] = signal("tank_pressure_pa")
+        if self.local:
+            for k, axis in enumerate(AXES):
+                columns[f"position_{axis}_m"] = signal("position_m", k)
+            for k, axis in enumerate(AXES):
+                columns[f"velocity_{axis}_m_s"] = signal("velocity_m_s", k)
+            columns["position_error_m"] = signal("position_error_m")
+            columns["speed_m_s"] = signal("speed_m_s")
+            for k, axis in enumerate(AXES):
+                columns[f"translation_command_{axis}"] = col("translation_command")[:, k].astype(np.int8)
+        for i in range(self.wheel_count):
+            first = L.HISTORY_SIZE + L.HISTORY_PER_WHEEL * i
+            columns[f"wheel_momentum_{i + 1}_n_m_s"] = self.history[:, first + L.HW_MOMENTUM].astype(np.float32)
+            columns[f"wheel_torque_{i + 1}_n_m"] = self.history[:, first + L.HW_TORQUE].astype(np.float32)
         return columns
 
 
@@ -209,7 +240,7 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None, requirements=N
     max_rows = int(math.ceil(inputs.mission[L.M_MAX_TIME] / period / every)) + 3
     summary = np.zeros(L.summary_size(inputs.modes.shape[0]))
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
-    history = np.zeros((max_rows, L.HISTORY_SIZE))
+    history = np.zeros((max_rows, L.history_size(inputs.wheels.shape[0])))
     run_flight = flight.kernel(*flight.family(inputs))  # the vehicle family's own kernel (docs/families.md)
     if requirements is None or not requirements.columns:
         record = pointing.empty_record()
@@ -226,7 +257,14 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None, requirements=N
     wheels = inputs.wheels.shape[0] > 0
     local = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_LOCAL
     window = bool(np.isfinite(inputs.mission[L.M_POINTING_FROM]))
-    result = FlightResult(summary, pulses, history[:rows], mode_names, orbit, window, wheels, local, values)
+    trajectory = int(inputs.mission[L.M_TRAJECTORY_MODEL])
+    tank = int(inputs.vehicle[L.V_FEED_MODEL]) != L.FEED_CONSTANT
+    attitude = bool((inputs.modes[:, L.MD_KIND] != core_modes.KIND_TRANSLATE).any())
+    thrusters = int(inputs.fsw[L.F_ACTUATION]) != L.ACTUATION_WHEELS
+    result = FlightResult(
+        summary, pulses, history[:rows], mode_names, orbit, window, wheels, local, values, trajectory, tank, attitude,
+        thrusters,
+    )  # fmt: skip
     result.pointing_record = record  # the error samples at the control rate (core.pointing.Record)
     return result
 

@@ -441,3 +441,45 @@ def test_the_failure_header_names_the_blocked_flap(tmp_path, where, blocked, dis
     assert kind["mode"] == ("dispersed" if dispersion else "fixed")
     assert kind["detected"] == blocked.get("known_to_flight_software", True)
     assert kind["drawn_deg"] == ([10.5, 19.5] if dispersion else None)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mission", ["surveyor-hop.yaml"], indirect=True)
+def test_the_hop_report_draws_distance_speed_and_tank_pressure_with_their_bounds(mission):
+    """Issue 34: a hop's report shows how the runs drifted to the target (distance, speed,
+    position) and how the tank emptied, each with its requirement bound; no attitude figure."""
+    name, _, report, recorded, page = mission
+    summary = report["summary"]
+    titles = summary["figures"]
+    assert "Angle and rate errors per mode" not in titles  # the hop controls no attitude
+    translation = recorded[titles.index("Distance to the target, speed and position")]
+    assert not translation["empty"]
+    assert {"distance to the target [m]", "speed [m/s]", "position x (local frame) [m]"} <= set(translation["ylabels"])
+    assert "time since the start of the flight [s]" in translation["xlabels"]
+    assert 0.05 in translation["hlines"]  # position_error_end_m.p95 <= 0.05
+    tank = recorded[titles.index("Tank pressure")]
+    assert not tank["empty"] and tank["ylabels"] == ["tank pressure [Pa]"]
+    assert 1.0e6 in tank["hlines"]  # tank_pressure_end_pa.p5 >= 1.0e6
+    assert summary["family_panels"]["shown"] == [
+        "position_error_m",
+        "speed_m_s",
+        "position_x_m",
+        "position_y_m",
+        "position_z_m",
+        "tank_pressure_pa",
+    ]
+    assert "The target of the mission: (3, 1, 0) m." in page
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mission", ["irassi-fine-pointing.yaml"], indirect=True)
+def test_the_irassi_report_draws_each_wheels_momentum_and_torque(mission):
+    name, _, report, recorded, _ = mission
+    titles = report["summary"]["figures"]
+    wheels = recorded[titles.index("Reaction wheel momenta and motor torques")]
+    assert not wheels["empty"]
+    assert wheels["ylabels"] == [f"wheel {i} momentum I_w Ω [N m s]" for i in range(1, 5)] + [
+        f"wheel {i} motor torque [N m]" for i in range(1, 5)
+    ]
+    assert {68.0, -68.0} <= set(wheels["hlines"])  # wheel_momentum_peak_n_m_s.max < 68, at +-
+    assert "Tank pressure" not in titles and "Propellant remaining" not in titles

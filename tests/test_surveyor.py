@@ -3,6 +3,7 @@ the hop arrives, a stuck valve the hop needs fails it by a named reason, the dea
 the law from spending the tank, and PD + PWM is slower and more frugal (docs/cold-gas.md)."""
 
 import copy
+import json
 from pathlib import Path
 
 import numpy as np
@@ -164,3 +165,27 @@ def test_compare_puts_the_law_and_pd_pwm_side_by_side(tmp_path):
             assert abs(float(printed) - median) <= half_digit, (metric, printed, median)
     assert float(rows["t_hop_s"][2]) > 2.0 * float(rows["t_hop_s"][1])
     assert float(rows["fuel_used_kg"][2]) < 0.5 * float(rows["fuel_used_kg"][1])
+
+
+@pytest.mark.parametrize("vehicle", ["cold-gas-surveyor.yaml", "cold-gas-surveyor-pd-pwm.yaml"])
+def test_inspect_prints_the_translation_law_and_no_attitude_gains(vehicle):
+    """Issue 34: `inspect` on a hop's vehicle says what its flight uses (the translation law, its
+    deadband, the thrusters per axis, n C_F A_t, tau and the initial acceleration), not 40 lines
+    of zero attitude gains, deadbands, PWPF and an empty allocation table."""
+    path = str(ROOT / "configs/vehicles" / vehicle)
+    text = CliRunner().invoke(main, ["inspect", path]).output
+    info = json.loads(CliRunner().invoke(main, ["inspect", path, "--json"]).output)
+    law = info["translation"]["law"]
+    assert f"translation law {law}" in text and "attitude: not controlled" in text
+    for attitude_word in ("Kp", "Kd", "PWPF", "allocation", "deadband [deg", "lever arms"):
+        assert attitude_word not in text, attitude_word
+    assert len(text.splitlines()) < 20
+    assert [t["+"] for t in info["translation"]["thrusters"]] == [[1], [3], [5]]  # XP, YP, ZP
+    assert [t["-"] for t in info["translation"]["thrusters"]] == [[2], [4], [6]]
+    # one thruster per direction: tau is the feed's, the acceleration its initial thrust over the mass
+    mass = load_vehicle(path)["mass_kg"]
+    for axis in range(3):
+        assert info["translation"]["time_constant_s"][axis] == pytest.approx(info["feed"]["blow_down_time_constant_s"])
+        assert info["translation"]["initial_accel_m_s2"][axis] == pytest.approx(info["feed"]["initial_thrust_n"] / mass)
+    if law == "pd_pwm":
+        assert "position_gain_s2" in info["translation"] and "position_gain_s2" in text

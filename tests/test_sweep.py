@@ -312,3 +312,41 @@ def test_the_yaml_examples_of_studies_md_validate(tmp_path):
         path = tmp_path / f"example-{k}.yaml"
         path.write_text(yaml.safe_dump(data))
         load_campaign(path)
+
+
+def test_the_sweep_figure_fits_its_page_and_draws_each_requirement():
+    """Issue 34: four panels side by side were 2080 px on a 1300 px page, with no requirement
+    lines; now two a row (at most 1280 px) and each panel's metric with its bound."""
+    from refexmc.report.studies import SWEEP_DPI, sweep_figure, sweep_matplotlib_figure
+
+    metrics = ["position_error_end_m", "t_hop_s", "tank_pressure_end_pa"]
+    requirements = [
+        {"requirement": "success_rate >= 0.95", "metric": "success_rate", "value": 0.95, "passed": True},
+        {"requirement": "position_error_end_m.p95 <= 0.05", "metric": "position_error_end_m.p95", "value": 0.05},
+        {"requirement": "tank_pressure_end_pa.p5 >= 1e6", "metric": "tank_pressure_end_pa.p5", "value": 1.0e6},
+    ]
+    points = [
+        {
+            "values": {"rcs.feed.tank_volume_m3": v},
+            "success_rate": 1.0,
+            "success_ci95": [0.7, 1.0],
+            "requirements": requirements,
+            "metrics": {m: {"p1": k, "p50": k + 1.0, "p99": k + 2.0} for k, m in enumerate(metrics)},
+        }
+        for v in (0.6e-3, 0.8e-3, 1.0e-3)
+    ]
+    summary = {"axes": ["rcs.feed.tank_volume_m3"], "metrics": metrics, "points": points}
+    png = sweep_figure(summary)
+    assert int.from_bytes(png[16:20], "big") <= 1300  # the PNG's width, px
+    figure = sweep_matplotlib_figure(summary)
+    assert figure.get_size_inches()[0] * SWEEP_DPI <= 1300
+    lines = {
+        ax.get_title(): sorted(line.get_ydata()[0] for line in ax.get_lines() if line.get_linestyle() == "--")
+        for ax in figure.axes
+    }
+    assert lines == {
+        "P(success)": [0.95],
+        "position_error_end_m": [0.05],
+        "t_hop_s": [],
+        "tank_pressure_end_pa": [1.0e6],
+    }

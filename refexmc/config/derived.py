@@ -10,6 +10,7 @@ import itertools
 import numpy as np
 
 from refexmc import crmath, smallmatrix
+from refexmc.config import feed as config_feed
 from refexmc.config.schema import DEFAULT_TRAJECTORY, WHEELS_LEVEL
 
 
@@ -338,17 +339,65 @@ def design(vehicle):
         out["gains"][level] = {"kp": kp.tolist(), "kd": kd.tolist()}
     if "wheels" in vehicle:
         out["wheels"] = _wheel_design(vehicle)
+    if "translation" in fsw:
+        out["translation"] = _translation_design(vehicle)
+        # a hop's vehicle: no torque to control (gains all zero), the translation law drives the valves
+        out["attitude_controlled"] = any(any(out["gains"][level][k]) for level in out["gains"] for k in ("kp", "kd"))
     if "rcs" in vehicle:
         out.update(_rcs_design(vehicle))
         feed = vehicle["rcs"].get("feed", {})
         if feed.get("model", "constant") != "constant":
-            from refexmc.config import feed as config_feed
-
             out["feed"] = {"model": feed["model"], **config_feed.design(feed)}
             if feed["model"] == "regulated":
                 out["feed"]["set_pressure_pa"] = {
                     level: config_feed.set_pressure(vehicle, level) for level in vehicle["rcs"]["thrust_n"]
                 }
+    return out
+
+
+def translation_design(vehicle):
+    """Per body axis: the thruster bit masks pushing + and - (unit direction within 1e-6 of the
+    axis), and for the + set the law's constants (core.time_optimal.scale): force per pascal
+    n C_F A_t and blow-down time constant tau / n, n thrusters open (vacuum, nominal); the
+    acceleration per pascal at t = 0 is the force per pascal over mass_kg."""
+    design = config_feed.design(vehicle["rcs"]["feed"])
+    directions = unit_directions(vehicle)
+    masks, accel, tau = [], [], []
+    for axis in range(3):
+        counts = []
+        for sense in (1.0, -1.0):
+            ids = [i for i, d in enumerate(directions) if abs(d[axis] - sense) < 1e-6]
+            masks.append(sum(1 << i for i in ids))
+            counts.append(len(ids))
+        n = counts[0]
+        accel.append(n * design["thrust_coefficient"] * vehicle["rcs"]["feed"]["throat_area_m2"])
+        tau.append(design["blow_down_time_constant_s"] / n if n else 0.0)
+    return masks, accel, tau
+
+
+def _translation_design(vehicle):
+    """The translation law of translate modes (trajectory local; 002 sec. 4, config.pack): per body
+    axis the thrusters pushing + and -, n C_F A_t, the blow-down time constant with the + set open
+    and the acceleration at the initial tank pressure (vacuum, nominal mass)."""
+    law = vehicle["flight_software"]["translation"]
+    masks, force_per_pa, tau = translation_design(vehicle)
+    pressure0 = vehicle["rcs"]["feed"]["initial_pressure_pa"]
+    out = {
+        "law": law["law"],
+        "deadband_position_m": law.get("deadband_position_m", 0.0),
+        "deadband_speed_m_s": law.get("deadband_speed_m_s", 0.0),
+        "thrusters": [
+            {sense: [i + 1 for i in range(64) if (masks[2 * axis + k] >> i) & 1] for k, sense in enumerate("+-")}
+            for axis in range(3)
+        ],
+        "force_per_pa_n_pa": list(force_per_pa),
+        "time_constant_s": list(tau),
+        "initial_accel_m_s2": [f * pressure0 / vehicle["mass_kg"] for f in force_per_pa],
+    }
+    if law["law"] == "pd_pwm":
+        for key in ("position_gain_s2", "velocity_gain_s", "pwm_period_s"):
+            if key in law:
+                out[key] = law[key]
     return out
 
 

@@ -30,6 +30,7 @@ from refexmc.config.derived import (
     level_names,
     thruster_count,
     trajectory_model,
+    translation_design,
     wheel_problem,
 )
 from refexmc.config.errors import ConfigError
@@ -569,8 +570,6 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle, plausible=()):
 def _check_local(vehicle, mission, fail_mission, fail_vehicle, plausible=()):
     """A local vehicle and mission: a tank (rcs.feed), the pwpf_table actuation and a translation
     law; the mission's local block; a fuel reserve the origin can be reached with (002 eq. 45-46)."""
-    from refexmc.config import pack as config_pack
-
     fsw = vehicle["flight_software"]
     if "rcs" not in vehicle or vehicle["rcs"].get("feed", {}).get("model", "constant") == "constant":
         fail_vehicle("the local trajectory flies the thrust a tank gives: expected rcs.feed blow_down or regulated")
@@ -592,7 +591,7 @@ def _check_local(vehicle, mission, fail_mission, fail_vehicle, plausible=()):
     local = mission["local"]
     p0 = vehicle["rcs"]["feed"]["initial_pressure_pa"]
     reserve = local.get("reserve_pressure_pa", 0.0)
-    _, force, tau = config_pack.translation_design(vehicle)
+    _, force, tau = translation_design(vehicle)
     accel = [f / vehicle["mass_kg"] for f in force]
     # the tank's keys live in the vehicle file: name them there too (issue 34)
     tank = f"P0 = {p0:g} Pa at {fail_vehicle.where('rcs', 'feed', 'initial_pressure_pa')}"

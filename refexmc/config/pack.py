@@ -242,28 +242,8 @@ def pack_fsw(vehicle):
     return out
 
 
-def translation_design(vehicle):
-    """Per body axis: the thruster bit masks pushing + and - (unit direction within 1e-6 of the
-    axis), and for the + set the law's constants (core.time_optimal.scale): force per pascal
-    n C_F A_t and blow-down time constant tau / n, n thrusters open (vacuum, nominal); the
-    acceleration per pascal at t = 0 is the force per pascal over mass_kg."""
-    design = config_feed.design(vehicle["rcs"]["feed"])
-    directions = derived.unit_directions(vehicle)
-    masks, accel, tau = [], [], []
-    for axis in range(3):
-        counts = []
-        for sense in (1.0, -1.0):
-            ids = [i for i, d in enumerate(directions) if abs(d[axis] - sense) < 1e-6]
-            masks.append(sum(1 << i for i in ids))
-            counts.append(len(ids))
-        n = counts[0]
-        accel.append(n * design["thrust_coefficient"] * vehicle["rcs"]["feed"]["throat_area_m2"])
-        tau.append(design["blow_down_time_constant_s"] / n if n else 0.0)
-    return masks, accel, tau
-
-
 def _pack_translation(out, vehicle):
-    masks, force, tau = translation_design(vehicle)
+    masks, force, tau = derived.translation_design(vehicle)
     feed = vehicle["rcs"]["feed"]
     gas_per_pa = feed["tank_volume_m3"] / (feed["gas_constant_j_kg_k"] * feed["temperature_k"])
     _put(out, L.FSW, "translation_law_id", TRANSLATION_LAWS[vehicle["flight_software"]["translation"]["law"]])

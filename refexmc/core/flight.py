@@ -82,6 +82,7 @@ from refexmc.core.layout import (
     H_PULSE,
     H_QBAR,
     H_T,
+    H_TANK_PRESSURE,
     H_THETA_E,
     H_THETA_T,
     H_VALVES,
@@ -928,6 +929,12 @@ def _fly(
             _record(
                 history, rows, t, flown, theta_t, controlled, fraction, valves_open, sensed.rate_meas, act, sensed.now
             )
+            if tank is not None:
+                history[rows, H_TANK_PRESSURE] = tank.state[feed.TK_PRESSURE]
+            if loc is not None:
+                local_flight.record(loc, history[rows])
+            if wh is not None:
+                wheels.record(wh, body.x[4:7], history[rows])
             rows += 1
         if finished:
             break

@@ -354,6 +354,20 @@ H_OMEGA_E = HISTORY.add("omega_e_deg_s", 3)
 H_FUEL = HISTORY.add("fuel_remaining")
 H_VALVES = HISTORY.add("valves_open", 2)  # thrusters producing thrust: mask bits 0-31, then 32-62 (exact)
 H_PULSE = HISTORY.add("pulse_command", 3)
-H_ALTITUDE = HISTORY.add("altitude_m")
-H_QBAR = HISTORY.add("qbar_pa")
-HISTORY_SIZE = HISTORY.size
+H_ALTITUDE = HISTORY.add("altitude_m")  # planar and orbit trajectories
+H_QBAR = HISTORY.add("qbar_pa")  # planar trajectory
+H_TANK_PRESSURE = HISTORY.add("tank_pressure_pa")  # a blow-down or regulated feed (core.feed)
+H_POSITION = HISTORY.add("position_m", 3)  # trajectory local: truth, local frame
+H_VELOCITY = HISTORY.add("velocity_m_s", 3)
+H_POSITION_ERROR = HISTORY.add("position_error_m")  # |position - the mode's target|, truth
+H_SPEED = HISTORY.add("speed_m_s")
+H_TRANSLATION_COMMAND = HISTORY.add("translation_command", 3)  # the law's u per body axis: -1, 0, +1
+HISTORY_SIZE = HISTORY.size  # then per reaction wheel: HISTORY_PER_WHEEL columns (history_size)
+HW_MOMENTUM = 0  # I_w Omega, relative to the body (N m s): what the speed limit bounds
+HW_TORQUE = 1  # motor torque held over the control period (N m)
+HISTORY_PER_WHEEL = 2
+
+
+def history_size(n_wheels):
+    """Columns of a history row of a vehicle with ``n_wheels`` reaction wheels."""
+    return HISTORY_SIZE + HISTORY_PER_WHEEL * n_wheels

@@ -43,6 +43,11 @@ from refexmc.core.layout import (
     F_TRANSLATION_PD_GAINS,
     F_TRANSLATION_PWM_STEPS,
     F_TRANSLATION_TAU,
+    H_POSITION,
+    H_POSITION_ERROR,
+    H_SPEED,
+    H_TRANSLATION_COMMAND,
+    H_VELOCITY,
     M_LOCAL_GRAVITY,
     M_LOCAL_POSITION,
     M_LOCAL_RESERVE,
@@ -272,3 +277,19 @@ def finish(mission, loc, tank, summary):
     summary[S_LOCAL_POSITION_ERROR] = math.sqrt(e2)
     summary[S_LOCAL_SPEED] = math.sqrt(v2)
     summary[S_TANK_PRESSURE_END] = tank.state[feed.TK_PRESSURE]
+
+
+@jit_noalloc
+def record(loc, row):
+    """The local trajectory's history columns of one row: true position and velocity, the true
+    distance to the mode's target and speed, and the law's last command per body axis."""
+    e2, v2 = 0.0, 0.0
+    for i in range(3):
+        row[H_POSITION + i] = loc.state[i]
+        row[H_VELOCITY + i] = loc.state[3 + i]
+        row[H_TRANSLATION_COMMAND + i] = loc.status[LS_U + i]
+        e = loc.state[i] - loc.target[i]
+        e2 += e * e
+        v2 += loc.state[3 + i] * loc.state[3 + i]
+    row[H_POSITION_ERROR] = math.sqrt(e2)
+    row[H_SPEED] = math.sqrt(v2)

@@ -32,6 +32,10 @@ import numpy as np
 from refexmc._jit import jit, jit_noalloc
 from refexmc.core import dynamics, quaternion
 from refexmc.core.layout import (
+    HISTORY_PER_WHEEL,
+    HISTORY_SIZE,
+    HW_MOMENTUM,
+    HW_TORQUE,
     W_AXIS,
     W_COULOMB,
     W_COULOMB_DESIGN,
@@ -561,3 +565,13 @@ def largest_relative_momentum(wheels, h, omega):
     for i in range(wheels.shape[0]):
         peak = max(peak, abs(relative_momentum(wheels, i, h, omega)))
     return peak
+
+
+@jit_noalloc
+def record(plant, omega, row):
+    """The wheels' history columns of one row (layout.history_size): per wheel its momentum
+    relative to the body and its motor torque."""
+    for i in range(plant.table.shape[0]):
+        column = HISTORY_SIZE + HISTORY_PER_WHEEL * i
+        row[column + HW_MOMENTUM] = relative_momentum(plant.table, i, plant.h, omega)
+        row[column + HW_TORQUE] = plant.motor[i]

@@ -171,7 +171,7 @@ def _modes_caption(campaign, summary, histories, left_out, unit):
 
 def render_figures(campaign, summary):
     """[(title, caption, png bytes, file stem)] of every figure the campaign has data for."""
-    from refexmc.report import aggregate, entry_histories, figures
+    from refexmc.report import aggregate, entry_histories, family_figures, figures
 
     result = []
     plan = summary["outputs"]
@@ -239,6 +239,7 @@ def render_figures(campaign, summary):
             "shown": {q: [histories["mode_names"][m] for m in modes] for q, modes in shown.items()},
             "left_out": left_out,
         }
+    result += family_figures.figures_of(campaign, summary, bounds_of)  # translation, tank, wheels (issue 34)
     used = campaign.ok["fuel_used_kg"].to_numpy(dtype=float) if "fuel_used_kg" in campaign.ok else np.zeros(0)
     fuel = campaign.ok["fuel_remaining"].to_numpy(dtype=float) if "fuel_remaining" in campaign.ok else np.zeros(0)
     if np.isfinite(fuel).sum() >= 2 and (np.nan_to_num(used) > 0).any():

@@ -271,7 +271,17 @@ def aggregate_histories(campaign):
     nominal_id = campaign.nominal_run_id
     nominal_parts = []
     rows = 0
+    present = data.present_columns(campaign)  # a hop records no attitude: its rows stay empty
     columns = ["run_id", "t_s", "mode", "theta_t_deg", "omega_m_deg_s", "fuel_remaining", "valves_open"]
+    columns = [c for c in columns if c in present]
+    if not {"run_id", "t_s", "mode"} <= present:
+        return None
+
+    def values(batch, column, missing=np.nan):  # a column the family does not write: all ``missing``
+        if column in present:
+            return batch.column(column).to_numpy(zero_copy_only=False)
+        return np.full(batch.num_rows, missing, dtype=np.float32)
+
     starts = starts.ravel()  # [run position * modes + mode]
 
     def samples(batch):  # on the reading threads: nothing shared is changed
@@ -284,11 +294,11 @@ def aggregate_histories(campaign):
             rid, position = rid[flown], position[flown]
         t = batch.column("t_s").to_numpy(zero_copy_only=False)
         mode = data.mode_codes(batch.column("mode"), modes).astype(np.int64)
-        theta = batch.column("theta_t_deg").to_numpy(zero_copy_only=False)
-        omega = np.abs(batch.column("omega_m_deg_s").to_numpy(zero_copy_only=False))
-        propellant = batch.column("fuel_remaining").to_numpy(zero_copy_only=False)
+        theta = values(batch, "theta_t_deg")
+        omega = np.abs(values(batch, "omega_m_deg_s"))
+        propellant = values(batch, "fuel_remaining")
         known = mode >= 0
-        valves = batch.column("valves_open").to_numpy(zero_copy_only=False)
+        valves = values(batch, "valves_open", 0)
         valve_counts = np.bincount(mode[known & (valves != 0)], minlength=len(modes))
         if known.all():
             tau = t - starts[position * len(modes) + mode]

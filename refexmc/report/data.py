@@ -319,11 +319,26 @@ def mode_codes(column, modes):
     return mode_codes(column.dictionary_encode(), modes)
 
 
+def present_columns(campaign):
+    """History columns every part of the OUT with rows has (a part without rows, of a chunk whose
+    runs all errored, has the columns of no family): each family writes only its own columns."""
+    names = None
+    for part in campaign.history_parts:
+        parquet = pq.ParquetFile(part)
+        if parquet.metadata.num_rows == 0:
+            continue
+        here = set(parquet.schema_arrow.names)
+        names = here if names is None else names & here
+    return names or set()
+
+
 HISTORY_READ_AHEAD = 2  # parts read (and mapped) on threads ahead of the one being used
 
 
 def _history_part_batches(part, columns, batch_rows, function=None):
     parquet = pq.ParquetFile(part, pre_buffer=False)
+    if parquet.metadata.num_rows == 0:  # a chunk whose runs all errored: no rows, any columns
+        return []
     present = [c for c in columns if c in parquet.schema_arrow.names]
     if len(present) < len(columns):
         missing = sorted(set(columns) - set(present))

@@ -86,10 +86,13 @@ def _panel(ax, aggregate, name, bounds, changes, sequence):
             ax.axvline(t, color=MODE_COLOR, lw=0.8, ls=":", label=f"run 0: {sequence}" if k == 0 else None)
         ok = np.isfinite(q[:, 2])
         ax.set_xlim(0.0, float(x[ok].max() + 0.5 * envelope.dx) if ok.any() else 1.0)
-        ax.set_xlabel("time since the entry interface [s]", fontsize=8)
+        ax.set_xlabel(aggregate.get("x_label", "time since the entry interface [s]"), fontsize=8)
         ax.set_ylabel(f"{aggregate['labels'][name]} [{unit}]", fontsize=8)
         threshold = _symlog_threshold(q)
-        if threshold is not None:  # transients far above the steady errors: both readable
+        positive = bool(np.isfinite(q[:, 0]).any() and np.nanmin(q[:, 0]) > 0.0)
+        if name in aggregate.get("log_signals", ()) and positive:  # a distance falling by decades (a hop)
+            ax.set_yscale("log")
+        elif threshold is not None:  # transients far above the steady errors: both readable
             ax.set_yscale("symlog", linthresh=threshold, linscale=1.0)
         if bounds:
             finite = q[np.isfinite(q[:, 0])]

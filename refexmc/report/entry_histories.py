@@ -11,10 +11,10 @@ memory is fixed by the bins, not by the number of runs.
 import math
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from refexmc.report import data
 from refexmc.report.aggregate import ENVELOPE_PERCENTS, BinnedQuantiles, statistics_min_max
+from refexmc.report.data import present_columns
 
 MAX_X_BINS = 400
 LINEAR_VALUE_BINS = 400  # 0.25 % of the column's range (Parquet statistics) per value bin
@@ -111,20 +111,18 @@ class Envelope:
         return int(self.binned.sample_counts().sum())
 
 
-def present_columns(campaign):
-    """History columns every part of the OUT has."""
-    names = None
-    for part in campaign.history_parts:
-        here = set(pq.ParquetFile(part).schema_arrow.names)
-        names = here if names is None else names & here
-    return names or set()
-
-
 def aggregate_entry_histories(campaign):
-    """Envelopes of the entry signals the OUT has, over the flown runs (status ok).
+    """Envelopes of the entry signals the OUT has, over the flown runs (status ok): see
+    :func:`aggregate_signals`."""
+    return aggregate_signals(campaign, ENTRY_SIGNALS, NOMINAL_COLUMNS)
+
+
+def aggregate_signals(campaign, specs, nominal_columns=()):
+    """Envelopes of the signals ``specs`` names ({name: spec}, as ``ENTRY_SIGNALS``) that the OUT
+    has, over the flown runs (status ok); ``nominal_columns``: further columns of the nominal run kept.
 
     Returns None without histories or flown runs; else a dict: ``signals`` {name: (Envelope,
-    quantiles)} for the ``ENTRY_SIGNALS`` with samples, ``units``/``labels`` of them,
+    quantiles)} for the signals with samples, ``units``/``labels`` of them,
     ``missing`` {name: [absent history columns]}, ``nominal`` (the nominal run's samples by
     column and signal name, or None), ``mode_names``, ``rows`` (samples read).
     """
@@ -132,8 +130,8 @@ def aggregate_entry_histories(campaign):
     if not campaign.history_parts or ok.empty:
         return None
     present = present_columns(campaign)
-    wanted = {name: spec for name, spec in ENTRY_SIGNALS.items() if set(spec[0]) <= present}
-    missing = {name: sorted(set(spec[0]) - present) for name, spec in ENTRY_SIGNALS.items() if name not in wanted}
+    wanted = {name: spec for name, spec in specs.items() if set(spec[0]) <= present}
+    missing = {name: sorted(set(spec[0]) - present) for name, spec in specs.items() if name not in wanted}
     if not wanted or not {"run_id", "t_s", "mode"} <= present:
         return None
     plain = sorted({spec[0][0] for spec in wanted.values() if spec[1] is None and not spec[5]})
@@ -159,7 +157,7 @@ def aggregate_entry_histories(campaign):
     run_ids = ok["run_id"].to_numpy(dtype=np.int64)
     nominal_id = campaign.nominal_run_id
     read = sorted({"run_id", "t_s", "mode"} | {c for spec in wanted.values() for c in spec[0]})
-    read += [c for c in NOMINAL_COLUMNS if c in present and c not in read]
+    read += [c for c in nominal_columns if c in present and c not in read]
     nominal_parts, rows = [], 0
     for batch in data.history_batches(campaign, read):
         rows += batch.num_rows
@@ -195,8 +193,8 @@ def aggregate_entry_histories(campaign):
     signals = {name: (e, e.quantiles()) for name, e in envelopes.items() if e.samples()}
     return {
         "signals": signals,
-        "units": {name: ENTRY_SIGNALS[name][2] for name in signals},
-        "labels": {name: ENTRY_SIGNALS[name][3] for name in signals},
+        "units": {name: specs[name][2] for name in signals},
+        "labels": {name: specs[name][3] for name in signals},
         "missing": missing,
         "nominal": nominal,
         "mode_names": list(campaign.modes),

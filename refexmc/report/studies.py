@@ -92,7 +92,10 @@ def point_statistics(point, result, runs, metrics):
         "success_rate": successes / n if n else math.nan,
         "success_ci95": [low, high],
         "verdict": result["verdict"],
-        "requirements": [{"requirement": r["requirement"], "passed": r["passed"]} for r in result["requirements"]],
+        "requirements": [
+            {"requirement": r["requirement"], "passed": r["passed"], "metric": r.get("metric"), "value": r.get("value")}
+            for r in result["requirements"]
+        ],
         "metrics": {
             metric: {q: stats.column_stat(successful[metric].to_numpy(dtype=float), q) for q in SWEEP_PERCENTILES}
             for metric in metrics
@@ -219,16 +222,52 @@ def _series(summary):
     return [(f"{axes[1]} = {v:g}", [r["values"][axes[0]] for r in group], group) for v, group in series.items()]
 
 
+SWEEP_COLUMNS = 2  # panels per row: the figure fits the page's 1300 px at SWEEP_DPI
+SWEEP_FIGURE_WIDTH_IN = 12.8
+SWEEP_DPI = 100
+
+
+def sweep_bounds(summary):
+    """{metric: [(value, requirement)]}: the bounds of the points' requirements on each swept
+    metric's statistic (every point has the campaign's requirements; the first point's are read)."""
+    from refexmc.report.requirements import split_metric
+
+    bounds = {}
+    points = summary["points"]
+    for r in points[0]["requirements"] if points else ():
+        if not r.get("metric") or r.get("value") is None:
+            continue
+        column = split_metric(r["metric"])[0]
+        bound = (float(r["value"]), r["requirement"])
+        if (column in summary["metrics"] or column == "success_rate") and bound not in bounds.get(column, []):
+            bounds.setdefault(column, []).append(bound)
+    return bounds
+
+
 def sweep_figure(summary):
+    """:func:`sweep_matplotlib_figure` as PNG bytes."""
+    buffer = io.BytesIO()
+    sweep_matplotlib_figure(summary).savefig(buffer, format="png", dpi=SWEEP_DPI)
+    return buffer.getvalue()
+
+
+def sweep_matplotlib_figure(summary):
     """P(success) with its 95 % Clopper-Pearson band, and each metric's p50 with its p1-p99 band,
-    against the first axis (one line per value of the second); PNG bytes."""
+    against the first axis (one line per value of the second), at most ``SWEEP_COLUMNS`` panels
+    a row; dashed red: the requirement bounds on each panel's metric."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     panels = 1 + len(summary["metrics"])
-    figure = Figure(figsize=(5.2 * panels, 4.0), layout="constrained")
+    columns = min(panels, SWEEP_COLUMNS)
+    rows_of_panels = -(-panels // columns)
+    width = SWEEP_FIGURE_WIDTH_IN * columns / SWEEP_COLUMNS
+    figure = Figure(figsize=(width, 4.0 * rows_of_panels), layout="constrained")
     FigureCanvasAgg(figure)
-    axes = figure.subplots(1, panels, squeeze=False)[0]
+    grid = figure.subplots(rows_of_panels, columns, squeeze=False).ravel()
+    for ax in grid[panels:]:
+        ax.remove()
+    axes = grid[:panels]
     for label, x, rows in _series(summary):
         order = np.argsort(x)
         x = np.asarray(x, dtype=float)[order]
@@ -243,16 +282,21 @@ def sweep_figure(summary):
     axes[0].set_ylabel("95 % Clopper-Pearson band")
     axes[0].set_ylim(-0.02, 1.02)
     axes[0].set_title("P(success)")
+    bounds = sweep_bounds(summary)
     for ax, metric in zip(axes[1:], summary["metrics"], strict=True):
         ax.set_title(metric)
         ax.set_ylabel("successful flights: median, 1-99 % band")
+    for ax, metric in zip(axes, ["success_rate", *summary["metrics"]], strict=True):
+        for value, requirement in bounds.get(metric, ()):
+            ax.axhline(value, color="tab:red", ls="--", lw=1.0, label=f"required: {requirement}")
+        if bounds.get(metric):
+            ax.legend(fontsize="small")
     for ax in axes:
         ax.set_xlabel(summary["axes"][0])
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize="small")
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=100)
-    return buffer.getvalue()
+    if not bounds.get("success_rate"):
+        axes[0].legend(fontsize="small")
+    return figure
 
 
 def sweep_page(summary, png_bytes):
@@ -266,7 +310,7 @@ def sweep_page(summary, png_bytes):
     encoded = base64.b64encode(png_bytes).decode("ascii")
     return (
         "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'><title>refexmc sweep</title>"
-        "<style>body{font-family:system-ui,sans-serif;max-width:1300px;margin:1.5em auto}"
+        "<style>body{font-family:system-ui,sans-serif;max-width:1300px;margin:1.5em auto}img{max-width:100%}"
         "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:.2em .5em;text-align:right}</style>"
         f"</head><body><h1>Sweep over {e(', '.join(summary['axes']))}</h1>"
         f"<p>Verdict: {e(summary['verdict'])}. Each point is a full Monte-Carlo campaign with the same run seeds "
