@@ -264,7 +264,7 @@ def format_run_summary(result):
         end = end_name(result["campaign"]["mission"]) if row["success"] else "flight stopped"
         lines.append(f"  flight: {verdict}, {end} at t = {row['t_end_s']:.1f} s")
         lines.append(f"  propellant remaining: {100 * row['fuel_remaining']:.1f} % ({row['fuel_used_kg']:.3f} kg used)")
-        theta = row["theta_t_handover_deg"]
+        theta = row["attitude_error_end_deg"]
         at = f"at the {end}" if row["success"] else "when it stopped"
         lines.append(f"  total angle error {at}: {theta:.2f} deg" if not math.isnan(theta) else "")
         names = [mode["name"] for mode in result["campaign"]["mission"]["modes"]]
@@ -381,7 +381,7 @@ def rerun(out, run_id, history_rate, dest):
     else:
         click.echo(f"  the mission: {end_condition(mission)}")
         stopped = end_name(mission) if row["success"] else "flight stopped"
-        theta = row["theta_t_handover_deg"]
+        theta = row["attitude_error_end_deg"]
         click.echo(
             f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, {stopped} at t = {row['t_end_s']:.2f} s"
             + (f", total angle error {theta:.3f} deg" if not math.isnan(theta) else "")

@@ -88,7 +88,7 @@ def test_generic_flight_detumbles_slews_and_holds(generic):
     vehicle, mission, _, result = generic
     assert result.success, result.failure_reason
     assert result.value("modes_completed") == 3
-    assert result.value("theta_t_handover_deg") < mission["handover_max_angle_deg"]
+    assert result.value("attitude_error_end_deg") < mission["attitude_error_end_max_deg"]
     # no trajectory: no altitude, no dynamic pressure
     assert np.all(result.column("altitude_m") == 0.0) and np.all(result.column("qbar_pa") == 0.0)
     # the hold ends 60 s after it began
@@ -98,7 +98,7 @@ def test_generic_flight_detumbles_slews_and_holds(generic):
 def test_first_mode_starts_its_guidance_at_separation(generic):
     """The detumble (first mode) profile lasts t1 = 1.5 max |omega_i| / (margin omega_dot_max,i) (000 eq. 19)."""
     vehicle, mission, _, result = generic
-    rates = np.radians(mission["separation"]["rates_deg_s"])
+    rates = np.radians(mission["initial_state"]["rates_deg_s"])
     accel = vehicle["flight_software"]["guidance_accel_margin"] * derived.omega_dot_max(vehicle, "low")
     assert result.value("t1_mode_s")[0] == pytest.approx(np.max(1.5 * np.abs(rates) / accel), rel=1e-12)
 
@@ -111,7 +111,7 @@ def test_slew_reaches_the_inertial_target(generic):
     target = mission["modes"][1]["target"]
     expected = Rotation.from_euler(target["sequence"], target["euler_deg"], degrees=True)
     assert inputs.modes[1, 9:13] == pytest.approx(expected.as_quat(), abs=1e-15)  # layout.MD_QUATERNION
-    assert result.column("theta_t_deg")[-1] < mission["handover_max_angle_deg"]
+    assert result.column("theta_t_deg")[-1] < mission["attitude_error_end_max_deg"]
 
 
 def test_pd_controller_is_004_eq_1():

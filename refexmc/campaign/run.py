@@ -27,6 +27,7 @@ from refexmc.campaign import lock, pool, storage
 from refexmc.campaign.backends import BACKENDS, check_backend, start_workers, stop_workers
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import Guard
+from refexmc.config import renames
 from refexmc.config.design_checks import strict_error
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import apply_overrides, load_campaign
@@ -115,6 +116,7 @@ def check_resumable(out, campaign, extend=False):
         raise ConfigError(
             "cannot resume: campaign.resolved.yaml holds no campaign; remove OUT or use another -o", file=out
         )
+    renames.migrate_campaign(stored)  # an output written before a rename (issue 34) holds its campaign
     current = storage.normalized_campaign(campaign)
     if extend and isinstance(stored.get("runs"), int) and stored["runs"] <= current["runs"]:
         stored = {**stored, "runs": current["runs"]}
