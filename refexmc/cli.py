@@ -293,7 +293,9 @@ def report(out, no_html, require):
     from refexmc.report import make_report
 
     try:
-        result = make_report(out, require=require, html=not no_html)
+        from refexmc.config import renames  # a name of before issue 34 means its new one
+
+        result = make_report(out, require=[renames.new_text(text) for text in require], html=not no_html)
     except ConfigError as exc:
         _bad_input(str(exc))
     except OSError as exc:
@@ -333,7 +335,9 @@ def compare(baseline_out, out, tolerances):
     from refexmc.report.compare import format_table
 
     try:
-        result = compare_campaigns(baseline_out, out, tolerances)
+        from refexmc.config import renames  # a name of before issue 34 means its new one
+
+        result = compare_campaigns(baseline_out, out, [renames.new_text(text) for text in tolerances])
     except ConfigError as exc:
         _bad_input(str(exc))
     except OSError as exc:

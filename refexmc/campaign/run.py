@@ -18,8 +18,6 @@ import threading
 from contextlib import closing, contextmanager, suppress
 from pathlib import Path
 
-import pyarrow as pa
-import pyarrow.parquet as pq
 import yaml
 
 import refexmc
@@ -392,8 +390,8 @@ def read_runs(out, chunks):
 
     Part by part: reading the folder would import pyarrow.dataset (~0.4 s) for a few small files.
     """
-    parts = [pq.ParquetFile(out / "runs" / storage.part_name(chunk)).read() for chunk, _ in chunks]
-    return pa.concat_tables(parts).to_pandas().sort_values("run_id", ignore_index=True)
+    parts = [out / "runs" / storage.part_name(chunk) for chunk, _ in chunks]
+    return storage.read_runs_parts(parts).to_pandas().sort_values("run_id", ignore_index=True)
 
 
 def _fly(campaign, todo, out, execution, options, meter):

@@ -162,7 +162,7 @@ def warnings_of(found, file, lines, warning_type):
     out = []
     for path, message in found:
         line = next((lines[path[:k]] for k in range(len(path), 0, -1) if path[:k] in (lines or {})), None)
-        text = f"{message}: a name renamed by issue 34; the old one still loads, --strict refuses it (docs/interface.md)"
+        text = f"{message}: renamed by issue 34; the old name still loads, --strict refuses it (docs/interface.md)"
         out.append(warning_type(text, file=file, line=line, path=path))
     return out
 
