@@ -383,7 +383,8 @@ def _mission_line(text, fragment):
 
 
 _SAM_TARGET = "    target: {type: sun_horizontal}\n    thrust: low\n    exit: [{angle_error_below_deg"
-_EMPTY = MISSION_TEXT[: MISSION_TEXT.index("modes:\n")] + "modes: []\n" + MISSION_TEXT[MISSION_TEXT.index("attitude_error_end_max") :]
+_AFTER_MODES = MISSION_TEXT[MISSION_TEXT.index("attitude_error_end_max") :]
+_EMPTY = MISSION_TEXT[: MISSION_TEXT.index("modes:\n")] + "modes: []\n" + _AFTER_MODES
 # (case id, mission text, words the message must contain, fragment of the line it must name)
 MISSION_CASES = [
     (
