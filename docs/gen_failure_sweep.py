@@ -78,7 +78,7 @@ def table(campaign, rows):
             row["failure_reason"] or "—",
             str(row["modes_completed"]),
             number(row["t_end_s"], ".1f"),
-            number(row["theta_t_handover_deg"], ".3f"),
+            number(row["attitude_error_end_deg"], ".3f"),
             agrees,
             number(used, ".3f"),
             ("yes" if used <= tank_kg else "**no**") if done else "—",

@@ -4,7 +4,7 @@
 without saying whether each is a bias per run or a noise per step, whether the pointing error sits
 in the attitude knowledge or in the actuation, or which gains its PD burn guidance has (its
 equation is missing from the text). Each reading below is campaigns/spore-deorbit-iss.yaml with
-one of those choices changed; the rest (inertia, centre of mass, thrust scale, separation, sensor
+one of those choices changed; the rest (inertia, centre of mass, thrust scale, initial state, sensor
 noise) is the base campaign's.
 
     .venv/bin/python docs/gen_spore_readings.py --campaigns        # (re)write campaigns/spore-readings/
@@ -67,7 +67,7 @@ READINGS = {
         {},
     ),
     "no-table-1": (
-        "none of Table 1's errors: only the base's other dispersions (centre of mass, inertia, RCS, separation, "
+        "none of Table 1's errors: only the base's other dispersions (centre of mass, inertia, RCS, initial state, "
         "sensor noise)",
         {
             "navigation.gps_position_bias_m": None,

@@ -264,7 +264,7 @@ def format_run_summary(result):
         end = end_name(result["campaign"]["mission"]) if row["success"] else "flight stopped"
         lines.append(f"  flight: {verdict}, {end} at t = {row['t_end_s']:.1f} s")
         lines.append(f"  propellant remaining: {100 * row['fuel_remaining']:.1f} % ({row['fuel_used_kg']:.3f} kg used)")
-        theta = row["theta_t_handover_deg"]
+        theta = row["attitude_error_end_deg"]
         at = f"at the {end}" if row["success"] else "when it stopped"
         lines.append(f"  total angle error {at}: {theta:.2f} deg" if not math.isnan(theta) else "")
         names = [mode["name"] for mode in result["campaign"]["mission"]["modes"]]
@@ -293,7 +293,9 @@ def report(out, no_html, require):
     from refexmc.report import make_report
 
     try:
-        result = make_report(out, require=require, html=not no_html)
+        from refexmc.config import renames  # a name of before issue 34 means its new one
+
+        result = make_report(out, require=[renames.new_text(text) for text in require], html=not no_html)
     except ConfigError as exc:
         _bad_input(str(exc))
     except OSError as exc:
@@ -333,7 +335,9 @@ def compare(baseline_out, out, tolerances):
     from refexmc.report.compare import format_table
 
     try:
-        result = compare_campaigns(baseline_out, out, tolerances)
+        from refexmc.config import renames  # a name of before issue 34 means its new one
+
+        result = compare_campaigns(baseline_out, out, [renames.new_text(text) for text in tolerances])
     except ConfigError as exc:
         _bad_input(str(exc))
     except OSError as exc:
@@ -381,7 +385,7 @@ def rerun(out, run_id, history_rate, dest):
     else:
         click.echo(f"  the mission: {end_condition(mission)}")
         stopped = end_name(mission) if row["success"] else "flight stopped"
-        theta = row["theta_t_handover_deg"]
+        theta = row["attitude_error_end_deg"]
         click.echo(
             f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, {stopped} at t = {row['t_end_s']:.2f} s"
             + (f", total angle error {theta:.3f} deg" if not math.isnan(theta) else "")

@@ -96,7 +96,7 @@ class FlightResult:
         }
         for name, value in zip(mode_time_columns(self.mode_names), self.value("t_mode_s"), strict=True):
             row[name] = float(value)
-        row["theta_t_handover_deg"] = float(self.value("theta_t_handover_deg"))
+        row["attitude_error_end_deg"] = float(self.value("attitude_error_end_deg"))
         if self.orbit:
             entry = self.value("entry_state")
             for k, name in enumerate(ORBIT_COLUMNS[:5]):

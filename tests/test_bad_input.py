@@ -49,16 +49,16 @@ CASES = [
     ),
     (
         "unknown-path",
-        _edit("separation.rates_deg_s:", "separation.rate_deg_s:"),
+        _edit("initial_state.rates_deg_s:", "initial_state.rate_deg_s:"),
         [],
-        ["dispersions.separation.rate_deg_s", "did you mean 'separation.rates_deg_s'"],
+        ["dispersions.initial_state.rate_deg_s", "did you mean 'initial_state.rates_deg_s'"],
     ),
     ("wrong-type", _edit("runs: 20", "runs: twenty"), [], ["runs", "expected integer", "'twenty'"]),
     (
         "negative-sigma",
         _edit("sigma: [1.0, 1.0, 1.0]", "sigma: [1.0, -1.0, 1.0]"),
         [],
-        ["dispersions.separation.rates_deg_s.sigma", "expected sigma >= 0"],
+        ["dispersions.initial_state.rates_deg_s.sigma", "expected sigma >= 0"],
     ),
     ("runs-zero", _edit("runs: 20", "runs: 0"), [], ["runs", "expected a value >= 1"]),
     ("runs-option-zero", SMOKE, ["--runs", "0"], ["--runs", "expected runs >= 1"]),
@@ -121,7 +121,7 @@ CASES = [
         "nan-in-a-vector",
         _edit("sigma: [1.0, 1.0, 1.0]", "sigma: [1.0, .NaN, 1.0]"),
         [],
-        ["dispersions.separation.rates_deg_s.sigma.1", "expected a finite number, got .NaN"],
+        ["dispersions.initial_state.rates_deg_s.sigma.1", "expected a finite number, got .NaN"],
     ),
     (
         "overflowing-number",
@@ -318,7 +318,7 @@ PROCESS_CASES = [
         "mission-nan",
         "mission.yaml",
         MISSION_TEXT.replace("altitude_m: 85000.0", "altitude_m: .nan", 1),
-        ["separation.altitude_m: expected a finite number, got .nan"],
+        ["initial_state.altitude_m: expected a finite number, got .nan"],
     ),
 ]
 
@@ -383,7 +383,8 @@ def _mission_line(text, fragment):
 
 
 _SAM_TARGET = "    target: {type: sun_horizontal}\n    thrust: low\n    exit: [{angle_error_below_deg"
-_EMPTY = MISSION_TEXT[: MISSION_TEXT.index("modes:\n")] + "modes: []\n" + MISSION_TEXT[MISSION_TEXT.index("handover") :]
+_AFTER_MODES = MISSION_TEXT[MISSION_TEXT.index("attitude_error_end_max") :]
+_EMPTY = MISSION_TEXT[: MISSION_TEXT.index("modes:\n")] + "modes: []\n" + _AFTER_MODES
 # (case id, mission text, words the message must contain, fragment of the line it must name)
 MISSION_CASES = [
     (
@@ -482,7 +483,7 @@ def test_a_mission_the_vehicle_cannot_fly_is_refused_in_the_mission_file(tmp_pat
 @pytest.mark.parametrize(
     ("path", "words"),
     [
-        ("separation.altitude_m", "'separation.altitude_m': the mission file does not declare it"),
+        ("initial_state.altitude_m", "'initial_state.altitude_m': the mission file does not declare it"),
         ("aerodynamics.mistrim_cm", "acts through the trajectory; vehicle generic-12 has none"),
         ("atmosphere.density_scale", "needs an atmosphere; the mission has none"),
     ],

@@ -99,7 +99,7 @@ def test_run_writes_the_output_contract(tmp_path):
     runs = pq.read_table(out / "runs").to_pandas()
     for column in (
         "run_id seed status success failure_reason failed_thrusters fuel_remaining fuel_used_kg t_end_s "
-        "t_ncm_s t_rdm1_s t_sam_s t_ssm_s t_rdm2_s t_eam_s t_geem_s theta_t_handover_deg pulses_1 pulses_8"
+        "t_ncm_s t_rdm1_s t_sam_s t_ssm_s t_rdm2_s t_eam_s t_geem_s attitude_error_end_deg pulses_1 pulses_8"
     ).split():
         assert column in runs.columns, column
     assert runs["run_id"].dtype == "int64" and runs["seed"].dtype == "int64"

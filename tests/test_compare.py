@@ -191,7 +191,7 @@ def test_requirements_and_tolerances_decide_what_a_significant_change_means(tmp_
     base_rows = synthetic_runs(n=20, errored=(), failed=(), seed=7)
     cur_rows = shifted(base_rows, "fuel_remaining", lambda i: -0.005)
     cur_rows = shifted(cur_rows, "t_end_s", lambda i: 2.0)
-    cur_rows = shifted(cur_rows, "theta_t_handover_deg", lambda i: -0.2)
+    cur_rows = shifted(cur_rows, "attitude_error_end_deg", lambda i: -0.2)
     result = pair(tmp_path, base_rows, cur_rows)
     metrics = by_metric(result)
     fuel = metrics["fuel_remaining"]  # judged by fuel_remaining.min >= 0.20: higher is better
@@ -201,7 +201,7 @@ def test_requirements_and_tolerances_decide_what_a_significant_change_means(tmp_
     # every run lost 0.005: significant, but within 10 % of the margin
     assert fuel.p_value < 1e-5 and fuel.verdict == cmp.OK
     # outputs without a requirement: shown, significant, never gated (no default of one mission)
-    for column in ("t_end_s", "theta_t_handover_deg"):
+    for column in ("t_end_s", "attitude_error_end_deg"):
         assert metrics[column].significant and metrics[column].verdict == cmp.OK
         assert math.isinf(metrics[column].tolerance) and metrics[column].requirement == ""
     assert result.passed
@@ -209,7 +209,7 @@ def test_requirements_and_tolerances_decide_what_a_significant_change_means(tmp_
     gated = cmp.compare(tmp_path / "base", tmp_path / "cur", ["fuel_remaining=0.001", "t_end_s=1"])
     assert [m.metric for m in gated.regressions] == ["fuel_remaining", "t_end_s"]  # t_end_s: longer is worse
     assert by_metric(gated)["t_end_s"].source == "--tolerance"
-    assert by_metric(gated)["theta_t_handover_deg"].verdict == cmp.OK  # still not gated
+    assert by_metric(gated)["attitude_error_end_deg"].verdict == cmp.OK  # still not gated
 
     added = cmp.compare(tmp_path / "base", tmp_path / "cur", ["fuel_used_kg = 0.001", "t_sam_s=5"])
     metrics = by_metric(added)
@@ -233,7 +233,7 @@ def hop_runs(n, seed, faster_s=0.0, failed=()):
             position_error_end_m=abs(rng.normal(0.01, 0.005)),
             tank_pressure_end_pa=rng.normal(2.0e6, 1.0e5),
         )
-        row.pop("theta_t_handover_deg")
+        row.pop("attitude_error_end_deg")
     return rows
 
 
@@ -468,7 +468,7 @@ def test_other_missions_are_compared_by_their_own_metrics(own_mission):
         spec = by_metric(result)[req.column]
         assert spec.better == "lower" and req.text() in spec.requirement, spec
     runs = data.load(root / "baseline").runs
-    assert ("theta_t_handover_deg" in metrics) == bool(np.isfinite(runs["theta_t_handover_deg"]).any())
+    assert ("attitude_error_end_deg" in metrics) == bool(np.isfinite(runs["attitude_error_end_deg"]).any())
     # success over all runs, as the report counts it
     report = make_report(root / "baseline", html=False)
     success = by_metric(result)["success_rate"]

@@ -170,7 +170,7 @@ def test_pack_uses_every_field_of_the_layout():
     assert inputs.levels[:, L.LV_THRUST].tolist() == [2.157, 8.92]
     assert inputs.mission.shape == (L.MISSION_SIZE,)
     # physical constants and thresholds are all non-zero in the reference mission
-    for name in ("earth_radius_m", "handover_max_angle_rad", "max_flight_time_s", "integrator_max_step_s"):
+    for name in ("earth_radius_m", "attitude_error_end_max_rad", "max_flight_time_s", "integrator_max_step_s"):
         assert inputs.mission[L.MISSION.slices[name][0]] > 0.0
     assert inputs.modes.shape == (7, L.MODE_SIZE)
     assert inputs.exits.shape == (11, L.EXIT_SIZE)  # one row per predicate of refex-exo.yaml
@@ -234,7 +234,7 @@ def _config_text(kind):
 # (file kind, text replaced, replacement, key path of the error, text on the error's line)
 NON_FINITE_PLACES = [
     ("mission", "9.661e-8", ".nan", ("atmosphere", 7, "density_kg_m3"), "base_altitude_km: 110,"),
-    ("mission", "rates_deg_s: [", "rates_deg_s: [-.inf, ", ("separation", "rates_deg_s", 0), "-.inf"),
+    ("mission", "rates_deg_s: [", "rates_deg_s: [-.inf, ", ("initial_state", "rates_deg_s", 0), "-.inf"),
     ("campaign", "runs: 1\n", "runs: 1e999\n", ("runs",), "1e999"),
     ("campaign", "history_rate_hz: 2", "history_rate_hz: .NaN", ("output", "history_rate_hz"), ".NaN"),
     ("campaign", "dispersions: {}", "dispersions: {rcs.isp_s: {dist: normal, sigma: .inf}}", None, ".inf"),
@@ -274,7 +274,7 @@ DUPLICATES = [
         "mission",
         "  altitude_m: 85000.0",
         "  altitude_m: 85000.0\n  altitude_m: 1.0",
-        ("separation", "altitude_m"),
+        ("initial_state", "altitude_m"),
         "altitude_m: 85000.0",
         "altitude_m: 1.0",
     ),

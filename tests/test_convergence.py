@@ -58,19 +58,19 @@ def test_validate_convergence_warns_where_the_step_moves_a_metric_beyond_10_perc
     here, not assumed): a requirement with 5 times that margin warns (20 %), an error with --strict
     (exit 2); one with 20 times that margin passes (5 %), and so does the campaign as shipped."""
     comparisons, coarse_row, fine_row = convergence.step_convergence(load_campaign(_with_requirement(
-        tmp_path, "theta_t_handover_deg.max <= 90", "probe.yaml"
+        tmp_path, "attitude_error_end_deg.max <= 90", "probe.yaml"
     )))  # fmt: skip
-    coarse, fine = coarse_row["theta_t_handover_deg"], fine_row["theta_t_handover_deg"]
+    coarse, fine = coarse_row["attitude_error_end_deg"], fine_row["attitude_error_end_deg"]
     assert coarse != fine
     assert [c.converged for c in comparisons] == [True, True]
     change = abs(fine - coarse)
-    tight = _with_requirement(tmp_path, f"theta_t_handover_deg.max <= {coarse + 5 * change!r}", "tight.yaml")
-    loose = _with_requirement(tmp_path, f"theta_t_handover_deg.max <= {coarse + 20 * change!r}", "loose.yaml")
+    tight = _with_requirement(tmp_path, f"attitude_error_end_deg.max <= {coarse + 5 * change!r}", "tight.yaml")
+    loose = _with_requirement(tmp_path, f"attitude_error_end_deg.max <= {coarse + 20 * change!r}", "loose.yaml")
     runner = CliRunner()
     warned = runner.invoke(main, ["validate", "--convergence", str(tight)])
     assert warned.exit_code == 0, warned.output
     assert "warning:" in warned.output and "step convergence" in warned.output
-    assert "theta_t_handover_deg.max" in warned.output
+    assert "attitude_error_end_deg.max" in warned.output
     strict = runner.invoke(main, ["validate", "--convergence", "--strict", str(tight)])
     assert strict.exit_code == 2 and "error:" in strict.output
     passed = runner.invoke(main, ["validate", "--convergence", "--strict", str(loose)])

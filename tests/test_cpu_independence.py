@@ -53,17 +53,17 @@ from refexmc.config.load import load_campaign
 nominal = load_campaign("campaigns/nominal.yaml")
 campaign = dict(nominal, dispersions={
     "atmosphere.density_scale": {"dist": "lognormal", "median": 1.0, "sigma": 0.3},
-    "separation.rates_deg_s": {"dist": "normal", "mean": [1.0, 0.0, -2.0], "sigma": [0.5, 2.0, 1.0]},
+    "initial_state.rates_deg_s": {"dist": "normal", "mean": [1.0, 0.0, -2.0], "sigma": [0.5, 2.0, 1.0]},
     "rcs.thrust_scale": {"dist": "truncnorm", "mean": 1.0, "sigma": 0.05, "low": 0.9, "high": 1.2},
     "rcs.valve_time_constants_ms.high.fall": {"dist": "truncnorm", "sigma": 2.25, "low": 0.0},
     "navigation.rate_noise_deg_s": {"dist": "uniform", "low": 0.0, "high": 0.02},
     "rcs.isp_s": {"dist": "choice", "values": [60.0, 65.0, 70.0], "probabilities": [0.2, 0.5, 0.3]},
     "com_offset_m": {"dist": "constant", "value": [0.001, 0.0, 0.0]},
-    "separation.attitude_error_deg": {"dist": "uniform_so3"},
+    "initial_state.attitude_rotvec_deg": {"dist": "uniform_so3"},
     "inertia_kg_m2": {"dist": "inertia", "moments_sigma_fraction": 0.05, "axes_sigma_deg": 5.0},
 })
 sampler = sampling.Sampler(campaign)
-rows = {"atmosphere.density_scale": 200_000, "separation.attitude_error_deg": 40_000, "inertia_kg_m2": 40_000}
+rows = {"atmosphere.density_scale": 200_000, "initial_state.attitude_rotvec_deg": 40_000, "inertia_kg_m2": 40_000}
 out = {}
 for k, (path, spec) in enumerate(sampler.specs.items()):
     n = sampling.dims(spec, dispersions.size(path, campaign["vehicle"]))

@@ -229,7 +229,7 @@ def test_accepted_inertia_dispersions_draw_physical_tensors(base, moments_sigma,
 
 
 def test_uniform_so3_draws_are_finite_rotations_at_the_extreme_uniforms(base):
-    path = "separation.attitude_error_deg"
+    path = "initial_state.attitude_rotvec_deg"
     resolved = _accepted(base, path, {"dist": "uniform_so3"})
     for u in [(EPS, EPS, EPS), (1 - EPS, 1 - EPS, 1 - EPS), (EPS, 1 - EPS, 0.5)]:
         rotvec = _draws_at(resolved, path, base, u)
@@ -318,7 +318,7 @@ def test_a_file_value_obeys_the_range_its_dispersions_are_checked_against(base, 
     file's own value; at the range's edge it accepts it. One range, declared once."""
     base = _base_for(path, base, orbit_base, wheel_base)
     param = dispersions.PARAMETERS[path]
-    kind = "mission" if path.split(".")[0] in ("separation", "navigation", "local", "entry_flight") else "vehicle"
+    kind = "mission" if path.split(".")[0] in ("initial_state", "navigation", "local", "entry_flight") else "vehicle"
     schema_def = schema.MISSION if kind == "mission" else schema.VEHICLE
     if path.startswith(ENTRY_PATHS):
         schema_def = schema.ENTRY_MISSION

@@ -73,7 +73,7 @@ def point_mass(mission_config, vehicle_config):
     """Point-mass equations over a spherical, non-rotating Earth with drag (reference-model
     sec. 5), in the frame of environment.py: x downrange, z down, Earth's centre at
     (0, R + h_sep)."""
-    earth, sep = mission_config["earth"], mission_config["separation"]
+    earth, sep = mission_config["earth"], mission_config["initial_state"]
     radius, mu = earth["radius_m"], earth["mu_m3_s2"]
     centre = radius + sep["altitude_m"]
     k_drag = vehicle_config["aerodynamics"]["drag_area_m2"] / vehicle_config["mass_kg"]

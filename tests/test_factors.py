@@ -26,7 +26,7 @@ def irassi_like_runs(n=400, seed=3):
     for i, row in enumerate(rows):
         failed = int(rng.integers(1, 5)) if i and rng.uniform() < 0.2 else 0
         rate = float(rng.normal(0.0, 1.0))
-        row.pop("theta_t_handover_deg")
+        row.pop("attitude_error_end_deg")
         row.update(
             {
                 "failed_wheels": str(failed) if failed else "",

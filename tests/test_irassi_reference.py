@@ -91,7 +91,7 @@ def _reference_flight(mission, inputs):
     gg = inputs.mission[L.M_GG_COEFFICIENT]
     direction = inputs.mission[L.M_GG_DIRECTION : L.M_GG_DIRECTION + 3]
     u_const = np.asarray(mission["disturbances"]["constant_torque_n_m"], float)
-    euler = mission["separation"]["attitude_euler_deg"]
+    euler = mission["initial_state"]["attitude_euler_deg"]
     target = Rotation.from_euler("xyz", mission["modes"][0]["target"]["euler_deg"], degrees=True)
     x = np.concatenate([Rotation.from_euler("xyz", euler, degrees=True).as_quat(), np.zeros(3)])
     h = np.concatenate([table[:, L.W_MOMENTUM0], np.zeros(3)])  # omega_0 = 0: h = I_w Omega

@@ -38,7 +38,7 @@ def test_entropy_words_are_numpys():
 def test_keyed_uniforms_equal_the_keyed_generator():
     """What the sampler draws is what keyed_rng(...).random(count) would draw."""
     for run_id in (0, 1, 999, 10**6 + 3):
-        for name in ("inertia_kg_m2", "separation.rates_deg_s", "wheels.friction.coulomb_n_m"):
+        for name in ("inertia_kg_m2", "initial_state.rates_deg_s", "wheels.friction.coulomb_n_m"):
             for attempt in (0, 1, 7):
                 expected = keyed_rng(20231121, run_id, name, attempt).random(6)
                 np.testing.assert_array_equal(keyed_uniforms(20231121, run_id, name, 6, attempt), expected)

@@ -262,7 +262,7 @@ def test_lp_pwm_flies_the_generic_mission(tmp_path):
     table = fly(pack(vehicle, mission), mode_names=mode_names(mission))
     result = fly(pack(lp_vehicle, mission), mode_names=mode_names(mission))
     assert result.success, result.failure_reason
-    assert result.value("theta_t_handover_deg") < mission["handover_max_angle_deg"]
+    assert result.value("attitude_error_end_deg") < mission["attitude_error_end_max_deg"]
     assert result.pulse_counts.sum() > table.pulse_counts.sum()
     assert result.value("fuel_used_kg") == pytest.approx(table.value("fuel_used_kg"), rel=0.5)
 

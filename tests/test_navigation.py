@@ -174,4 +174,4 @@ def test_in_flight_the_bias_decays_only_while_a_calibrating_mode_runs(tmp_path):
     result = fly(pack(vehicle, mission), history_rate_hz=2.0, mode_names=mode_names(mission))
     detumble_s = result.value("t_mode_s")[0]
     left = 8.0 * math.exp(-detumble_s / 5.0)  # ~1.93 deg; 2 tau would leave ~3.9, no freeze ~0
-    assert result.value("theta_t_handover_deg") == pytest.approx(left, abs=0.531)
+    assert result.value("attitude_error_end_deg") == pytest.approx(left, abs=0.531)

@@ -181,7 +181,7 @@ def _file_value(vehicle, mission, path):
     if path == "wheels.initial_momentum_n_m_s":
         units = vehicle.get("wheels", {}).get("units")
         return None if units is None else [unit.get("initial_momentum_n_m_s", 0.0) for unit in units]
-    node = mission if path.split(".")[0] in ("separation", "navigation", "local") else vehicle
+    node = mission if path.split(".")[0] in ("initial_state", "navigation", "local") else vehicle
     for part in path.split("."):
         if not isinstance(node, dict) or part not in node:
             return None

@@ -29,7 +29,7 @@ mission: {ROOT}/configs/missions/refex-exo.yaml
 seed: 7
 nominal_first: false
 dispersions:
-  separation.rates_deg_s: {{dist: normal, sigma: [1.0, 1.0, 1.0]}}
+  initial_state.rates_deg_s: {{dist: normal, sigma: [1.0, 1.0, 1.0]}}
   inertia_kg_m2: {{dist: inertia, moments_sigma_fraction: [0.033, 0.033, 0.033], axes_sigma_deg: [0.5, 0.5, 0.5]}}
   rcs.propellant_kg: {{dist: truncnorm, sigma: 0.0253, low: 0.57, high: 0.95}}
   navigation.rate_noise_deg_s: {{dist: uniform, low: 0.0, high: 0.02}}
@@ -139,7 +139,7 @@ def test_the_report_judges_level_0_and_reports_the_estimate(flown):
         assert section["drivers"][0]["parameter"].startswith("p.")
         # the separation rates to damp drive the propellant used (000 sec. 2.2: RDM1), more than the 3 %
         # spread of the propellant loaded: the event's flights have them shifted most
-        assert section["drivers"][0]["parameter"].startswith("p.separation.rates_deg_s.")
+        assert section["drivers"][0]["parameter"].startswith("p.initial_state.rates_deg_s.")
         shifts = [abs(d["shift_sigma"]) for d in section["drivers"]]
         assert shifts == sorted(shifts, reverse=True) and shifts[0] > 1.0
     page = (tmp / "a" / "report" / "index.html").read_text()

@@ -51,7 +51,7 @@ def synthetic_runs(n=60, errored=(7, 23), failed=(3, 11, 40), sets=None, seed=1,
             "fuel_used_kg": 1.96 * (1 - fuel),
             "t_end_s": float(times.sum()),
             **{c: float(t) for c, t in zip(mode_columns, times, strict=True)},
-            "theta_t_handover_deg": float(rng.uniform(0.05, 1.0)),
+            "attitude_error_end_deg": float(rng.uniform(0.05, 1.0)),
             "modes_completed": len(modes),
             **{f"pulses_{k}": int(rng.integers(50, 150)) for k in range(1, 9)},
             "p.rcs.isp_s": 70.0 * drive,
@@ -59,7 +59,7 @@ def synthetic_runs(n=60, errored=(7, 23), failed=(3, 11, 40), sets=None, seed=1,
         }
         if i in errored:  # an errored run: absurd finite values that must not reach any statistic
             row.update(status="error", success=False, failure_reason="RuntimeError: boom", fuel_remaining=-5.0)
-            row["theta_t_handover_deg"] = 1e6
+            row["attitude_error_end_deg"] = 1e6
         rows.append(row)
     return rows
 
@@ -138,7 +138,7 @@ def synthetic(tmp_path_factory):
         rows,
         requirements=["fuel_remaining.min >= 0.20", "success_rate >= 1.0"],
     )
-    report = make_report(out, require=["theta_t_handover_deg.p99 <= 2.0", "pulses_total.p50 <= 2000"], html=True)
+    report = make_report(out, require=["attitude_error_end_deg.p99 <= 2.0", "pulses_total.p50 <= 2000"], html=True)
     return out, rows, report
 
 
@@ -195,8 +195,8 @@ def test_column_statistics_match_numpy_over_successful_flights(synthetic):
     k99 = stats.normal_tolerance_factor(55, 0.99)  # 55 < 299: the normal bound, not an order statistic
     assert f["tolerance_99_95"] == pytest.approx(fuel.mean() - k99 * fuel.std(ddof=1))
     assert f["tolerance_99_95_method"].startswith("normal: mean - 2.8")
-    theta = successful_values(rows, "theta_t_handover_deg")
-    t = columns["theta_t_handover_deg"]
+    theta = successful_values(rows, "attitude_error_end_deg")
+    t = columns["attitude_error_end_deg"]
     assert t["max"] == theta.max()  # not the errored run's 1e6
     for percent in (95, 99, 99.865):
         assert t[f"p{percent:g}"] == pytest.approx(np.percentile(theta, percent), abs=1e-15)
@@ -215,14 +215,14 @@ def test_each_column_shows_its_worse_tail_and_no_negative_bounds_on_angles_or_du
     expected = {
         "fuel_remaining": "lower",
         "fuel_used_kg": "upper",
-        "theta_t_handover_deg": "upper",
+        "attitude_error_end_deg": "upper",
         "t_end_s": "upper",
         "t_sam_s": "upper",
         "pulses_total": "upper",
         "pulses_5": "upper",
     }
     assert {c: columns[c]["tail"] for c in expected} == expected
-    theta = successful_values(rows, "theta_t_handover_deg")
+    theta = successful_values(rows, "attitude_error_end_deg")
     assert theta.mean() - 3 * theta.std(ddof=1) < 0  # what the old lower-tail table printed for an angle
     for column, values in columns.items():
         if values["tail"] == "upper":
@@ -236,8 +236,8 @@ def test_each_column_shows_its_worse_tail_and_no_negative_bounds_on_angles_or_du
     lower = lines.index("smaller is worse (lower tail):")
     assert lines[upper + 1].split() == ["n", "p50", "mean", "p99", "p99.865", "max", "mean+3sd", "tol99/95"]
     assert lines[lower + 1].split() == ["n", "p50", "mean", "p1", "p0.135", "min", "mean-3sd", "tol99/95"]
-    # the requirements' metrics first (theta_t_handover_deg and pulses_total by --require), then the others
-    assert lines[upper + 2].split()[:2] == ["theta_t_handover_deg", "55"]
+    # the requirements' metrics first (attitude_error_end_deg and pulses_total by --require), then the others
+    assert lines[upper + 2].split()[:2] == ["attitude_error_end_deg", "55"]
     assert lines[upper + 3].split()[:2] == ["pulses_total", "55"]
     assert lines[upper + 4].split()[:2] == ["fuel_used_kg", "55"]
     assert lines[lower + 2].split()[:2] == ["fuel_remaining", "55"]
@@ -250,7 +250,7 @@ def test_requirement_verdicts_and_sources(synthetic):
     assert [v["requirement"] for v in verdicts] == [
         "fuel_remaining.min >= 0.20",
         "success_rate >= 1.0",
-        "theta_t_handover_deg.p99 <= 2.0",
+        "attitude_error_end_deg.p99 <= 2.0",
         "pulses_total.p50 <= 2000",
     ]
     assert [v["source"] for v in verdicts] == ["campaign", "campaign", "--require", "--require"]
@@ -474,7 +474,7 @@ def test_history_modes_match_by_name_without_regard_to_case():
 
 
 def test_requirement_parser_good_and_bad():
-    columns = ["run_id", "fuel_remaining", "theta_t_handover_deg", "p.rcs.thrust_scale.1", "t_sam_s"]
+    columns = ["run_id", "fuel_remaining", "attitude_error_end_deg", "p.rcs.thrust_scale.1", "t_sam_s"]
     good = parse_requirement(" fuel_remaining.p0.135 >= 0.2 ", columns)
     assert (good.metric, good.op, good.value) == ("fuel_remaining.p0.135", ">=", 0.2)
     assert parse_requirement("p.rcs.thrust_scale.1.p50<1.1", columns).metric == "p.rcs.thrust_scale.1.p50"

@@ -31,7 +31,7 @@ MISSIONS = {  # campaign file: runs flown here (enough for every requirement sta
     "x38-blocked-flap.yaml": 8,
     "x38-nominal.yaml": 8,
 }
-REFEX_ONLY = re.compile(r"hand-over|handover angle|\bseparation\b(?!\.)|000 (Fig|Table|sec)\.?", re.I)
+REFEX_ONLY = re.compile(r"hand-?over|separation|000 (Fig|Table|sec)\.?", re.I)  # keys and columns too (issue 34)
 
 
 def axes_without_data(figure):

@@ -59,7 +59,7 @@ def draws(campaign, path, run_ids):
 
 
 MIXED = {
-    "separation.rates_deg_s": {"dist": "normal", "mean": [0, 0, 0], "sigma": [1, 2, 3]},
+    "initial_state.rates_deg_s": {"dist": "normal", "mean": [0, 0, 0], "sigma": [1, 2, 3]},
     "rcs.thrust_scale": {"dist": "truncnorm", "mean": 1.0, "sigma": 0.05, "low": 0.9, "high": 1.1},
     "inertia_kg_m2": {"dist": "inertia", "moments_sigma_fraction": 0.05, "axes_sigma_deg": 1.0},
 }
@@ -89,7 +89,7 @@ def test_fly_chunk_rows_are_independent_of_chunking(base):
         pd.DataFrame(whole), pd.DataFrame(parts).sort_values("run_id").reset_index(drop=True), check_exact=True
     )
     assert [r["failed_thrusters"] for r in whole] == ["", "1", "2", "3", "4", "5"]
-    assert whole[0]["p.separation.rates_deg_s.x"] == 3.0  # run 0: the nominal value
+    assert whole[0]["p.initial_state.rates_deg_s.x"] == 3.0  # run 0: the nominal value
 
 
 def test_a_worker_reuses_its_plan_for_every_copy_of_the_same_campaign(base):
@@ -107,7 +107,7 @@ def test_seed_changes_the_draws(base):
     a = campaign_with(base, MIXED, runs=5)
     b = copy.deepcopy(a)
     b["seed"] += 1
-    path = "separation.rates_deg_s"
+    path = "initial_state.rates_deg_s"
     assert not np.array_equal(draws(a, path, range(5)), draws(b, path, range(5)))
 
 
@@ -121,21 +121,21 @@ def _ks(values, cdf):
 def test_normal_truncnorm_uniform_lognormal_match_scipy(base):
     n = 2000
     spec = {
-        "separation.rates_deg_s": {"dist": "normal", "mean": [1.0, 0.0, -2.0], "sigma": [0.5, 2.0, 1.0]},
+        "initial_state.rates_deg_s": {"dist": "normal", "mean": [1.0, 0.0, -2.0], "sigma": [0.5, 2.0, 1.0]},
         "rcs.isp_s": {"dist": "truncnorm", "mean": 70.0, "sigma": 3.0, "low": 68.0, "high": 80.0},
-        "separation.altitude_m": {"dist": "uniform", "low": 84000.0, "high": 86000.0},
+        "initial_state.altitude_m": {"dist": "uniform", "low": 84000.0, "high": 86000.0},
         "atmosphere.density_scale": {"dist": "lognormal", "median": 1.2, "sigma": 0.3},
     }
     campaign = campaign_with(base, spec, runs=n)
     sampler = Sampler(campaign)
     values = [sampler.values(i) for i in range(n)]
-    rates = np.array([v["separation.rates_deg_s"] for v in values])
+    rates = np.array([v["initial_state.rates_deg_s"] for v in values])
     for k, (mean, sigma) in enumerate([(1.0, 0.5), (0.0, 2.0), (-2.0, 1.0)]):
         assert _ks(rates[:, k], stats.norm(mean, sigma).cdf) > P_MIN
     isp = np.array([v["rcs.isp_s"][0] for v in values])
     assert isp.min() >= 68.0 and isp.max() <= 80.0
     assert _ks(isp, stats.truncnorm((68 - 70) / 3, (80 - 70) / 3, loc=70, scale=3).cdf) > P_MIN
-    altitude = np.array([v["separation.altitude_m"][0] for v in values])
+    altitude = np.array([v["initial_state.altitude_m"][0] for v in values])
     assert _ks(altitude, stats.uniform(84000.0, 2000.0).cdf) > P_MIN
     density = np.array([v["atmosphere.density_scale"][0] for v in values])
     assert _ks(density, stats.lognorm(s=0.3, scale=1.2).cdf) > P_MIN
@@ -171,8 +171,8 @@ def test_choice_frequencies_and_whole_vector_choice(base):
 
 def test_uniform_so3_is_haar_distributed(base):
     n = 3000
-    spec = {"separation.attitude_error_deg": {"dist": "uniform_so3"}}
-    rotvec = draws(campaign_with(base, spec, runs=n), "separation.attitude_error_deg", range(n))
+    spec = {"initial_state.attitude_rotvec_deg": {"dist": "uniform_so3"}}
+    rotvec = draws(campaign_with(base, spec, runs=n), "initial_state.attitude_rotvec_deg", range(n))
     angle = np.radians(np.linalg.norm(rotvec, axis=1))
     # Haar measure on SO(3): rotation angle density (1 - cos t) / pi on [0, pi]
     assert _ks(angle, lambda t: (np.asarray(t) - np.sin(t)) / np.pi) > P_MIN
@@ -187,13 +187,13 @@ def test_uniform_so3_is_haar_distributed(base):
 
 # every distribution at once, a large inertia dispersion among them (some first draws are redrawn)
 EVERY_DISTRIBUTION = {
-    "separation.rates_deg_s": {"dist": "normal", "mean": [1.0, 0.0, -2.0], "sigma": [0.5, 2.0, 1.0]},
+    "initial_state.rates_deg_s": {"dist": "normal", "mean": [1.0, 0.0, -2.0], "sigma": [0.5, 2.0, 1.0]},
     "rcs.isp_s": {"dist": "truncnorm", "mean": 70.0, "sigma": 3.0, "low": 68.0, "high": 80.0},
-    "separation.altitude_m": {"dist": "uniform", "low": 84000.0, "high": 86000.0},
+    "initial_state.altitude_m": {"dist": "uniform", "low": 84000.0, "high": 86000.0},
     "atmosphere.density_scale": {"dist": "lognormal", "median": 1.2, "sigma": 0.3},
     "rcs.propellant_kg": {"dist": "choice", "values": [1.0, 2.0, 3.0], "probabilities": [0.2, 0.5, 0.3]},
     "com_offset_m": {"dist": "choice", "values": [[0, 0, 0], [0.01, 0.02, 0.03]]},
-    "separation.attitude_error_deg": {"dist": "uniform_so3"},
+    "initial_state.attitude_rotvec_deg": {"dist": "uniform_so3"},
     "inertia_kg_m2": {"dist": "inertia", "moments_sigma_fraction": 0.3, "axes_sigma_deg": 20},
     "mass_kg": {"dist": "constant", "value": 80.0},
 }
@@ -340,9 +340,9 @@ def test_lhs_has_one_point_per_stratum_in_every_component(base):
 
 def test_sobol_points_are_balanced(base):
     n = 64
-    campaign = campaign_with(base, {"separation.rates_deg_s": {"dist": "uniform", "low": 0, "high": 1}}, runs=n)
+    campaign = campaign_with(base, {"initial_state.rates_deg_s": {"dist": "uniform", "low": 0, "high": 1}}, runs=n)
     campaign["sampling"] = "sobol"
-    u = draws(campaign, "separation.rates_deg_s", range(n))
+    u = draws(campaign, "initial_state.rates_deg_s", range(n))
     for k in range(3):  # a scrambled Sobol net: one point in each of the 64 elementary intervals
         assert sorted(np.floor(u[:, k] * n).astype(int)) == list(range(n))
     for a, b in [(0, 1), (0, 2), (1, 2)]:  # (t, m, s)-net property in 2-D: every 8x8 cell has one point
@@ -424,7 +424,7 @@ def _paths_change_the_flight(campaign, paths):
                 value[k] += 2.0  # a product of inertia (still physical)
             elif param.shape == "attitude":
                 value[k] += 20.0
-            elif path == "separation.flight_path_angle_deg":
+            elif path == "initial_state.flight_path_angle_deg":
                 value[k] += 2.0
             elif path == "navigation.tank_pressure_noise_pa":
                 value[k] = 2.5e4  # 0.3 Pa on a 50 bar tank changes no decision of the law

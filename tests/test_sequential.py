@@ -143,7 +143,7 @@ def test_rules_of_the_requirement_grammar():
     assert (rule.p0, rule.op, rule.alpha) == (0.95, ">=", 0.05)
     rule = sequential.rule_for(requirement("fuel_remaining.p1 >= 0.2"), alpha=0.1)
     assert (rule.column, rule.event_op, rule.p0, rule.op, rule.alpha) == ("fuel_remaining", ">=", 0.99, ">=", 0.1)
-    rule = sequential.rule_for(requirement("theta_t_handover_deg.p99.865_upper95 <= 5"), alpha=0.1)
+    rule = sequential.rule_for(requirement("attitude_error_end_deg.p99.865_upper95 <= 5"), alpha=0.1)
     assert (rule.event_op, rule.alpha) == ("<=", 0.05) and rule.p0 == pytest.approx(0.99865, rel=1e-15)
     assert sequential.rule_for(requirement("fuel_remaining.min >= 0.2")).kind == "final_fail"
     assert sequential.rule_for(requirement("t_end_s.mean <= 300")).kind == "final_fail"

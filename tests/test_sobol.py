@@ -51,7 +51,7 @@ SALTELLI = [
     (
         "dispersions: {}",
         "dispersions:\n  rcs.isp_s: {dist: uniform, low: 60.0, high: 80.0}\n"
-        "  separation.rates_deg_s: {dist: normal, sigma: [2.0, 2.0, 2.0]}\n"
+        "  initial_state.rates_deg_s: {dist: normal, sigma: [2.0, 2.0, 2.0]}\n"
         "  navigation.attitude_noise_deg: {dist: constant, value: 0.0}\n"
         "  navigation.rate_noise_deg_s: {dist: constant, value: 0.0}",
     ),
@@ -62,7 +62,7 @@ SALTELLI = [
 def test_the_draws_are_the_rows_of_the_design(tmp_path):
     campaign = load_campaign(campaign_copy("nominal.yaml", tmp_path, replace=SALTELLI))
     groups = tuple(saltelli.layout(campaign))
-    assert groups == (("rcs.isp_s", 1), ("separation.rates_deg_s", 3))
+    assert groups == (("rcs.isp_s", 1), ("initial_state.rates_deg_s", 3))
     design = saltelli._design(campaign["seed"], groups, 4)
     assert design.shape == (4 * (2 + 2), 4)
     sampler = Sampler(campaign)
@@ -81,7 +81,7 @@ def test_a_saltelli_campaign_reports_its_indices(tmp_path):
     run_campaign(campaign_copy("nominal.yaml", tmp_path, replace=SALTELLI), out, jobs=1)
     result = make_report(out)
     section = result["summary"]["sobol"]
-    assert section["groups"] == ["rcs.isp_s", "separation.rates_deg_s"] and section["runs"] == 16
+    assert section["groups"] == ["rcs.isp_s", "initial_state.rates_deg_s"] and section["runs"] == 16
     assert "indices" in section["metrics"]["fuel_used_kg"]
     assert "Saltelli design over 2 parameters: N (2 + 2) = 16 runs with N = 4 base samples" in result["text"]
     assert "id='sobol'" in (out / "report/index.html").read_text()
@@ -223,7 +223,7 @@ def test_the_hop_sobol_analyses_its_own_metrics_and_flags_what_n_8_cannot_suppor
     result = make_report(out, html=False)
     section = result["summary"]["sobol"]
     assert list(section["metrics"]) == ["t_hop_s", "position_error_end_m", "tank_pressure_end_pa"]
-    assert "theta_t_handover_deg" not in result["text"].split("Sobol' indices")[1]
+    assert "attitude_error_end_deg" not in result["text"].split("Sobol' indices")[1]
     for metric, entry in section["metrics"].items():
         assert "indices" in entry or "cannot_estimate" in entry
         if "indices" in entry:  # 8 base samples over 8 groups: flagged, with the N that would do

@@ -148,7 +148,7 @@ def test_sweep_report_gives_each_point_and_the_curve(sweep_file, tmp_path):
     "axis, expected",
     [
         ("parameter: rcs.propellant_kg\n      values: [-0.1]", "outside the physical range"),
-        ("parameter: separation.rates_deg_s\n      values: [1.0]", "expected a scalar parameter path"),
+        ("parameter: initial_state.rates_deg_s\n      values: [1.0]", "expected a scalar parameter path"),
         ("parameter: rcs.isp_s\n      values: [60]\n      range: {start: 1, stop: 2, count: 3}", "exactly one"),
         ("parameter: rcs.isp_s\n      range: {start: 60, stop: 70, count: 1}", "expected a value >= 2"),
         ("parameter: rcs.isp_s\n      values: [60]\n      step: 1", "step"),

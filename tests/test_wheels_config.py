@@ -230,10 +230,10 @@ def test_pack_irassi_missions(mission, target_deg):
     assert _field(m, L.MISSION, "integrator_max_step_s") == 1.0
     # the initial attitude: 001's theta_0 = [14, 14, 14] deg, extrinsic xyz as scipy reads it; the
     # core's start is from_rotation_vector(0, fpa, 0) (x) from_rotation_vector(rotvec), fpa 0 here
-    rotvec = _field(m, L.MISSION, "separation_attitude_rotvec_rad")
+    rotvec = _field(m, L.MISSION, "initial_attitude_rotvec_rad")
     expected = Rotation.from_euler("xyz", [14.0, 14.0, 14.0], degrees=True)
     assert (Rotation.from_rotvec(rotvec) * expected.inv()).magnitude() < EXACT
-    assert _field(m, L.MISSION, "separation_flight_path_angle_rad") == 0.0
+    assert _field(m, L.MISSION, "initial_flight_path_angle_rad") == 0.0
     # the target: extrinsic xyz with 001's [phi, theta, psi] is the 3-2-1 sequence, intrinsic ZYX [psi, theta, phi]
     q = Rotation.from_quat(inputs.modes[0, L.MD_QUATERNION : L.MD_QUATERNION + 4])
     assert (q * Rotation.from_euler("ZYX", target_deg[::-1], degrees=True).inv()).magnitude() < EXACT
@@ -432,16 +432,16 @@ BAD_FILES = [
     (
         "both-initial-attitudes",
         "mission",
-        _edit(SMALL_TEXT, "  euler_sequence: xyz", "  euler_sequence: xyz\n  attitude_error_deg: [0.0, 0.0, 0.0]"),
-        "separation:",
-        ["separation", "expected either 'attitude_error_deg' or 'attitude_euler_deg'"],
+        _edit(SMALL_TEXT, "  euler_sequence: xyz", "  euler_sequence: xyz\n  attitude_rotvec_deg: [0.0, 0.0, 0.0]"),
+        "initial_state:",
+        ["initial_state", "expected either 'attitude_rotvec_deg' or 'attitude_euler_deg'"],
     ),
     (
         "euler-angles-without-a-sequence",
         "mission",
         _edit(SMALL_TEXT, "  euler_sequence: xyz ", "  # no sequence "),
         "attitude_euler_deg",
-        ["separation.attitude_euler_deg", "needs 'euler_sequence'"],
+        ["initial_state.attitude_euler_deg", "needs 'euler_sequence'"],
     ),
     (
         "gravity-gradient-direction-zero",
@@ -540,8 +540,8 @@ def test_rcs_dispersions_of_a_vehicle_that_flies_wheels_are_refused(tmp_path):
 
 
 def test_the_euler_attitude_disperses_about_its_rotation_vector():
-    """separation.attitude_error_deg of a mission with Euler angles: nominal = their rotation vector."""
-    nominal = dispersions.nominal("separation.attitude_error_deg", load_vehicle(IRASSI), load_mission(LARGE))
+    """initial_state.attitude_rotvec_deg of a mission with Euler angles: nominal = their rotation vector."""
+    nominal = dispersions.nominal("initial_state.attitude_rotvec_deg", load_vehicle(IRASSI), load_mission(LARGE))
     expected = Rotation.from_euler("xyz", [14.0, 14.0, 14.0], degrees=True).as_rotvec(degrees=True)
     np.testing.assert_allclose(nominal, expected, rtol=EXACT)
 
@@ -565,7 +565,7 @@ def test_runs_columns_of_a_wheel_campaign(tmp_path):
         "t_end_s",
         "t_manoeuvre_s",
         "t_science_s",
-        "theta_t_handover_deg",
+        "attitude_error_end_deg",
         *requirements.POINTING_COLUMNS,
         *requirements.WHEEL_COLUMNS,
     ]

@@ -46,7 +46,7 @@ def test_every_generic_slew_run_reaches_its_hold_below_the_stated_rate_bound():
         assert rate[hold_start] < slew_bound, (run_id, rate[hold_start])
         # the hold keeps the attitude: its error never exceeds the mission's bound at the end
         theta = result.column("theta_t_deg")[hold_start:]
-        assert np.nanmax(theta) < mission["handover_max_angle_deg"], run_id
+        assert np.nanmax(theta) < mission["attitude_error_end_max_deg"], run_id
 
 
 def test_every_flight_software_and_pwpf_key_has_a_row_in_the_vehicle_table():

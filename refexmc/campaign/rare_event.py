@@ -446,10 +446,8 @@ def round_flyer(execution, options, guard):
 
 def read_study_runs(out):
     """Every flight of the study in OUT (a DataFrame sorted by run id)."""
-    import pyarrow as pa
-
     parts = sorted((Path(out) / "runs").glob("part-*.parquet"))
-    return pa.concat_tables([pq.read_table(p) for p in parts]).to_pandas().sort_values("run_id", ignore_index=True)
+    return storage.read_runs_parts(parts).to_pandas().sort_values("run_id", ignore_index=True)
 
 
 def rerun_plan(out, campaign, run_id):

@@ -8,8 +8,6 @@ re-flown summary row equals the stored one bit for bit.
 import math
 from pathlib import Path
 
-import pyarrow.parquet as pq
-
 from refexmc.campaign import storage
 from refexmc.campaign.chunk import RunPlan
 from refexmc.config.errors import ConfigError
@@ -28,7 +26,7 @@ def stored_row(out, run_id):
     runs_dir = Path(out) / "runs"
     if not runs_dir.is_dir() or not any(runs_dir.glob("part-*.parquet")):
         return None
-    table = pq.read_table(runs_dir, filters=[("run_id", "==", int(run_id))])
+    table = storage.read_runs_parts(sorted(runs_dir.glob("part-*.parquet")), filters=[("run_id", "==", int(run_id))])
     return table.to_pylist()[0] if table.num_rows else None
 
 

@@ -18,8 +18,6 @@ import threading
 from contextlib import closing, contextmanager, suppress
 from pathlib import Path
 
-import pyarrow as pa
-import pyarrow.parquet as pq
 import yaml
 
 import refexmc
@@ -27,6 +25,7 @@ from refexmc.campaign import lock, pool, storage
 from refexmc.campaign.backends import BACKENDS, check_backend, start_workers, stop_workers
 from refexmc.campaign.progress import Progress
 from refexmc.campaign.worker import Guard
+from refexmc.config import renames
 from refexmc.config.design_checks import strict_error
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import apply_overrides, load_campaign
@@ -115,6 +114,7 @@ def check_resumable(out, campaign, extend=False):
         raise ConfigError(
             "cannot resume: campaign.resolved.yaml holds no campaign; remove OUT or use another -o", file=out
         )
+    renames.migrate_campaign(stored)  # an output written before a rename (issue 34) holds its campaign
     current = storage.normalized_campaign(campaign)
     if extend and isinstance(stored.get("runs"), int) and stored["runs"] <= current["runs"]:
         stored = {**stored, "runs": current["runs"]}
@@ -390,8 +390,8 @@ def read_runs(out, chunks):
 
     Part by part: reading the folder would import pyarrow.dataset (~0.4 s) for a few small files.
     """
-    parts = [pq.ParquetFile(out / "runs" / storage.part_name(chunk)).read() for chunk, _ in chunks]
-    return pa.concat_tables(parts).to_pandas().sort_values("run_id", ignore_index=True)
+    parts = [out / "runs" / storage.part_name(chunk) for chunk, _ in chunks]
+    return storage.read_runs_parts(parts).to_pandas().sort_values("run_id", ignore_index=True)
 
 
 def _fly(campaign, todo, out, execution, options, meter):

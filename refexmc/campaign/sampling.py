@@ -19,7 +19,7 @@ import numpy as np
 
 from refexmc import distributions
 from refexmc.campaign import saltelli
-from refexmc.config import dispersions
+from refexmc.config import dispersions, renames
 from refexmc.config.derived import inertia_problem, level_names, thruster_count, unphysical_inertias, wheel_count
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
 from refexmc.distributions import transform, transform_rows
@@ -32,8 +32,9 @@ INERTIA_MAX_ATTEMPTS = 1000
 
 @functools.lru_cache(maxsize=1024)
 def path_key(name):
-    """A stable 64-bit integer for a parameter path (independent of Python's hash seed)."""
-    return int.from_bytes(hashlib.sha256(name.encode()).digest()[:8], "little")
+    """A stable 64-bit integer for a parameter path (independent of Python's hash seed); a renamed
+    path keys by its first name (config.renames.seed_path): its draws stay the same."""
+    return int.from_bytes(hashlib.sha256(renames.seed_path(name).encode()).digest()[:8], "little")
 
 
 def keyed_rng(seed, run_id, name, attempt=0):

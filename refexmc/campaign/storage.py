@@ -20,6 +20,7 @@ import pyarrow.parquet as pq
 import yaml
 
 import refexmc
+from refexmc.config import renames
 from refexmc.config.errors import ConfigError
 
 
@@ -294,7 +295,25 @@ def output_names(campaign):
 
 
 def read_manifest(out):
-    return json.loads((Path(out) / "manifest.json").read_text())
+    """manifest.json, its column names as now named (config.renames: written before a rename)."""
+    return renames.manifest(json.loads((Path(out) / "manifest.json").read_text()))
+
+
+def read_runs_part(path, **options):
+    """One runs part file (``pq.read_table`` ``options``), with the columns and failure reasons of
+    now: an output written before a rename (config.renames, issue 34) reads as if written after it.
+    Every reader of a runs table goes through here. A file without options is read by
+    ``ParquetFile`` (``read_table`` imports pyarrow.dataset, ~0.4 s)."""
+    path = Path(path)
+    table = pq.ParquetFile(path).read() if path.is_file() and not options else pq.read_table(path, **options)
+    return renames.runs_table(table)
+
+
+def read_runs_parts(paths, **options):
+    """The runs parts ``paths`` joined (:func:`read_runs_part` each: parts of before and after a
+    rename, as a resumed output holds, have the same columns)."""
+    tables = [read_runs_part(path, **options) for path in paths]
+    return pa.concat_tables(tables, promote_options="default") if tables else None
 
 
 def write_manifest(out, info):

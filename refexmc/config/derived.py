@@ -590,15 +590,15 @@ def gravity_gradient_coefficient(bodies):
     return float(sum(body["mu_m3_s2"] / body["distance_m"] ** 3 for body in bodies))
 
 
-def separation_rotation_vector(separation):
+def initial_rotation_vector(initial):
     """The initial attitude's rotation vector (rad): ``attitude_error_deg``, or the rotation of
     ``attitude_euler_deg`` in ``euler_sequence`` (scipy Rotation, as the inertial target). Both are
     from body x along the velocity, wings level (no trajectory: from the inertial axes)."""
-    if "attitude_euler_deg" not in separation:
-        return np.radians(separation["attitude_error_deg"])
+    if "attitude_euler_deg" not in initial:
+        return np.radians(initial["attitude_rotvec_deg"])
     from scipy.spatial.transform import Rotation  # only for Euler attitudes: scipy costs 0.4 s to import
 
-    return Rotation.from_euler(separation["euler_sequence"], separation["attitude_euler_deg"], degrees=True).as_rotvec()
+    return Rotation.from_euler(initial["euler_sequence"], initial["attitude_euler_deg"], degrees=True).as_rotvec()
 
 
 def rotate_by_rotation_vector(vector, rotvec_deg):

@@ -66,7 +66,7 @@ DIST_DOC = {
     "uniform": "low <= high, high - low finite",
     "lognormal": "median (default: nominal) > 0, sigma >= 0 of ln x",
     "choice": "values: numbers (each component independently) or vectors; probabilities (default equal)",
-    "uniform_so3": "uniformly random rotation (Haar measure); separation.attitude_error_deg only",
+    "uniform_so3": "uniformly random rotation (Haar measure); initial_state.attitude_rotvec_deg only",
     "inertia": "relative 1-sigma of the principal moments (< 0.5), principal-axis misalignment 1-sigma (<= 180 deg); "
     "draws that are not physical are redrawn",
 }
@@ -118,7 +118,7 @@ def columns(path, vehicle):
 
 def nominal(path, vehicle, mission):
     """Nominal value of ``path`` in its user units, one entry per component (KeyError: the vehicle
-    or mission does not have it). The separation attitude of a mission that gives it as Euler
+    or mission does not have it). The initial attitude of a mission that gives it as Euler
     angles is their rotation vector."""
     if path == "inertia_kg_m2":
         j = np.asarray(vehicle["inertia_kg_m2"], dtype=float)
@@ -132,8 +132,8 @@ def nominal(path, vehicle, mission):
         _, _, level, name = path.split(".")
         rcs = vehicle["rcs"]
         return np.full(len(rcs["thrusters"]), float(rcs["valve_time_constants_ms"][level][name]))
-    if path == "separation.attitude_error_deg" and "attitude_euler_deg" in mission["separation"]:
-        return np.degrees(derived.separation_rotation_vector(mission["separation"]))
+    if path == "initial_state.attitude_rotvec_deg" and "attitude_euler_deg" in mission["initial_state"]:
+        return np.degrees(derived.initial_rotation_vector(mission["initial_state"]))
     root = file_of(param, vehicle, mission)
     try:
         value = declared(param, root)

@@ -19,6 +19,7 @@ from refexmc.config import (
     plausibility,
     pointing,
     published,
+    renames,
     requirements,
     saltelli,
     schema,
@@ -453,13 +454,13 @@ def check_mission(mission, file, lines, prefix=(), warnings=None):
 
     fail = _failing_at(file, lines, prefix)
     check_modes(mission["modes"], fail)
-    separation = mission["separation"]
-    if ("attitude_error_deg" in separation) == ("attitude_euler_deg" in separation):
-        fail("expected either 'attitude_error_deg' or 'attitude_euler_deg' (with 'euler_sequence')", "separation")
-    if ("euler_sequence" in separation) != ("attitude_euler_deg" in separation):
-        if "euler_sequence" in separation:
-            fail("'euler_sequence' goes with 'attitude_euler_deg'", "separation", "euler_sequence")
-        fail("'attitude_euler_deg' needs 'euler_sequence' (e.g. ZYX)", "separation", "attitude_euler_deg")
+    initial = mission["initial_state"]
+    if ("attitude_rotvec_deg" in initial) == ("attitude_euler_deg" in initial):
+        fail("expected either 'attitude_rotvec_deg' or 'attitude_euler_deg' (with 'euler_sequence')", "initial_state")
+    if ("euler_sequence" in initial) != ("attitude_euler_deg" in initial):
+        if "euler_sequence" in initial:
+            fail("'euler_sequence' goes with 'attitude_euler_deg'", "initial_state", "euler_sequence")
+        fail("'attitude_euler_deg' needs 'euler_sequence' (e.g. ZYX)", "initial_state", "attitude_euler_deg")
     gravity = mission.get("disturbances", {}).get("gravity_gradient")
     if gravity is not None and smallmatrix.norm(gravity["direction"]) == 0.0:
         fail("expected a non-zero vector", "disturbances", "gravity_gradient", "direction")
@@ -547,8 +548,8 @@ def check_flight(vehicle, mission, fail_mission, fail_vehicle, plausible=()):
             if key not in mission:
                 fail_mission(f"the vehicle's planar_drag trajectory needs '{key}'")
         for key in ("altitude_m", "speed_m_s", "flight_path_angle_deg"):
-            if key not in mission["separation"]:
-                fail_mission(f"the vehicle's planar_drag trajectory needs separation '{key}'", "separation")
+            if key not in mission["initial_state"]:
+                fail_mission(f"the vehicle's planar_drag trajectory needs initial_state '{key}'", "initial_state")
         return
     for m, mode in enumerate(mission["modes"]):
         target = mode.get("target", {}).get("type")
@@ -664,9 +665,18 @@ def load_vehicle(path, warnings=None):
     return data
 
 
+def _renamed(found, file, lines):
+    """The warnings of the old names ``found`` by config.renames (each an error under --strict)."""
+    return renames.warnings_of(found, file, lines, design_checks.DesignWarning)
+
+
 def load_mission(path, warnings=None):
-    """The validated mission file; its plausibility warnings are appended to the list ``warnings``."""
+    """The validated mission file; a warning per old key name (config.renames) and its plausibility
+    warnings go to the list ``warnings``."""
     data, lines = read_yaml(path)
+    found = _renamed(renames.migrate_mission(data, lines), path, lines)
+    if warnings is not None:
+        warnings.extend(found)
     if isinstance(data, dict) and "entry_flight" in data:  # an entry mission (issue 24, docs/x38.md)
         validate(data, schema.ENTRY_MISSION, path, lines)
         check_entry_mission(data, path, lines, warnings=warnings)
@@ -703,8 +713,9 @@ def check_entry_mission(mission, file, lines, prefix=(), warnings=None):
         warnings.extend(plausibility.check_mission(mission, fail))
 
 
-def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
-    """(validated data, a function raising ConfigError at a key path of it)."""
+def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker, renamed=None):
+    """(validated data, a function raising ConfigError at a key path of it). ``renamed``: a list
+    that gets a warning per old name of a mission file (config.renames); None: no migration."""
     ref = campaign[key]
     if isinstance(ref, dict):
         part_lines = {k[1:]: v for k, v in lines.items() if k[:1] == (key,)}
@@ -721,6 +732,8 @@ def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker):
         raise ConfigError(
             f"{key} file {ref!r} ({path}): {error.message}", file=campaign_file, line=lines.get((key,)), path=(key,)
         ) from None
+    if renamed is not None:
+        renamed += _renamed(renames.migrate_mission(data, part_lines), path, part_lines)
     validate(data, part_schema, path, part_lines)
     checker(data, path, part_lines)
     return data, _failing_at(path, part_lines, ())
@@ -814,14 +827,14 @@ def load_campaign(path, warnings=None):
 
     path = Path(path)
     data, lines = read_yaml(path)
+    found = _renamed(renames.migrate_campaign(data, lines), path, lines)  # old names: warnings (issue 34)
     validate(data, schema.CAMPAIGN, path, lines)
-    found = []
     checker = functools.partial(check_vehicle, warnings=found)
     vehicle, fail_vehicle = _resolve_part(data, "vehicle", path, lines, schema.VEHICLE, checker)
     if _is_entry_mission(data["mission"], path):
         return _load_entry_campaign(path, data, lines, vehicle, fail_vehicle, warnings, found)
     mission_checker = functools.partial(check_mission, warnings=found)
-    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, mission_checker)
+    mission, fail_mission = _resolve_part(data, "mission", path, lines, schema.MISSION, mission_checker, found)
     check_flight(vehicle, mission, fail_mission, fail_vehicle, plausible=found)
     found += design_checks.check_flight(vehicle, mission, fail_mission)
     campaign = {
@@ -1162,7 +1175,7 @@ def detect_kind(data):
         return "campaign"
     if "rcs" in data or "inertia_kg_m2" in data:
         return "vehicle"
-    if "modes" in data or "separation" in data or "entry_flight" in data:
+    if "modes" in data or "initial_state" in data or renames.OLD_BLOCK in data or "entry_flight" in data:
         return "mission"
     return None
 

@@ -3,8 +3,8 @@
 A flight ends when its last mode exits. ReFEx's last mode hands over to the aerodynamic control
 at a dynamic pressure (000 sec. 2.2): only a mission whose last mode exits on
 ``dynamic_pressure_above_pa`` is said to end in a "hand-over"; any other mission's flight just
-"ends". The runs-table columns keep their names (``t_end_s``, ``theta_t_handover_deg``: the total
-angle error when the flight ends).
+"ends". The runs-table columns are the same for every mission (``t_end_s``; ``attitude_error_end_deg``:
+the total attitude error when the last mode ends, issue 34).
 """
 
 

@@ -263,22 +263,22 @@ def pack_mission(mission, trajectory=schema.DEFAULT_TRAJECTORY, plan=None):
     """Mission array (layout.MISSION); ``trajectory`` is the vehicle's trajectory model, ``plan``
     an orbit mission's nominal deorbit plan (``config.deorbit.plan``)."""
     out = np.zeros(L.MISSION_SIZE)
-    sep = mission["separation"]
+    initial = mission["initial_state"]
     sun = np.asarray(mission.get("sun_direction", [1.0, 0.0, 0.0]), dtype=float)
     earth = mission.get("earth", {"radius_m": 0.0, "mu_m3_s2": 0.0})
     rad = np.radians
-    handover = mission.get("handover_max_angle_deg")
+    end_max = mission.get("attitude_error_end_max_deg")
     disturbances = mission.get("disturbances", {})
     gravity = disturbances.get("gravity_gradient", {"bodies": [], "direction": [0.0, 0.0, 1.0]})
     gravity_direction = np.asarray(gravity["direction"], dtype=float)
-    # the separation state, the local trajectory's position and velocity (zero where the mission has none)
+    # the initial state, the local trajectory's position and velocity (zero where the mission has none)
     parameters.pack_nominal(out, "mission", mission)
     values = {
-        "separation_attitude_rotvec_rad": derived.separation_rotation_vector(sep),  # or from Euler angles
+        "initial_attitude_rotvec_rad": derived.initial_rotation_vector(initial),  # or from Euler angles
         "sun_direction": smallmatrix.unit(sun),
         "earth_radius_m": earth["radius_m"],
         "earth_mu_m3_s2": earth["mu_m3_s2"],
-        "handover_max_angle_rad": math.inf if handover is None else rad(handover),
+        "attitude_error_end_max_rad": math.inf if end_max is None else rad(end_max),
         "max_flight_time_s": mission["max_flight_time_s"],
         "integrator_max_step_s": mission["integrator"]["max_step_s"],
         "trajectory_step_s": mission["integrator"]["trajectory_step_s"],

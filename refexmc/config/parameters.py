@@ -1,7 +1,7 @@
 """Every dispersible parameter, declared once: its path, shape and where it lands in the core.
 
 A path names a quantity in the user's units, mostly the key path of the vehicle or mission file
-(``separation.rates_deg_s``); its unit, meaning, physical range and default are those its schema
+(``initial_state.rates_deg_s``); its unit, meaning, physical range and default are those its schema
 node declares (``schema.py``: "[unit]" in each description). A few paths exist only as
 dispersions (``rcs.thrust_scale``, ``atmosphere.density_scale``, the entry factors): they declare
 their unit, meaning, range and nominal here.
@@ -26,7 +26,8 @@ from refexmc.core import layout as L
 
 AXES = ("x", "y", "z")
 INERTIA_COMPONENTS = ("xx", "yy", "zz", "xy", "xz", "yz")
-MISSION_ROOTS = ("separation", "navigation", "local", "entry_flight")  # paths of the mission file (else the vehicle's)
+# paths of the mission file (else the vehicle's)
+MISSION_ROOTS = ("initial_state", "navigation", "local", "entry_flight")
 DEG = math.pi / 180.0  # degrees -> radians, the same bits as numpy's radians (x * (pi / 180))
 
 # shapes: how many components a path has (dispersions.components)
@@ -192,15 +193,15 @@ def _table():
                 )
             )
     p += [
-        config_key("separation.altitude_m", SCALAR, "mission", "separation_altitude_m"),
-        config_key("separation.speed_m_s", SCALAR, "mission", "separation_speed_m_s"),
-        config_key("separation.flight_path_angle_deg", SCALAR, "mission", "separation_flight_path_angle_rad", DEG),
-        config_key("separation.rates_deg_s", VECTOR, "mission", "separation_rates_rad_s", DEG),
+        config_key("initial_state.altitude_m", SCALAR, "mission", "initial_altitude_m"),
+        config_key("initial_state.speed_m_s", SCALAR, "mission", "initial_speed_m_s"),
+        config_key("initial_state.flight_path_angle_deg", SCALAR, "mission", "initial_flight_path_angle_rad", DEG),
+        config_key("initial_state.rates_deg_s", VECTOR, "mission", "initial_rates_rad_s", DEG),
         config_key(
-            "separation.attitude_error_deg",
+            "initial_state.attitude_rotvec_deg",
             ATTITUDE,
             "mission",
-            "separation_attitude_rotvec_rad",
+            "initial_attitude_rotvec_rad",
             DEG,
             note="dist uniform_so3: any attitude",
             special="a mission may give it as Euler angles: their rotation vector is the nominal",
@@ -403,7 +404,7 @@ def configured(param, root):
     """The value packed for ``param`` from the file ``root``: the file's value, its key's schema
     default where the file omits it, a dispersion-only path's nominal; None where there is none
     (a part the vehicle or mission does not have: no aerodynamics, no main engine, no local
-    trajectory, no separation altitude without a trajectory)."""
+    trajectory, no initial altitude without a trajectory)."""
     if param.key is None:
         return param.nominal
     try:

@@ -5,7 +5,7 @@ Example: ``fuel_remaining.min >= 0.20``.
 METRIC is either a campaign-level metric (``CAMPAIGN_METRICS``) or ``<column>.<stat>``:
 
 - ``<column>``: a numeric column of the ``runs`` table (``fuel_remaining``, ``fuel_used_kg``,
-  ``t_end_s``, ``t_<mode>_s``, ``theta_t_handover_deg``, ``modes_completed``, ``pulses_<k>``,
+  ``t_end_s``, ``t_<mode>_s``, ``attitude_error_end_deg``, ``modes_completed``, ``pulses_<k>``,
   ``p.<path>``; with the orbit trajectory ``ORBIT_COLUMNS``, with a mission's pointing window
   ``POINTING_COLUMNS``, with reaction wheels ``WHEEL_COLUMNS``), or the derived ``pulses_total``
   (sum of the thrusters' pulse counts);
@@ -253,7 +253,7 @@ def run_value_columns(mode_names, trajectory=DEFAULT_TRAJECTORY, pointing=False,
     """The float columns of a runs row, in table order (NaN in an errored run's row);
     ``trajectory``: the vehicle's trajectory model (``orbit`` adds ``ORBIT_COLUMNS``); ``pointing``,
     ``wheels``: add ``POINTING_COLUMNS``, ``WHEEL_COLUMNS`` (:func:`column_options`)."""
-    columns = ["fuel_remaining", "fuel_used_kg", "t_end_s", *mode_time_columns(mode_names), "theta_t_handover_deg"]
+    columns = ["fuel_remaining", "fuel_used_kg", "t_end_s", *mode_time_columns(mode_names), "attitude_error_end_deg"]
     if trajectory == "orbit":
         columns += ORBIT_COLUMNS
     if trajectory == "local":

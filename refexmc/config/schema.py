@@ -460,7 +460,7 @@ VEHICLE = obj(
                     "maxItems": 8,
                 },
                 "isp_s": number("specific impulse [s]", **POSITIVE),
-                "propellant_kg": number("propellant mass at separation [kg]", **POSITIVE),
+                "propellant_kg": number("propellant mass at t = 0 [kg]", **POSITIVE),
                 "valve_time_constants_ms": per_level(
                     "mean valve time constants per thrust level (the levels of thrust_n)", _time_constants
                 ),
@@ -859,21 +859,21 @@ MISSION = obj(
                 ),
             },
         ),
-        "separation": obj(
-            "state at separation (t = 0)",
+        "initial_state": obj(
+            "the state at t = 0 (was 'separation'): absolute rates and attitude, not errors from a target",
             {
                 "altitude_m": number("altitude (planar_drag trajectory) [m]", **POSITIVE),
                 "speed_m_s": number("inertial speed (planar_drag trajectory) [m/s]", **POSITIVE),
                 "flight_path_angle_deg": number(
                     "flight-path angle (planar_drag trajectory) [deg]", minimum=-90.0, maximum=90.0
                 ),
-                "rates_deg_s": vector("body rates [deg/s]", minimum=-90.0, maximum=90.0),
-                "attitude_error_deg": vector(
-                    "rotation vector from body x along velocity, wings level (no trajectory: from the "
-                    "inertial axes) [deg]; or attitude_euler_deg"
+                "rates_deg_s": vector("body rates, inertial (absolute) [deg/s]", minimum=-90.0, maximum=90.0),
+                "attitude_rotvec_deg": vector(
+                    "the attitude (absolute, not an error): rotation vector from the reference axes, body x "
+                    "along velocity and wings level (no trajectory: the inertial axes) [deg]; or attitude_euler_deg"
                 ),
                 "attitude_euler_deg": vector(
-                    "the same attitude as Euler angles in euler_sequence, instead of attitude_error_deg [deg]"
+                    "the same attitude as Euler angles in euler_sequence, instead of attitude_rotvec_deg [deg]"
                 ),
                 "euler_sequence": {
                     "type": "string",
@@ -886,7 +886,7 @@ MISSION = obj(
                 "altitude_m",
                 "speed_m_s",
                 "flight_path_angle_deg",
-                "attitude_error_deg",
+                "attitude_rotvec_deg",
                 "attitude_euler_deg",
                 "euler_sequence",
             ),
@@ -912,8 +912,10 @@ MISSION = obj(
             "minItems": 1,
             "maxItems": MAX_MODES,
         },
-        "handover_max_angle_deg": number(
-            "success: total angle error when the last mode ends below [deg]; default: no check", **POSITIVE
+        "attitude_error_end_max_deg": number(
+            "success: the total attitude error when the last mode ends (attitude_error_end_deg) below [deg]; "
+            "default: no check",
+            **POSITIVE,
         ),
         "max_flight_time_s": number("a run still flying then fails [s]", **POSITIVE),
         "navigation": obj(
@@ -1037,7 +1039,7 @@ MISSION = obj(
         ),
     },
     optional=(
-        "handover_max_angle_deg",
+        "attitude_error_end_max_deg",
         "earth",
         "sun_direction",
         "atmosphere",

@@ -29,7 +29,7 @@ from refexmc.config.errors import ConfigError
 from refexmc.config.parameters import MISSION_ROOTS  # paths under these are mission keys
 from refexmc.config.schema import SWEPT_DISTRIBUTION_PARAMETERS
 
-DEFAULT_METRICS = ("fuel_remaining", "theta_t_handover_deg", "rcs_propellant_kg")  # those the runs table has
+DEFAULT_METRICS = ("fuel_remaining", "attitude_error_end_deg", "rcs_propellant_kg")  # those the runs table has
 
 
 def _part(path):

@@ -168,15 +168,15 @@ GUIDANCE_LAW_OPEN_LOOP_PLANNED = 2  # open loop: the plan's thrust direction at 
 
 # --- mission ----------------------------------------------------------------------------------
 MISSION = Fields()
-M_SEP_ALTITUDE = MISSION.add("separation_altitude_m")
-M_SEP_SPEED = MISSION.add("separation_speed_m_s")
-M_SEP_FLIGHT_PATH = MISSION.add("separation_flight_path_angle_rad")
-M_SEP_RATES = MISSION.add("separation_rates_rad_s", 3)
-M_SEP_ATTITUDE = MISSION.add("separation_attitude_rotvec_rad", 3)  # from body x along velocity
+M_SEP_ALTITUDE = MISSION.add("initial_altitude_m")
+M_SEP_SPEED = MISSION.add("initial_speed_m_s")
+M_SEP_FLIGHT_PATH = MISSION.add("initial_flight_path_angle_rad")
+M_SEP_RATES = MISSION.add("initial_rates_rad_s", 3)
+M_SEP_ATTITUDE = MISSION.add("initial_attitude_rotvec_rad", 3)  # from body x along velocity
 M_SUN_DIRECTION = MISSION.add("sun_direction", 3)  # unit vector, inertial frame
 M_EARTH_RADIUS = MISSION.add("earth_radius_m")
 M_EARTH_MU = MISSION.add("earth_mu_m3_s2")
-M_HANDOVER_ANGLE = MISSION.add("handover_max_angle_rad")  # after the last mode; inf: no check
+M_HANDOVER_ANGLE = MISSION.add("attitude_error_end_max_rad")  # after the last mode; inf: no check
 M_MAX_TIME = MISSION.add("max_flight_time_s")
 M_MAX_STEP = MISSION.add("integrator_max_step_s")
 M_TRAJECTORY_STEP = MISSION.add("trajectory_step_s")  # RK4 node spacing, Hermite in between
@@ -299,7 +299,7 @@ FAILURE_NAMES = (
     None,
     "{mode}_timeout",  # with the mode's name, lower case
     "propellant_exhausted",
-    "handover_angle_error",
+    "attitude_error_end_above_max",
     "flight_time_limit",
     "non_finite_state",
 )
@@ -312,7 +312,7 @@ S_FAILURE_MODE = SUMMARY.add("failure_mode")  # index of the mode a timeout fail
 S_FUEL_REMAINING = SUMMARY.add("fuel_remaining")
 S_FUEL_USED = SUMMARY.add("fuel_used_kg")
 S_T_END = SUMMARY.add("t_end_s")
-S_THETA_HANDOVER = SUMMARY.add("theta_t_handover_deg")
+S_THETA_HANDOVER = SUMMARY.add("attitude_error_end_deg")
 S_MODES_COMPLETED = SUMMARY.add("modes_completed")
 S_ALTITUDE_END = SUMMARY.add("altitude_end_m")
 S_QBAR_END = SUMMARY.add("qbar_end_pa")

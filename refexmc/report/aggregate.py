@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from refexmc.config import renames
 from refexmc.report import data
 
 MAX_TIME_BINS = 600
@@ -172,7 +173,8 @@ def statistics_min_max(parts, columns):
     low, high, missing = {}, {}, set()
     for part in parts:
         metadata = pq.ParquetFile(part).metadata
-        names = [metadata.schema.column(i).name for i in range(metadata.num_columns)]
+        # a part written before a rename (config.renames): its columns by their names of now
+        names = [renames.new_column(metadata.schema.column(i).name) for i in range(metadata.num_columns)]
         for column in columns:
             if column not in names or column in missing:
                 continue

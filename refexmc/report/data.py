@@ -5,7 +5,6 @@ Histories are never read whole: ``history_batches`` yields record batches of the
 figure needs, part file by part file, so memory stays bounded whatever the campaign size.
 """
 
-import json
 import os
 import re
 from collections import deque
@@ -22,6 +21,7 @@ import pyarrow.parquet as pq
 import yaml
 
 from refexmc.campaign import storage
+from refexmc.config import renames
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import read_yaml
 
@@ -138,7 +138,7 @@ READ_THREADS = 8  # at most; pyarrow reads without the GIL, so parts are read on
 def _read_group(parts):
     """One table of the runs ``parts``, each column in one chunk."""
     # pre_buffer (coalesced reads on pyarrow's I/O threads, made for object stores) only adds waiting here
-    tables = [pq.ParquetFile(part, pre_buffer=False).read(use_threads=False) for part in parts]
+    tables = [renames.runs_table(pq.ParquetFile(part, pre_buffer=False).read(use_threads=False)) for part in parts]
     return pa.concat_tables(tables, promote_options="default").combine_chunks()
 
 
@@ -170,8 +170,9 @@ def load(out):
     if not parts:
         raise ConfigError("no runs/part-*.parquet: the campaign has not stored any run yet", file=out)
     resolved, lines = read_yaml(resolved_path)
+    renames.migrate_campaign(resolved, lines)  # written before a rename: read as of now (issue 34)
     manifest_path = out / "manifest.json"
-    manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {}
+    manifest = storage.read_manifest(out) if manifest_path.is_file() else {}
     runs = read_runs_parts(parts).to_pandas(self_destruct=True)
     if not runs["run_id"].is_monotonic_increasing:  # parts in chunk order hold their runs in order
         runs = runs.sort_values("run_id", kind="stable").reset_index(drop=True)

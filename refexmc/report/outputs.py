@@ -14,7 +14,7 @@ The report is built from the campaign, not from one reference mission:
 - the per-thruster pulse counts ``pulses_<k>`` are **folded** into one table.
 
 Words: a column's description comes from ``tails.TAIL_RULES``; the angle at the end of the flight
-(``theta_t_handover_deg``) is described by the mission's last mode, and only the ReFEx vehicle
+(``attitude_error_end_deg``) is described by the mission's last mode, and only the ReFEx vehicle
 (``vehicle.name == "refex"``, the mission of 000) gets 000's words ("hand-over", "separation",
 "000 Fig.").
 """
@@ -42,11 +42,11 @@ UNITS = (  # (column suffix, unit as shown); the first match decides
     ("_m", "m"),
     ("_s", "s"),
 )
-END_ANGLE_COLUMN = "theta_t_handover_deg"
+END_ANGLE_COLUMN = "attitude_error_end_deg"
 DISPLAY_ORDER = (  # the other outputs a runs table has come in this order, then the rest in table order
     "fuel_remaining",
     "fuel_used_kg",
-    "theta_t_handover_deg",
+    "attitude_error_end_deg",
     "burn_pointing_max_deg",
     "burn_pointing_rms_deg",
     "engine_propellant_used_kg",

@@ -107,7 +107,7 @@ def sweep_report(out, record, make_point_report, require=(), html=True):
     """The report of sweep OUT (``record``: its manifest's ``sweep``); the dict of ``make_report``.
 
     ``make_point_report(folder, require, html)``: the plain report of one point."""
-    import pyarrow.parquet as pq
+    from refexmc.campaign import storage
 
     out = Path(out)
     rows, incomplete, errored = [], [], []
@@ -117,7 +117,7 @@ def sweep_report(out, record, make_point_report, require=(), html=True):
             incomplete.append(point["point"])  # killed before the point started, or before its first part
             continue
         result = make_point_report(folder, require=require, html=html)
-        runs = pq.read_table(folder / "runs").to_pandas()
+        runs = storage.read_runs_parts(sorted((folder / "runs").glob("part-*.parquet"))).to_pandas()
         rows.append(point_statistics(point, result, runs, record["metrics"]))
         if result["verdict"] == "INCOMPLETE":
             incomplete.append(point["point"])

@@ -13,7 +13,7 @@ TAIL_RULES = (  # (column pattern, worse tail, what the column is)
     ("fuel_remaining", "lower", "propellant remaining (fraction of the load)"),
     ("modes_completed", "lower", "modes completed"),
     ("fuel_used_kg", "upper", "propellant used"),
-    ("theta_t_handover_deg", "upper", "total angle error at hand-over"),
+    ("attitude_error_end_deg", "upper", "total attitude error when the last mode ends"),
     ("burn_pointing_*_deg", "upper", "engine pointing error during a burn (RMS, largest)"),
     ("engine_propellant_used_kg", "upper", "main-engine propellant used"),
     ("pointing_end_*_arcsec", "both", "pointing error per axis at the end of the pointing window (signed)"),
