@@ -115,13 +115,14 @@ def cache_lock():
     same index, both pick ``n = 1`` for their own family's ``run_flight`` (and ``_fly``, and each
     step typed apart): the index written last loses the other family's entry, and the data file
     written last may hold the other family's kernel under this family's key (the third process
-    that loads it would fly the wrong family). ``tests/test_jit.py`` forces that interleaving.
+    that loads it would fly the wrong family). ``tests/test_cache_lock.py`` forces that interleaving.
 
-    Every compile refexmc asks for (``simulate.load_kernels``, ``simulate.load_entry_kernel``)
-    holds this lock: an ``flock`` on ``compile.lock`` in the cache directory, released by the
-    kernel however its holder ends. A second process waits for the first one's compile, and then
-    finds what the first one compiled in the cache. Re-entrant within a process; no lock where
-    the JIT is disabled or the cache directory cannot be written (numba then caches nothing).
+    Every compile refexmc asks for (``simulate.load_kernels``, which a family's first ``fly`` in a
+    process calls too, and ``simulate.load_entry_kernel``) holds this lock: an ``flock`` on
+    ``compile.lock`` in the cache directory, released by the kernel however its holder ends. A
+    second process waits for the first one's compile, and then finds it in the cache. Re-entrant
+    within a process; no lock where the JIT is disabled or the cache directory cannot be written
+    (numba then caches nothing).
     """
     global _cache_lock_depth
     with _cache_lock_thread:

@@ -358,9 +358,9 @@ def map_history_batches(campaign, columns, function=None, batch_rows=HISTORY_BAT
 
     The next ``read_ahead`` parts (default: one per core, :func:`threads`) are read, and mapped,
     on threads while the caller uses this one's results: pyarrow decodes and numpy computes on
-    arrays without holding the GIL, so the histories are read and binned on every core. ``function`` must not change
-    shared state. At most ``read_ahead + 1`` parts' results are held: a part is what one worker
-    held when it flew.
+    arrays without holding the GIL, so the histories are read and binned on every core.
+    ``function`` must not change shared state. At most ``read_ahead + 1`` parts' results are
+    held: a part is what one worker held when it flew.
     """
     parts = iter(campaign.history_parts)
     if read_ahead is None:
