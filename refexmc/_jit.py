@@ -17,8 +17,11 @@ libm's exp, sin, ... in vectorised loops with its own, so it is turned off befor
 imported (``numba -s`` shows ``config.USING_SVML``). ``tests/test_cpu_independence.py`` checks both.
 """
 
+import contextlib
+import fcntl
 import hashlib
 import os
+import threading
 from pathlib import Path
 
 os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # before numba reads its configuration
@@ -93,3 +96,56 @@ def jit_inline(function):
     if DISABLED:
         return function
     return numba.njit(inline="always", **JIT_OPTIONS)(function)
+
+
+_CACHE_LOCK_NAME = "compile.lock"
+_cache_lock_thread = threading.RLock()  # one thread of this process at a time holds the file lock
+_cache_lock_depth = 0
+
+
+@contextlib.contextmanager
+def cache_lock():
+    """Hold the kernel cache's inter-process lock while compiling kernels into it.
+
+    Numba's cache keeps one index file per function (``<name>-<line>.pyXY.nbi``: a pickled dict
+    from signature, CPU and closure-cell hash to a data file ``<name>-<line>.pyXY.<n>.nbc``). Saving
+    a compiled kernel loads the index, picks the first free ``n``, writes the index, then the data
+    (``IndexDataCacheFile.save`` in ``numba/core/caching.py``); each file is replaced atomically,
+    but nothing orders two processes. Two processes compiling two families at once both read the
+    same index, both pick ``n = 1`` for their own family's ``run_flight`` (and ``_fly``, and each
+    step typed apart): the index written last loses the other family's entry, and the data file
+    written last may hold the other family's kernel under this family's key (the third process
+    that loads it would fly the wrong family). ``tests/test_cache_lock.py`` forces that interleaving.
+
+    Every compile refexmc asks for (``simulate.load_kernels``, which a family's first ``fly`` in a
+    process calls too, and ``simulate.load_entry_kernel``) holds this lock: an ``flock`` on
+    ``compile.lock`` in the cache directory, released by the kernel however its holder ends. A
+    second process waits for the first one's compile, and then finds it in the cache. Re-entrant
+    within a process; no lock where the JIT is disabled or the cache directory cannot be written
+    (numba then caches nothing).
+    """
+    global _cache_lock_depth
+    with _cache_lock_thread:
+        if _cache_lock_depth or DISABLED:
+            _cache_lock_depth += 1
+            try:
+                yield
+            finally:
+                _cache_lock_depth -= 1
+            return
+        fd = None
+        try:
+            Path(numba.config.CACHE_DIR).mkdir(parents=True, exist_ok=True)
+            fd = os.open(Path(numba.config.CACHE_DIR) / _CACHE_LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            if fd is not None:
+                os.close(fd)
+            fd = None
+        _cache_lock_depth += 1
+        try:
+            yield
+        finally:
+            _cache_lock_depth -= 1
+            if fd is not None:
+                os.close(fd)  # closing the file releases the flock

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from refexmc import _jit
 from refexmc.config.requirements import (
     ENTRY_COLUMNS,
     LOCAL_COLUMNS,
@@ -242,6 +243,8 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None, requirements=N
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
     history = np.zeros((max_rows, L.history_size(inputs.wheels.shape[0])))
     run_flight = flight.kernel(*flight.family(inputs))  # the vehicle family's own kernel (docs/families.md)
+    if not getattr(run_flight, "signatures", True):  # its first flight in this process: compiled under the lock
+        load_kernels([flight.family(inputs)])
     if requirements is None or not requirements.columns:
         record = pointing.empty_record()
     else:
@@ -321,13 +324,16 @@ def load_kernels(families=()):
     values) from numba's disk cache, compiling what is not there, without flying: a worker loads
     the keyed kernels while the parent still prepares the campaign (numba's first load also sets
     up its target, ~0.4 s) and its campaign's family before its first run (``chunk.RunPlan``),
-    so that the run costs the run only. Other families' kernels are neither loaded nor compiled."""
-    for family in families:
-        run_flight = flight.kernel(*family)
-        if hasattr(run_flight, "compile") and not run_flight.signatures:  # not with REFEXMC_DISABLE_JIT
-            run_flight.compile(_flight_argument_types())
-    keyed_uniforms((0,), 1)
-    keyed_uniforms_for_runs((0,), [0], 0, 0, 1)
+    so that the run costs the run only. Other families' kernels are neither loaded nor compiled.
+    Compiles hold the cache's lock (``refexmc._jit.cache_lock``): two processes never save into
+    one cache index at once."""
+    with _jit.cache_lock():
+        for family in families:
+            run_flight = flight.kernel(*family)
+            if hasattr(run_flight, "compile") and not run_flight.signatures:  # not with REFEXMC_DISABLE_JIT
+                run_flight.compile(_flight_argument_types())
+        keyed_uniforms((0,), 1)
+        keyed_uniforms_for_runs((0,), [0], 0, 0, 1)
 
 
 # --- the entry flight (issue 24, docs/x38.md): core.entry_flight, a kernel of its own ---
@@ -432,4 +438,5 @@ def load_entry_kernel(flown, initial):
 
     if hasattr(ef.fly, "signatures") and not ef.fly.signatures:
         flown.control[ef.CT_MAX_TIME_S] = 0.0
-        fly_entry(flown, initial)
+        with _jit.cache_lock():  # see load_kernels
+            fly_entry(flown, initial)

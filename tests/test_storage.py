@@ -177,14 +177,37 @@ def test_encoded_parts_read_back_as_they_were(smoke_chunk):
         assert_same_table(storage.decode_table(storage.encode_table(table)), table)
 
 
-def test_floats_are_stored_plain_and_the_other_columns_as_dictionaries(smoke_chunk):
+def test_floats_are_stored_byte_stream_split_and_the_other_columns_as_dictionaries(smoke_chunk):
     rows, history = smoke_chunk
     for table in (storage.runs_table(rows), history):
         metadata = pq.read_metadata(pa.BufferReader(storage.encode_table(table)))
         for k, field in enumerate(table.schema):
+            column = metadata.row_group(0).column(k)
+            floating = pa.types.is_floating(field.type)
             if not pa.types.is_boolean(field.type):  # Parquet has no dictionaries of booleans
-                column = metadata.row_group(0).column(k)
-                assert column.has_dictionary_page != pa.types.is_floating(field.type), field.name
+                assert column.has_dictionary_page != floating, field.name
+            assert ("BYTE_STREAM_SPLIT" in column.encodings) == floating, (field.name, column.encodings)
+
+
+@pytest.mark.parametrize("dtype, unsigned", [(np.float64, np.uint64), (np.float32, np.uint32)])
+def test_stored_floats_keep_every_bit(dtype, unsigned):
+    """Byte-stream split is lossless: NaNs with payloads, -0.0, infinities, subnormals, extremes."""
+    info = np.finfo(dtype)
+    special = np.array([0.0, -0.0, np.inf, -np.inf, info.tiny, info.smallest_subnormal, info.max, -info.eps], dtype)
+    payload_nans = (
+        (
+            np.array([0x7FF8000000000001, 0xFFF0000000000F0F])
+            if dtype == np.float64
+            else np.array([0x7FC00001, 0xFF800F0F])
+        )
+        .astype(unsigned)
+        .view(dtype)
+    )
+    values = np.concatenate([special, payload_nans, np.random.default_rng(5).standard_normal(1000).astype(dtype)])
+    table = pa.table({"run_id": np.arange(len(values)), "x": values})
+    back = storage.decode_table(storage.encode_table(table)).column("x").to_numpy()
+    assert back.dtype == dtype
+    assert np.array_equal(back.view(unsigned), values.view(unsigned))
 
 
 def test_a_worker_imports_neither_pandas_nor_the_validator(tmp_path):

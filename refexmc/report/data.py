@@ -132,7 +132,27 @@ class Campaign:
 
 
 RUNS_PARTS_PER_GROUP = 64  # runs parts read and joined into one table by one thread
-READ_THREADS = 8  # at most; pyarrow reads without the GIL, so parts are read on every core
+MAX_THREADS = 16  # threads of the report's parallel stages, at most
+
+
+def threads():
+    """Threads for the report's parallel stages: the CPUs this process may use (at most MAX_THREADS).
+    pyarrow decodes and numpy sorts, bins and counts without the GIL, so they run on every core."""
+    try:
+        available = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        available = os.cpu_count() or 1
+    return max(1, min(MAX_THREADS, available))
+
+
+def map_on_threads(function, items):
+    """``[function(item) for item in items]``, computed on :func:`threads` threads: for numpy work
+    on whole columns (sorting, ranking), which runs without the GIL."""
+    items = list(items)
+    if len(items) < 2 or threads() < 2:
+        return [function(item) for item in items]
+    with ThreadPoolExecutor(min(threads(), len(items))) as pool:
+        return list(pool.map(function, items))
 
 
 def _read_group(parts):
@@ -153,7 +173,7 @@ def read_runs_parts(parts):
     groups = [parts[k : k + RUNS_PARTS_PER_GROUP] for k in range(0, len(parts), RUNS_PARTS_PER_GROUP)]
     if len(groups) == 1:
         return _read_group(groups[0])
-    with ThreadPoolExecutor(min(READ_THREADS, os.cpu_count() or 1, len(groups))) as pool:
+    with ThreadPoolExecutor(min(threads(), len(groups))) as pool:
         tables = list(pool.map(_read_group, groups))
     return pa.concat_tables(tables, promote_options="default")
 
@@ -333,7 +353,7 @@ def present_columns(campaign):
     return names or set()
 
 
-HISTORY_READ_AHEAD = 2  # parts read (and mapped) on threads ahead of the one being used
+HISTORY_READ_AHEAD = None  # parts read (and mapped) on threads ahead of the one being used: threads(), at least 2
 
 
 def _history_part_batches(part, columns, batch_rows, function=None):
@@ -352,13 +372,15 @@ def map_history_batches(campaign, columns, function=None, batch_rows=HISTORY_BAT
     """Yield ``function(batch)`` (the batch itself without a function) for the record batches of
     ``columns`` of every histories part, part by part, in order.
 
-    The next ``read_ahead`` parts are read, and mapped, on threads while the caller uses this
-    one's results: pyarrow decodes and numpy computes on arrays without holding the GIL, so a
-    2-core machine reads and bins the histories on both cores. ``function`` must not change
-    shared state. At most ``read_ahead + 1`` parts' results are held: a part is what one worker
-    held when it flew.
+    The next ``read_ahead`` parts (default: one per core, :func:`threads`) are read, and mapped,
+    on threads while the caller uses this one's results: pyarrow decodes and numpy computes on
+    arrays without holding the GIL, so the histories are read and binned on every core.
+    ``function`` must not change shared state. At most ``read_ahead + 1`` parts' results are
+    held: a part is what one worker held when it flew.
     """
     parts = iter(campaign.history_parts)
+    if read_ahead is None:
+        read_ahead = max(2, threads())
     if read_ahead < 1:
         for part in parts:
             yield from _history_part_batches(part, columns, batch_rows, function)

@@ -104,10 +104,11 @@ def column_sections(campaign, plan=None):
     n_runs = len(campaign.runs)
     left_out = n_runs - len(successful)
     result = {}
-    for column in statistics_columns(campaign, plan):
-        values = successful[column].to_numpy(dtype=float)
+    columns = statistics_columns(campaign, plan)
+    values = [successful[column].to_numpy(dtype=float) for column in columns]  # views of float columns
+    sections = data.map_on_threads(lambda k: stats.describe(values[k], plan["tails"][columns[k]]), range(len(columns)))
+    for column, section in zip(columns, sections, strict=True):
         tail = plan["tails"][column]
-        section = stats.describe(values, tail)
         n = int(section["count"])
         covers = f"{n} successful flight{'s' if n != 1 else ''}"
         if n < len(successful):
@@ -341,8 +342,12 @@ def sensitivity(campaign, plan=None, verdicts=()):
     def ranked(keep):
         """Doubled centred ranks (int32) of every input over the runs ``keep``, column by column."""
         ranks = np.empty((int(keep.sum()), len(parameters)), dtype=np.int32)
-        for j, column in enumerate(parameters):
-            ranks[:, j] = stats.doubled_centred_ranks(ok[column].to_numpy(dtype=float)[keep])
+        columns = [ok[column].to_numpy(dtype=float) for column in parameters]  # read here, ranked on threads
+
+        def rank(j):
+            ranks[:, j] = stats.doubled_centred_ranks(columns[j][keep])
+
+        data.map_on_threads(rank, range(len(parameters)))
         return ranks
 
     ranks = ranked(finite_inputs) if finite_inputs.all() else None
