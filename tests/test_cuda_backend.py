@@ -32,6 +32,8 @@ needs_jit = pytest.mark.skipif(_jit.DISABLED, reason="REFEXMC_DISABLE_JIT=1: no 
 # one campaign per family the GPU flies: ReFEx (table thrusters), SPORE (LP thrusters, orbit),
 # IRASSI (reaction wheels), the surveyor hop (local trajectory, cold-gas tank, time-optimal law)
 FAMILY_CAMPAIGNS = ["smoke", "spore-deorbit-iss", "irassi-fine-pointing", "surveyor-hop"]
+# compiled to PTX: one campaign of every vehicle family the shipped campaigns fly, the entry's aside
+PTX_CAMPAIGNS = [*FAMILY_CAMPAIGNS, "generic-slew", "refex-blow-down-mc100"]
 
 
 def _refused(monkeypatch, tmp_path, unavailable):
@@ -49,16 +51,28 @@ def test_without_numba_cuda_the_cuda_backend_exits_2_with_one_line_and_writes_no
     assert not out.exists()
 
 
+_USER_WITHOUT_GPU = """
+import sys
+from refexmc import _jit
+if _jit.cuda_unavailable() is None:
+    print("a GPU is there")
+    sys.exit(0)
+from refexmc.cli import console
+sys.argv = ["refexmc", "run", "campaigns/smoke.yaml", "-o", sys.argv[1], "--backend", "cuda"]
+console()
+"""
+
+
 @needs_numba_cuda
 def test_without_a_gpu_and_without_the_simulator_the_cuda_backend_exits_2(tmp_path):
     """As a user meets it: no simulator, no GPU on this machine (skipped where there is one)."""
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
-    probe = "from refexmc import _jit; print(_jit.cuda_unavailable() is None)"
-    if subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True).stdout.strip() == "True":
-        pytest.skip("a GPU is there")
     out = tmp_path / "out"
-    command = [sys.executable, "-m", "refexmc.cli", "run", "campaigns/smoke.yaml", "-o", str(out), "--backend", "cuda"]
-    done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-c", _USER_WITHOUT_GPU, str(out)], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    if done.stdout.strip() == "a GPU is there":
+        pytest.skip("a GPU is there")
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "no CUDA GPU" in lines[0], done.stderr
@@ -188,9 +202,25 @@ def _compile_ptx(campaign_name):
 @needs_numba_cuda
 @needs_jit
 @pytest.mark.slow
-@pytest.mark.parametrize("campaign_name", FAMILY_CAMPAIGNS)
+@pytest.mark.parametrize("campaign_name", PTX_CAMPAIGNS)
 def test_every_gpu_familys_kernel_compiles_to_ptx_without_a_device(campaign_name):
     ptx = _compile_ptx(campaign_name)
     assert ".entry" in ptx and ".target sm_90" in ptx
     assert "fma.rn.f64" in ptx  # numba-cuda contracts a*b+c (NVVM -fma=1): not the CPU's bits (docs/gpu.md)
     assert np.char.count(ptx, "NRT_").sum() == 0  # no allocation, no reference counting on the device
+
+
+def test_the_ptx_test_covers_every_family_of_the_shipped_campaigns():
+    from refexmc.campaign.run import resolve_campaign
+    from refexmc.config.pack import pack
+    from refexmc.core import flight
+
+    def family(name):
+        _, campaign = resolve_campaign(ROOT / "campaigns" / f"{name}.yaml")
+        if "entry_flight" in campaign["mission"]:
+            return "entry"
+        return flight.family(pack(campaign["vehicle"], campaign["mission"]))
+
+    shipped = {family(path.stem) for path in (ROOT / "campaigns").glob("*.yaml")} - {"entry"}
+    compiled = [family(name) for name in PTX_CAMPAIGNS]
+    assert set(compiled) == shipped and len(compiled) == len(shipped)  # each family once
