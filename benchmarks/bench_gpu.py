@@ -177,6 +177,7 @@ def main():
     parser.add_argument("--sizes", type=int, nargs="*", default=[10_000, 100_000, 1_000_000])
     parser.add_argument("--cpu-runs", type=int, default=100_000)
     parser.add_argument("--jobs", type=int, default=16)
+    parser.add_argument("--warm-runs", type=int, default=64, help="runs of the CPU warm-up (the GPU's: 4x)")
     args = parser.parse_args()
     began = time.perf_counter()
     work = Path(args.work)
@@ -189,17 +190,16 @@ def main():
 
     # 1. warm-up: the CPU kernel (disk cache), then the GPU kernel in this process
     start = time.perf_counter()
-    done = sh([*REFEXMC, "run", str(CAMPAIGN), "--runs", "64", "-j", "2", "-o", str(work / "warm-cpu"),
+    done = sh([*REFEXMC, "run", str(CAMPAIGN), "--runs", str(args.warm_runs), "-j", "2", "-o", str(work / "warm-cpu"),
                "--overwrite", "--no-progress"], cwd=ROOT)  # fmt: skip
     results["cpu_warm_s"] = time.perf_counter() - start
     if done.returncode not in (0, 1):
         print(done.stderr[-2000:], flush=True)
     start = time.perf_counter()
-    fly_gpu(256, work / "warm-gpu")
+    fly_gpu(4 * args.warm_runs, work / "warm-gpu")
     results["gpu_compile_s"] = time.perf_counter() - start
-    print(
-        f"warm: cpu {results['cpu_warm_s']:.1f} s, gpu compile + 256 runs {results['gpu_compile_s']:.1f} s", flush=True
-    )
+    gpu_warm = f"gpu compile + {4 * args.warm_runs} runs {results['gpu_compile_s']:.1f} s"
+    print(f"warm: cpu {results['cpu_warm_s']:.1f} s, {gpu_warm}", flush=True)
 
     # 2. GPU campaigns
     rate = None

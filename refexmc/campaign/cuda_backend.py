@@ -19,7 +19,9 @@ stopped alone): the flight's own time limit ends every run.
 """
 
 import math
+import os
 import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numba import cuda
@@ -33,7 +35,7 @@ from refexmc.core.inputs import RunInputs
 
 THREADS_PER_BLOCK = 64  # a flight's state is large (registers, local memory): small blocks fill the SMs best
 MEMORY_FRACTION = 0.5  # of the device's free memory, for one batch's arrays
-MAX_LAUNCH_RUNS = 262144  # runs per launch at most (the host's per-batch arrays stay ~1 GB)
+MAX_LAUNCH_RUNS = 65536  # runs per launch at most (ReFEx: 7.6 GB of history rows; two batches on the host)
 SIMULATOR_LAUNCH_RUNS = 16  # under the simulator each run is a Python thread
 
 # families whose kernel does not compile for CUDA yet, with why (tests/test_cuda_backend.py compiles
@@ -98,6 +100,7 @@ class Batch:
         self.run_ids = run_ids
         self.prepared = prepared
         self.flown = [k for k, p in enumerate(prepared) if not isinstance(p, Exception)]
+        self.row_of_run = {k: j for j, k in enumerate(self.flown)}  # run k of the batch: row j of the arrays
         inputs = [prepared[k][3] for k in self.flown]
         self.inputs = RunInputs(*(_stack([getattr(x, name) for x in inputs]) for name in RunInputs._fields))
         n = len(inputs)
@@ -159,26 +162,29 @@ class Batch:
         sizes = self.work_sizes()
         buffers = [cuda.device_array((n, size), dtype=dtype) for size, dtype in zip(sizes, dtypes, strict=True)]
         host = self.arguments(())
-        device = [cuda.to_device(a) for a in host]
+        # the history rows and pointing samples a run writes are all that is read of them (up to
+        # summary[S_HISTORY_ROWS] and the counts): not uploaded; everything else is
+        unread = {id(self.histories), id(self.p_samples)}
+        device = [cuda.device_array_like(a) if id(a) in unread else cuda.to_device(a) for a in host]
         kernel[math.ceil(n / THREADS_PER_BLOCK), THREADS_PER_BLOCK](*device, *buffers)
         written = {id(a) for a in (self.summaries, self.pulses, self.histories, self.p_samples, self.p_counts)}
         for on_host, on_device in zip(host, device, strict=True):
             if id(on_host) in written:
                 on_device.copy_to_host(on_host)
 
-    def rows(self, plan):
-        """(runs row, FlightResult or None) of each run, in run order."""
-        out = [None] * len(self.run_ids)
-        for k, prepared in enumerate(self.prepared):
+    def rows(self, plan, start, stop):
+        """(runs row, FlightResult or None) of the batch's runs ``start`` to ``stop``, in run order."""
+        out = []
+        for k in range(start, stop):
+            prepared = self.prepared[k]
             if isinstance(prepared, Exception):
-                out[k] = plan.error_row(self.run_ids[k], f"{type(prepared).__name__}: {prepared}"), None
-        for j, k in enumerate(self.flown):
-            inputs = self.prepared[k][3]
+                out.append((plan.error_row(self.run_ids[k], f"{type(prepared).__name__}: {prepared}"), None))
+                continue
+            j = self.row_of_run[k]
             record = pointing.Record(self.p_table, self.p_samples[j], self.p_counts[j], self.p_work[j])
-            result = simulate.flight_result(
-                inputs, self.summaries[j], self.pulses[j], self.histories[j], record, plan.mode_names, plan.pointing
-            )
-            out[k] = plan.result_row(self.run_ids[k], self.prepared[k], result)
+            outputs = (self.summaries[j], self.pulses[j], self.histories[j], record)
+            result = simulate.flight_result(prepared[3], *outputs, plan.mode_names, plan.pointing)
+            out.append(plan.result_row(self.run_ids[k], prepared, result))
         return out
 
 
@@ -207,7 +213,8 @@ def cuda_backend(campaign, chunks, jobs, guard):
     unused: the host prepares and names the runs in this process, the GPU flies them).
 
     Yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` per chunk, in chunk
-    order; the next batch is prepared while the GPU flies the current one.
+    order; the host prepares the next batch while the GPU flies one, and names and encodes a batch
+    while the GPU flies the next.
     """
     from refexmc.campaign.chunk import plan_for
 
@@ -217,15 +224,22 @@ def cuda_backend(campaign, chunks, jobs, guard):
     rate = campaign["output"]["history_rate_hz"]
     kernel = grid_kernel(plan.family)
     batches = _batches(chunks, launch_runs(plan, rate))
-    prepared = _prepare(plan, batches[0], rate)
+    batch = _prepare(plan, batches[0], rate)
+    flying = _start(batch, kernel)
     for index, batch_chunks in enumerate(batches):
-        batch = prepared
-        flying = threading.Thread(target=batch.launch, args=(kernel,), name="refexmc-cuda-launch", daemon=True)
-        flying.start()
-        if index + 1 < len(batches):
-            prepared = _prepare(plan, batches[index + 1], rate)  # while the GPU flies
+        following = _prepare(plan, batches[index + 1], rate) if index + 1 < len(batches) else None  # while it flies
         batch.join(flying)
-        yield from _chunk_parts(batch_chunks, batch.rows(plan))
+        if following is not None:
+            flying_next = _start(following, kernel)
+        yield from _chunk_parts(plan, batch, batch_chunks)  # while the following batch flies
+        if following is not None:
+            batch, flying = following, flying_next
+
+
+def _start(batch, kernel):
+    flying = threading.Thread(target=batch.launch, args=(kernel,), name="refexmc-cuda-launch", daemon=True)
+    flying.start()
+    return flying
 
 
 def _batches(chunks, runs_per_launch):
@@ -247,16 +261,26 @@ def _prepare(plan, batch_chunks, rate):
     return Batch(plan, run_ids, plan.prepare_runs(run_ids), rate)
 
 
-def _chunk_parts(batch_chunks, rows_and_results):
-    at = 0
-    for chunk, run_ids in batch_chunks:
-        pieces = rows_and_results[at : at + len(run_ids)]
-        at += len(run_ids)
-        rows = [row for row, _ in pieces]
-        flown = [(row["run_id"], result) for row, result in pieces if result is not None]
-        runs = storage.encode_table(storage.runs_table(rows))
-        if flown:
-            history = storage.histories_table([r for r, _ in flown], [result for _, result in flown])
-        else:
-            history = storage.empty_history_table()
-        yield chunk, rows, runs, storage.encode_table(history)
+def _chunk_parts(plan, batch, batch_chunks):
+    """Each chunk's (chunk, rows, runs bytes, history bytes), in order, named and encoded by a
+    thread per core (Arrow's encoding and the nogil reductions run in parallel)."""
+    starts = np.cumsum([0] + [len(run_ids) for _, run_ids in batch_chunks])
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1, thread_name_prefix="refexmc-encode") as pool:
+        parts = [
+            pool.submit(_chunk_part, plan, batch, chunk, int(start), int(stop))
+            for (chunk, _), start, stop in zip(batch_chunks, starts[:-1], starts[1:], strict=True)
+        ]
+        for part in parts:
+            yield part.result()
+
+
+def _chunk_part(plan, batch, chunk, start, stop):
+    pieces = batch.rows(plan, start, stop)
+    rows = [row for row, _ in pieces]
+    flown = [(row["run_id"], result) for row, result in pieces if result is not None]
+    runs = storage.encode_table(storage.runs_table(rows))
+    if flown:
+        history = storage.histories_table([r for r, _ in flown], [result for _, result in flown])
+    else:
+        history = storage.empty_history_table()
+    return chunk, rows, runs, storage.encode_table(history)
