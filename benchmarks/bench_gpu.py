@@ -127,8 +127,12 @@ def compare_tables(cpu_out, gpu_out):
     gpu = gpu[gpu["run_id"].isin(common)].reset_index(drop=True)
     outcome = ["status", "success", "failure_reason"]
     same = np.ones(len(cpu), dtype=bool)
+
+    def text(column):  # a missing value (NaN in pandas' str columns) as ""
+        return np.array(["" if pd.isna(v) else str(v) for v in column])
+
     for name in outcome:
-        same &= (cpu[name].astype(str) == gpu[name].astype(str)).to_numpy()
+        same &= text(cpu[name]) == text(gpu[name])
     differing = [
         {
             "run_id": int(cpu["run_id"][k]),
