@@ -224,3 +224,19 @@ def test_the_ptx_test_covers_every_family_of_the_shipped_campaigns():
     shipped = {family(path.stem) for path in (ROOT / "campaigns").glob("*.yaml")} - {"entry"}
     compiled = [family(name) for name in PTX_CAMPAIGNS]
     assert set(compiled) == shipped and len(compiled) == len(shipped)  # each family once
+
+
+def test_a_run_whose_tables_have_other_shapes_becomes_an_error_not_a_failed_launch():
+    pytest.importorskip("numba_cuda")
+    from refexmc.campaign.cuda_backend import _same_shapes
+    from refexmc.core.inputs import RunInputs
+
+    def run(n_thrusters):
+        tables = {name: np.zeros((1, 1)) for name in RunInputs._fields}
+        tables["thrusters"] = np.zeros((n_thrusters, 17))
+        return (0, None, {}, RunInputs(**tables))
+
+    broken = RuntimeError("draw failed")
+    checked = _same_shapes([broken, run(8), run(8), run(7)])
+    assert checked[0] is broken and checked[1][3].thrusters.shape == (8, 17) and checked[2] is not None
+    assert isinstance(checked[3], ValueError)

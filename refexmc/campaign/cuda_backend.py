@@ -98,7 +98,8 @@ class Batch:
 
     def __init__(self, plan, run_ids, prepared, history_rate_hz):
         self.run_ids = run_ids
-        self.prepared = prepared
+        self.prepared = _same_shapes(prepared)
+        prepared = self.prepared
         self.flown = [k for k, p in enumerate(prepared) if not isinstance(p, Exception)]
         self.row_of_run = {k: j for j, k in enumerate(self.flown)}  # run k of the batch: row j of the arrays
         inputs = [prepared[k][3] for k in self.flown]
@@ -186,6 +187,17 @@ class Batch:
             result = simulate.flight_result(prepared[3], *outputs, plan.mode_names, plan.pointing)
             out.append(plan.result_row(self.run_ids[k], prepared, result))
         return out
+
+
+def _same_shapes(prepared):
+    """``prepared`` with each run whose input tables have other shapes than the first run's replaced
+    by an exception (an error row): a launch stacks its runs' tables (a campaign's runs share them)."""
+    shapes = [tuple(t.shape for t in p[3]) if not isinstance(p, Exception) else None for p in prepared]
+    first = next((shape for shape in shapes if shape is not None), None)
+    return [
+        p if shape is None or shape == first else ValueError("input tables of other shapes than its launch's")
+        for p, shape in zip(prepared, shapes, strict=True)
+    ]
 
 
 def _stack(tables):
