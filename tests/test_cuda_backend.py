@@ -240,3 +240,12 @@ def test_a_run_whose_tables_have_other_shapes_becomes_an_error_not_a_failed_laun
     checked = _same_shapes([broken, run(8), run(8), run(7)])
     assert checked[0] is broken and checked[1][3].thrusters.shape == (8, 17) and checked[2] is not None
     assert isinstance(checked[3], ValueError)
+
+
+def test_importing_refexmc_does_not_import_numba_cuda():
+    code = (
+        "import sys, refexmc.cli, refexmc.campaign.run, refexmc.campaign.backends, refexmc.simulate; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'numba_cuda' or m.startswith('numba.cuda')))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert result.stdout.strip() == "[]"
