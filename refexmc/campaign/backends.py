@@ -211,6 +211,6 @@ def check_backend(name, campaign=None, **options):
     (or, for cuda, ``campaign``'s vehicle family cannot fly on the GPU)."""
     if name not in BACKENDS:
         raise ConfigError(f"expected one of {', '.join(BACKENDS)}, got {name!r}", path=("--backend",))
-    if name == "cuda":
-        return _cuda_options(campaign=campaign, **options)
+    if name == "cuda":  # which families it flies
+        options = {**options, "campaign": campaign}
     return _OPTIONS[name](**options)
