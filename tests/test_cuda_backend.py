@@ -107,9 +107,9 @@ def test_launches_group_whole_chunks_in_order():
 _SIMULATED = r"""
 import json, sys
 import numpy as np
-import pyarrow as pa
-from refexmc.campaign.run import resolve_campaign, run_campaign
+from refexmc.campaign import storage
 from refexmc.campaign.chunk import fly_chunk
+from refexmc.campaign.run import resolve_campaign, run_campaign
 
 def bits(table):
     out = {}
@@ -131,8 +131,6 @@ for name in sys.argv[2:]:
         gpu[chunk_size] = bits(result["runs"])
     _, campaign = resolve_campaign(path, runs=3)
     rows, _ = fly_chunk(campaign, [0, 1, 2])
-    import pandas as pd
-    from refexmc.campaign import storage
     cpu = bits(storage.runs_table(rows).to_pandas())
     report[name] = {
         "chunkings_equal": gpu[2] == gpu[3],
