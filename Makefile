@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[dev,dask]"
+	$(BIN)/pip install --quiet -e ".[dev,dask,cuda]"
 	touch $(STAMP)
 
 ## demo: the ReFEx Monte-Carlo study (000 sec. 6.2), 100 dispersed flights, and its summary

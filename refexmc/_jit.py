@@ -149,3 +149,58 @@ def cache_lock():
             _cache_lock_depth -= 1
             if fd is not None:
                 os.close(fd)  # closing the file releases the flock
+
+
+# --- the GPU target (refexmc run --backend cuda, docs/gpu.md) ---------------------------------
+# The same kernels, compiled by numba-cuda (the `cuda` extra): a jitted function that a CUDA
+# kernel calls becomes a device function compiled from its Python source with the options above
+# (fastmath off; numba-cuda's CUDATypingContext does it for every @jit function it meets), so the
+# core has no second copy. Under numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1) a kernel runs as
+# Python, one thread per run; what it calls then runs as the CPU kernel on the thread's rows.
+
+CUDA_SIMULATOR = os.environ.get("NUMBA_ENABLE_CUDASIM", "0") not in ("", "0")
+
+
+def cuda_unavailable():
+    """Why CUDA kernels cannot run in this process (one line), or None when they can: numba-cuda
+    is installed and a GPU with its driver answers, or the simulator is on."""
+    import importlib.util
+
+    if importlib.util.find_spec("numba_cuda") is None:
+        return "numba-cuda is not installed (pip install 'refexmc[cuda]')"
+    if CUDA_SIMULATOR:
+        return None
+    try:
+        from numba import cuda
+
+        if cuda.is_available():
+            return None
+    except Exception as exc:  # noqa: BLE001 - any failure to reach the driver means: no GPU here
+        return f"no CUDA GPU can be used here ({type(exc).__name__})"
+    return "no CUDA GPU or driver found here (NUMBA_ENABLE_CUDASIM=1 runs numba-cuda's simulator instead)"
+
+
+def cuda_kernel(function):
+    """``function`` as a CUDA kernel (launched ``kernel[blocks, threads](...)``), fast-math off."""
+    from numba import cuda
+
+    return cuda.jit(fastmath=False)(function)
+
+
+def cuda_device(kernel):
+    """What a CUDA kernel calls to run the jitted ``kernel``: ``kernel`` itself (numba-cuda makes it
+    a device function of the same source), or under the simulator a Python function that hands
+    the CPU kernel the host arrays behind the simulator's fake device arrays."""
+    if not CUDA_SIMULATOR:
+        return kernel
+
+    def host(value):
+        if isinstance(value, tuple):
+            parts = [host(part) for part in value]
+            return type(value)(*parts) if hasattr(value, "_fields") else tuple(parts)
+        return getattr(value, "_ary", value)  # numba-cuda's FakeCUDAArray holds its array as _ary
+
+    def simulated(*args):
+        return kernel(*[host(arg) for arg in args])
+
+    return simulated

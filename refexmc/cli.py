@@ -84,10 +84,11 @@ def main():
 )
 @click.option(
     "--backend",
-    type=click.Choice(["loky", "dask"]),
+    type=click.Choice(["loky", "dask", "cuda"]),
     default="loky",
     show_default=True,
-    help="Execution backend: loky (-j processes on this machine) or dask (a Dask cluster, see --scheduler).",
+    help="Execution backend: loky (-j processes on this machine), dask (a Dask cluster, see --scheduler) "
+    "or cuda (this machine's GPU, one run per thread; the cuda extra, docs/gpu.md).",
 )
 @click.option(
     "--scheduler",

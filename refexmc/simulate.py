@@ -234,26 +234,39 @@ def fly(inputs, nav_seed=0, history_rate_hz=2.0, mode_names=None, requirements=N
     without them the modes are ``mode_1``, ``mode_2``, ...; ``requirements``: the campaign's
     pointing requirements (``config.pointing.PointingPlan``), computed in the flight at the control rate.
     """
-    if mode_names is None:
-        mode_names = [f"mode_{m + 1}" for m in range(inputs.modes.shape[0])]
     every = history_every(inputs, history_rate_hz)
-    period = inputs.fsw[L.F_CONTROL_PERIOD]
-    max_rows = int(math.ceil(inputs.mission[L.M_MAX_TIME] / period / every)) + 3
     summary = np.zeros(L.summary_size(inputs.modes.shape[0]))
     pulses = np.zeros(inputs.thrusters.shape[0], dtype=np.int64)
-    history = np.zeros((max_rows, L.history_size(inputs.wheels.shape[0])))
-    run_flight = flight.kernel(*flight.family(inputs))  # the vehicle family's own kernel (docs/families.md)
-    if not getattr(run_flight, "signatures", True):  # its first flight in this process: compiled under the lock
-        load_kernels([flight.family(inputs)])
+    history = np.zeros((history_rows(inputs, every), L.history_size(inputs.wheels.shape[0])))
+    family = flight.family(inputs)
+    run_flight = flight.kernel(*family)  # the vehicle family's own kernel (docs/families.md)
+    if not getattr(
+        flight.kernel_parts(*family).fly_run, "signatures", True
+    ):  # first flight here: compiled under the lock
+        load_kernels([family])
     if requirements is None or not requirements.columns:
         record = pointing.empty_record()
     else:
         record = pointing.new_record(requirements.table, pointing_capacity(inputs, requirements.table))
     run_flight(inputs, np.int64(nav_seed), np.int64(every), summary, pulses, history, record)
+    return flight_result(inputs, summary, pulses, history, record, mode_names, requirements)
+
+
+def history_rows(inputs, every):
+    """History rows a flight of ``inputs`` sampled every ``every`` control steps can write."""
+    period = inputs.fsw[L.F_CONTROL_PERIOD]
+    return int(math.ceil(inputs.mission[L.M_MAX_TIME] / period / every)) + 3
+
+
+def flight_result(inputs, summary, pulses, history, record, mode_names=None, requirements=None):
+    """The :class:`FlightResult` of a flight of ``inputs`` that filled these outputs (:func:`fly`;
+    the GPU backend's rows of its batch arrays: refexmc.campaign.cuda_backend)."""
+    if mode_names is None:
+        mode_names = [f"mode_{m + 1}" for m in range(inputs.modes.shape[0])]
     values = {}
     if requirements is not None and requirements.columns:
         reduced = np.empty(len(requirements.columns))
-        pointing.reduce(record, period, reduced)
+        pointing.reduce(record, inputs.fsw[L.F_CONTROL_PERIOD], reduced)
         values = {c: float(v * f) for c, v, f in zip(requirements.columns, reduced, requirements.scales, strict=True)}
     rows = int(summary[L.S_HISTORY_ROWS])
     orbit = int(inputs.mission[L.M_TRAJECTORY_MODEL]) == L.TRAJECTORY_ORBIT
@@ -316,7 +329,8 @@ def _flight_argument_types():
     inputs = RunInputs(**{name: table(name) for name in RunInputs._fields})
     record = pointing.empty_record()
     arguments = (inputs, np.int64(0), np.int64(1), np.empty(0), np.empty(0, dtype=np.int64), np.empty((0, 0)), record)
-    return tuple(numba.typeof(argument) for argument in arguments)
+    buffers = (np.empty(0), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.uint64), np.empty(0, dtype=np.bool_))
+    return tuple(numba.typeof(argument) for argument in (*arguments, *buffers))
 
 
 def load_kernels(families=()):
@@ -329,9 +343,9 @@ def load_kernels(families=()):
     one cache index at once."""
     with _jit.cache_lock():
         for family in families:
-            run_flight = flight.kernel(*family)
-            if hasattr(run_flight, "compile") and not run_flight.signatures:  # not with REFEXMC_DISABLE_JIT
-                run_flight.compile(_flight_argument_types())
+            fly_run = flight.kernel_parts(*family).fly_run
+            if hasattr(fly_run, "compile") and not fly_run.signatures:  # not with REFEXMC_DISABLE_JIT
+                fly_run.compile(_flight_argument_types())
         keyed_uniforms((0,), 1)
         keyed_uniforms_for_runs((0,), [0], 0, 0, 1)
 

@@ -9,7 +9,8 @@ rows sorted by run id, and keeps only a bounded number of chunks in flight so th
 not grow with the campaign. ``check_backend(name, **options)`` runs before anything is written: ConfigError for an
 unknown backend, an option it does not take, or one it cannot start with (dask: the extra missing,
 a malformed or unreachable scheduler). ``loky`` (below: joblib's loky executor) runs on this machine; ``dask``
-(:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster.
+(:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster; ``cuda``
+(:mod:`refexmc.campaign.cuda_backend`, imported only when used) on this machine's GPU.
 ``start_workers(name, workers)`` starts a backend's workers before the campaign is prepared, so
 that they warm up meanwhile (loky: :mod:`refexmc.campaign.pool`).
 
@@ -145,6 +146,13 @@ def dask_backend(campaign, chunks, jobs, guard, scheduler=None):
     return dask.dask_backend(campaign, chunks, jobs, guard, scheduler=scheduler)
 
 
+def cuda_backend(campaign, chunks, jobs, guard):
+    """Fly ``chunks`` on this machine's GPU (:mod:`refexmc.campaign.cuda_backend`; needs the cuda extra)."""
+    from refexmc.campaign import cuda_backend as cuda  # importing refexmc never imports numba-cuda
+
+    return cuda.cuda_backend(campaign, chunks, jobs, guard)
+
+
 def _loky_options(scheduler=None):
     if scheduler is not None:
         raise ConfigError(
@@ -160,8 +168,22 @@ def _dask_options(scheduler=None):
     return {"scheduler": scheduler}
 
 
-BACKENDS = {"loky": loky_backend, "dask": dask_backend}
-_OPTIONS = {"loky": _loky_options, "dask": _dask_options}
+def _cuda_options(scheduler=None, campaign=None):
+    from refexmc import _jit
+
+    if scheduler is not None:
+        raise ConfigError("--scheduler is for --backend dask (cuda flies on this machine's GPU)", path=("--scheduler",))
+    why = _jit.cuda_unavailable()
+    if why is not None:
+        raise ConfigError(f"cannot fly on a GPU: {why}", path=("--backend",))
+    from refexmc.campaign import cuda_backend as cuda  # numba-cuda is there: import it
+
+    cuda.check(campaign)
+    return {}
+
+
+BACKENDS = {"loky": loky_backend, "dask": dask_backend, "cuda": cuda_backend}
+_OPTIONS = {"loky": _loky_options, "dask": _dask_options, "cuda": _cuda_options}
 
 
 def _start_loky(workers):
@@ -184,8 +206,11 @@ def stop_workers():
     pool.stop()
 
 
-def check_backend(name, **options):
-    """The keyword options to pass to backend ``name``; ConfigError if it cannot run with ``options``."""
+def check_backend(name, campaign=None, **options):
+    """The keyword options to pass to backend ``name``; ConfigError if it cannot run with ``options``
+    (or, for cuda, ``campaign``'s vehicle family cannot fly on the GPU)."""
     if name not in BACKENDS:
         raise ConfigError(f"expected one of {', '.join(BACKENDS)}, got {name!r}", path=("--backend",))
+    if name == "cuda":  # which families it flies
+        options = {**options, "campaign": campaign}
     return _OPTIONS[name](**options)

@@ -120,6 +120,15 @@ class RunPlan:
                 raise prepared
             seed, failed, params, inputs = prepared
             result = simulate.fly(inputs, seed, history_rate_hz, mode_names=self.mode_names, requirements=self.pointing)
+        except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
+            return self.error_row(run_id, f"{type(exc).__name__}: {exc}"), None
+        return self.result_row(run_id, prepared, result)
+
+    def result_row(self, run_id, prepared, result):
+        """(runs row, FlightResult) of a run flown from ``prepared`` (on any backend); an error row
+        and None when its state is not finite."""
+        try:
+            seed, failed, params, _ = prepared
             reason = result.non_finite_reason()
         except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
             reason = f"{type(exc).__name__}: {exc}"

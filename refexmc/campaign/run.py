@@ -206,7 +206,9 @@ def resume_command(campaign_file=None, out=None, runs=None, seed=None, backend="
         if value is not None:
             words += [option, str(value)]
     if backend != "loky":
-        words += ["--backend", backend, "--scheduler", str(scheduler)]
+        words += ["--backend", backend]
+    if scheduler is not None:
+        words += ["--scheduler", str(scheduler)]
     return shlex.join(words)
 
 
@@ -268,7 +270,7 @@ def run_campaign(
         raise ConfigError(
             "a sweep flies with refexmc.campaign.sweep.run_campaign_or_sweep (`refexmc run`)", file=campaign_file
         )
-    options = check_backend(backend, scheduler=scheduler)
+    options = check_backend(backend, campaign=campaign, scheduler=scheduler)
     out = Path(out) if out is not None else default_output(campaign)
     flight = {
         "campaign_file": campaign_file,

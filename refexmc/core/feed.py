@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
+from refexmc.core import arena
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     T_SCALE,
@@ -68,7 +69,14 @@ class Tank(NamedTuple):
 @jit
 def tank():
     """Allocate the feed's work."""
-    return Tank(np.zeros(TANK_SIZE))
+    return carve_tank(np.zeros(TANK_SIZE), 0)[0]
+
+
+@jit
+def carve_tank(f, at):
+    """The feed's work as a view of ``f`` from ``at`` (core.arena): (Tank, cursor after)."""
+    state, at = arena.vector(f, at, TANK_SIZE)
+    return Tank(state), at
 
 
 @jit_noalloc

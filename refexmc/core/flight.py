@@ -31,6 +31,7 @@ import numpy as np
 from refexmc._jit import jit, jit_noalloc
 from refexmc.core import (
     allocation,
+    arena,
     control,
     dynamics,
     environment,
@@ -255,7 +256,8 @@ class Work(NamedTuple):
 _ACTUATIONS = (ACTUATION_PWPF_TABLE, ACTUATION_LP_PWM, ACTUATION_WHEELS)
 _TRAJECTORIES = (TRAJECTORY_NONE, TRAJECTORY_PLANAR_DRAG, TRAJECTORY_ORBIT, TRAJECTORY_LOCAL)
 _FEEDS = (FEED_CONSTANT, FEED_BLOW_DOWN, FEED_REGULATED)
-_kernels = {}  # (actuation, trajectory, wheels, feed) -> the family's run_flight
+_kernels = {}  # (actuation, trajectory, wheels, feed) -> the family's jitted fly_run
+_parts = {}  # the same -> its Parts
 
 
 def family(inputs):
@@ -276,110 +278,102 @@ def kernel(actuation, trajectory, wheels_flown, feed_model=FEED_CONSTANT):
     ``actuation``: layout.ACTUATION_*; ``trajectory``: layout.TRAJECTORY_*; ``wheels_flown``:
     1 when the vehicle has reaction wheels (``inputs.wheels`` has rows); ``feed_model``:
     layout.FEED_* of the rcs (core.feed). :func:`family` derives them from packed inputs.
+    ``run_flight`` allocates the run's work buffers and calls the family's jitted
+    :attr:`Parts.fly_run` (:func:`kernel_parts`), the function a GPU thread calls too.
     """
+    return kernel_parts(actuation, trajectory, wheels_flown, feed_model).run_flight
+
+
+class Parts(NamedTuple):
+    """A family's flight kernel: the jitted ``fly_run`` on caller-owned flat work buffers (what
+    a GPU thread calls: refexmc.campaign.cuda_backend) and ``run_flight``, which allocates them."""
+
+    run_flight: object  # run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record)
+    fly_run: object  # fly_run(..., pointing_record, f, i, u, b) -> the buffer lengths a run needs
+
+
+def kernel_parts(actuation, trajectory, wheels_flown, feed_model=FEED_CONSTANT):
+    """:class:`Parts` of a family's kernel (:func:`kernel`), made once per process."""
     key = (int(actuation), int(trajectory), int(wheels_flown), int(feed_model))
     if key[0] not in _ACTUATIONS or key[1] not in _TRAJECTORIES or key[2] not in (0, 1) or key[3] not in _FEEDS:
         raise ValueError(f"no flight kernel for the family (actuation, trajectory, wheels, feed) = {key}")
     if key[1] == TRAJECTORY_LOCAL and (key[3] == FEED_CONSTANT or key[0] != ACTUATION_PWPF_TABLE):
         raise ValueError(f"the local trajectory flies a tank (rcs.feed) with actuation pwpf_table, not {key}")
-    if key not in _kernels:
-        _kernels[key] = _make_kernel(*key)
-    return _kernels[key]
+    if key not in _parts:
+        fly_run = _make_kernel(*key)
+        _parts[key] = Parts(_allocating(fly_run), fly_run)
+        _kernels[key] = fly_run
+    return _parts[key]
 
 
 def kernels():
-    """The flight kernels made in this process so far, by family."""
+    """The jitted flight kernels (:attr:`Parts.fly_run`) made in this process so far, by family."""
     return dict(_kernels)
 
 
+_EMPTY = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.uint64), np.zeros(0, dtype=np.bool_))
+
+
+def work_sizes(fly_run, inputs):
+    """The lengths of the flat work buffers (float64, int64, uint64, bool) a run of ``inputs``
+    needs: ``fly_run`` on empty buffers carves nothing, flies nothing and says."""
+    no_history, no_record = np.zeros((0, 0)), pointing.empty_record()
+    counts = np.zeros(0, dtype=np.int64)
+    return fly_run(inputs, np.int64(0), np.int64(1), np.zeros(0), counts, no_history, no_record, *_EMPTY)
+
+
+def _allocating(fly_run):
+    """``run_flight``: ``fly_run`` on work buffers allocated once per flight."""
+
+    def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record):
+        nf, ni, nu, nb = fly_run(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record,
+                                 *_EMPTY)  # fmt: skip
+        buffers = np.empty(nf), np.empty(ni, dtype=np.int64), np.empty(nu, dtype=np.uint64), np.empty(nb, dtype=bool)
+        fly_run(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record, *buffers)
+
+    return run_flight
+
+
 def _make_kernel(actuation, trajectory, wheels_flown, feed_model):
-    """:func:`kernel`: a closure over the family's ids only (numba's disk cache keys a closure by
-    its cell contents, so that each family's kernel is cached apart), compiled with
-    ``refexmc._jit.jit``. Its tests of the ids are constants numba prunes before typing."""
+    """:func:`kernel_parts`' ``fly_run``: a closure over the family's ids only (numba's disk cache
+    keys a closure by its cell contents, so that each family's kernel is cached apart), compiled
+    with ``refexmc._jit.jit``. Its tests of the ids are constants numba prunes before typing."""
     ACTUATION = actuation  # noqa: N806 - compile-time constants of the closure
     TRAJECTORY = trajectory  # noqa: N806
     WHEELS = wheels_flown  # noqa: N806
     FEED = feed_model  # noqa: N806
 
-    def run_flight(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record):
-        """Fly ``inputs`` (``core.inputs.RunInputs``) of this kernel's family; fill ``summary``,
-        ``pulse_counts``, ``history`` and the pointing requirements' samples (``core.pointing.Record``).
+    def fly_run(inputs, nav_seed, history_every, summary, pulse_counts, history, pointing_record, f, i, u, b):
+        """Fly ``inputs`` (``core.inputs.RunInputs``) of this kernel's family on the caller's flat
+        work buffers ``f`` (float64), ``i`` (int64), ``u`` (uint64), ``b`` (bool), zeroed here
+        (core.arena); fill ``summary``, ``pulse_counts``, ``history`` and the pointing
+        requirements' samples (``core.pointing.Record``). Returns the lengths the buffers need;
+        when one is shorter (e.g. empty), nothing is written and nothing flies.
 
         ``summary`` has ``layout.summary_size(n_modes)`` slots; ``history`` one row per
         ``history_every`` control steps (plus the final state) until it is full;
         ``summary[S_HISTORY_ROWS]`` says how many rows were written.
         """
-        n_thr = inputs.thrusters.shape[0]
-        n_levels = inputs.levels.shape[0]
-        work = Work(
-            Body(
-                np.empty(dynamics.STATE_SIZE),
-                np.empty((8, dynamics.STATE_SIZE)),
-                np.empty((3, 3)),
-                np.empty((3, 3)),
-                np.zeros((5, 3)),
-                np.zeros((2, 3)),
-            ),
-            np.empty(environment.TRAJECTORY_STATE_SIZE),
-            Sensed(
-                np.zeros(4),
-                np.zeros(3),
-                np.zeros(modes.NOW_SIZE),
-                np.empty(1, dtype=np.uint64),
-                np.zeros(4),
-                np.zeros(navigation.KNOWLEDGE_SIZE),
-            ),
-            Guide(
-                np.zeros(guidance.GUIDANCE_STATE_SIZE),
-                np.zeros(4),
-                np.zeros(3),
-                np.zeros(3),
-                np.zeros(4),
-                np.zeros((3, 4)),
-                np.zeros((6, 4)),
-                np.empty((n_levels, 3)),
-            ),
-            Actuation(
-                np.zeros(4),
-                np.zeros(3),
-                np.zeros(3),
-                np.zeros(3),
-                np.zeros(3),
-                np.empty((n_levels, 2, 3)),
-                np.empty((3, 3)),
-                np.zeros((n_thr, rcs.VALVE_STATE_SIZE)),
-                np.empty((n_thr, 3)),
-                np.zeros((3, 3)),
-            ),
-            np.zeros(STATUS_SIZE),
-            np.zeros(2, dtype=np.int64),
-        )
+        work, fa, ia, ua = _carve_work(inputs, f, i, u)
+        ba = 0
         if ACTUATION == ACTUATION_PWPF_TABLE:
-            table = Modulator(
-                np.empty((3, pulse_modulation.PWPF_STATE_SIZE)),
-                np.empty(inputs.allocation.shape[0], dtype=np.int64),
-                np.empty((n_thr, switching.SWITCH_STATE_SIZE)),
-            )
+            table, fa, ia = _carve_modulator(inputs, f, fa, i, ia)
         else:
             table = None
         if ACTUATION == ACTUATION_LP_PWM:
-            opt = lp_allocation.optimiser(n_thr)
+            opt, fa, ia, ba = lp_allocation.carve_optimiser(inputs.thrusters.shape[0], f, fa, i, ia, b, ba)
         else:
             opt = None
         if WHEELS == 1:
-            wh = wheels.plant(inputs.wheels)
+            wh, fa = wheels.carve_plant(inputs.wheels, f, fa)
         else:
             wh = None
         if TRAJECTORY == TRAJECTORY_PLANAR_DRAG:
-            traj = Trajectory(
-                np.empty((2, environment.TRAJECTORY_STATE_SIZE)),
-                np.empty((2, 2)),
-                np.empty(environment.TRAJECTORY_STATE_SIZE),
-            )
+            traj, fa = _carve_trajectory(f, fa)
         else:
             traj = None
         if TRAJECTORY == TRAJECTORY_ORBIT:
-            orb = orbit_flight.work()
+            orb, fa = orbit_flight.carve_work(f, fa)
         else:
             orb = None
         if ACTUATION == ACTUATION_WHEELS:  # no thruster fires: no valve step is compiled
@@ -389,17 +383,89 @@ def _make_kernel(actuation, trajectory, wheels_flown, feed_model):
         if FEED == FEED_CONSTANT:  # core.feed is compiled for a blow-down or regulated tank only
             tank = None
         else:
-            tank = feed.tank()
+            tank, fa = feed.carve_tank(f, fa)
         if TRAJECTORY == TRAJECTORY_LOCAL:
-            loc = local_flight.work()
+            loc, fa = local_flight.carve_work(f, fa)
         else:
             loc = None
+        if f.shape[0] < fa or i.shape[0] < ia or u.shape[0] < ua or b.shape[0] < ba:
+            return fa, ia, ua, ba
+        arena.clear(f, i, u, b)
         _fly(
             inputs, nav_seed, history_every, summary, pulse_counts, history, work, fire, table, opt, wh, traj, orb,
             tank, loc, pointing_record,
         )  # fmt: skip
+        return fa, ia, ua, ba
 
-    return jit(run_flight)
+    return jit(fly_run)
+
+
+@jit
+def _carve_work(inputs, f, i, u):
+    """The :class:`Work` every family uses, as views of ``f``, ``i``, ``u`` (core.arena); the cursors after."""
+    n_thr, n_levels = inputs.thrusters.shape[0], inputs.levels.shape[0]
+    fa, ia, ua = 0, 0, 0
+    x, fa = arena.vector(f, fa, dynamics.STATE_SIZE)
+    rk4, fa = arena.matrix(f, fa, 8, dynamics.STATE_SIZE)
+    inertia, fa = arena.matrix(f, fa, 3, 3)
+    inertia_inv, fa = arena.matrix(f, fa, 3, 3)
+    torques, fa = arena.matrix(f, fa, 5, 3)
+    body_scratch, fa = arena.matrix(f, fa, 2, 3)
+    trajectory_state, fa = arena.vector(f, fa, environment.TRAJECTORY_STATE_SIZE)
+    q_meas, fa = arena.vector(f, fa, 4)
+    rate_meas, fa = arena.vector(f, fa, 3)
+    now, fa = arena.vector(f, fa, modes.NOW_SIZE)
+    rng_state, ua = arena.vector(u, ua, 1)
+    work4, fa = arena.vector(f, fa, 4)
+    knowledge, fa = arena.vector(f, fa, navigation.KNOWLEDGE_SIZE)
+    g_state, fa = arena.vector(f, fa, guidance.GUIDANCE_STATE_SIZE)
+    q_ref, fa = arena.vector(f, fa, 4)
+    rate_ref, fa = arena.vector(f, fa, 3)
+    accel_ref, fa = arena.vector(f, fa, 3)
+    q_final, fa = arena.vector(f, fa, 4)
+    rotations, fa = arena.matrix(f, fa, 3, 4)
+    g_work, fa = arena.matrix(f, fa, 6, 4)
+    accels, fa = arena.matrix(f, fa, n_levels, 3)
+    q_error, fa = arena.vector(f, fa, 4)
+    rate_error, fa = arena.vector(f, fa, 3)
+    torque_cmd, fa = arena.vector(f, fa, 3)
+    pulse, fa = arena.vector(f, fa, 3)
+    rotvec, fa = arena.vector(f, fa, 3)
+    gains, fa = arena.cube(f, fa, n_levels, 2, 3)
+    fsw_inertia, fa = arena.matrix(f, fa, 3, 3)
+    valve_state, fa = arena.matrix(f, fa, n_thr, rcs.VALVE_STATE_SIZE)
+    arms, fa = arena.matrix(f, fa, n_thr, 3)
+    smc, fa = arena.matrix(f, fa, 3, 3)
+    status, fa = arena.vector(f, fa, STATUS_SIZE)
+    masks, ia = arena.vector(i, ia, 2)
+    work = Work(
+        Body(x, rk4, inertia, inertia_inv, torques, body_scratch),
+        trajectory_state,
+        Sensed(q_meas, rate_meas, now, rng_state, work4, knowledge),
+        Guide(g_state, q_ref, rate_ref, accel_ref, q_final, rotations, g_work, accels),
+        Actuation(q_error, rate_error, torque_cmd, pulse, rotvec, gains, fsw_inertia, valve_state, arms, smc),
+        status,
+        masks,
+    )
+    return work, fa, ia, ua
+
+
+@jit
+def _carve_modulator(inputs, f, fa, i, ia):
+    """The pwpf_table family's :class:`Modulator` as views (core.arena); the cursors after."""
+    pwpf_state, fa = arena.matrix(f, fa, 3, pulse_modulation.PWPF_STATE_SIZE)
+    row_masks, ia = arena.vector(i, ia, inputs.allocation.shape[0])
+    switch_state, fa = arena.matrix(f, fa, inputs.thrusters.shape[0], switching.SWITCH_STATE_SIZE)
+    return Modulator(pwpf_state, row_masks, switch_state), fa, ia
+
+
+@jit
+def _carve_trajectory(f, fa):
+    """The planar_drag family's :class:`Trajectory` as views (core.arena); the cursor after."""
+    nodes, fa = arena.matrix(f, fa, 2, environment.TRAJECTORY_STATE_SIZE)
+    node_accels, fa = arena.matrix(f, fa, 2, 2)
+    stage, fa = arena.vector(f, fa, environment.TRAJECTORY_STATE_SIZE)
+    return Trajectory(nodes, node_accels, stage), fa
 
 
 @jit_noalloc

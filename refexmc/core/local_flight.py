@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import feed, quaternion, rng, time_optimal
+from refexmc.core import arena, feed, quaternion, rng, time_optimal
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     F_TRANSLATION_DEADBAND,
@@ -91,7 +91,20 @@ class Local(NamedTuple):
 @jit
 def work():
     """Allocate the local trajectory's work."""
-    return Local(np.zeros(6), np.zeros(3), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(LOCAL_STATUS_SIZE), np.zeros(7))
+    size = carve_work(np.zeros(0), 0)[1]
+    return carve_work(np.zeros(size), 0)[0]
+
+
+@jit
+def carve_work(f, at):
+    """The local trajectory's work as views of ``f`` from ``at`` (core.arena): (Local, cursor after)."""
+    state, at = arena.vector(f, at, 6)
+    target, at = arena.vector(f, at, 3)
+    accel, at = arena.matrix(f, at, 3, 3)
+    scratch, at = arena.matrix(f, at, 3, 3)
+    status, at = arena.vector(f, at, LOCAL_STATUS_SIZE)
+    measured, at = arena.vector(f, at, 7)
+    return Local(state, target, accel, scratch, status, measured), at
 
 
 @jit_noalloc

@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import allocation, rcs
+from refexmc.core import allocation, arena, rcs
 from refexmc.core.layout import F_CONTROL_PERIOD, F_MIN_ON, LV_THRUST_DESIGN
 from refexmc.core.status import MASK_ACTIVE, MASK_OPEN
 
@@ -229,16 +229,24 @@ class Optimiser(NamedTuple):
 
 @jit
 def optimiser(n_thrusters):
-    """The lp_pwm family's work arrays (allocated once per flight by core.flight's kernel);
-    scratch as :func:`scratch_shape`, written out: a Python function cannot run here."""
-    return Optimiser(
-        np.zeros((3, n_thrusters)),
-        np.zeros(n_thrusters),
-        np.zeros(n_thrusters),
-        np.zeros((N_ROWS + 8, max(n_thrusters + 1 + N_ROWS, 6))),
-        np.zeros(N_ROWS, dtype=np.int64),
-        np.zeros(n_thrusters + 1 + N_ROWS, dtype=np.bool_),
-    )
+    """The lp_pwm family's work arrays, allocated."""
+    _, fa, ia, ba = carve_optimiser(n_thrusters, np.zeros(0), 0, np.zeros(0, np.int64), 0, np.zeros(0, np.bool_), 0)
+    f, i, b = np.zeros(fa), np.zeros(ia, np.int64), np.zeros(ba, np.bool_)
+    return carve_optimiser(n_thrusters, f, 0, i, 0, b, 0)[0]
+
+
+@jit
+def carve_optimiser(n_thrusters, f, fa, i, ia, b, ba):
+    """The lp_pwm family's work as views of ``f``, ``i``, ``b`` from ``fa``, ``ia``, ``ba`` (core.arena):
+    (Optimiser, the cursors after); scratch as :func:`scratch_shape`, written out: a Python function
+    cannot run here."""
+    arms, fa = arena.matrix(f, fa, 3, n_thrusters)
+    u, fa = arena.vector(f, fa, n_thrusters)
+    u_max, fa = arena.vector(f, fa, n_thrusters)
+    scratch, fa = arena.matrix(f, fa, N_ROWS + 8, max(n_thrusters + 1 + N_ROWS, 6))
+    basis, ia = arena.vector(i, ia, N_ROWS)
+    in_basis, ba = arena.vector(b, ba, n_thrusters + 1 + N_ROWS)
+    return Optimiser(arms, u, u_max, scratch, basis, in_basis), fa, ia, ba
 
 
 @jit_noalloc

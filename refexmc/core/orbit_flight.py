@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import deorbit, orbit, quaternion
+from refexmc.core import arena, deorbit, orbit, quaternion
 from refexmc.core.layout import (
     F_ENGINE_AXIS,
     F_GUIDANCE_LAW,
@@ -69,19 +69,26 @@ class Orbit(NamedTuple):
 
 @jit
 def work():
-    """The orbit family's work arrays (allocated once per flight by core.flight's kernel)."""
-    return Orbit(
-        np.zeros(orbit.ORBIT_STATE_SIZE),
-        np.zeros(orbit.ORBIT_STATE_SIZE),
-        np.zeros((6, orbit.ORBIT_STATE_SIZE)),
-        np.zeros(6),
-        np.zeros(NOMINAL_SIZE),
-        np.zeros(3),
-        np.zeros((2, 3)),
-        np.zeros(3),
-        np.zeros(orbit.ORBIT_STATE_SIZE),
-        np.zeros((9, 3)),
-    )
+    """The orbit family's work arrays, allocated."""
+    size = carve_work(np.zeros(0), 0)[1]
+    return carve_work(np.zeros(size), 0)[0]
+
+
+@jit
+def carve_work(f, at):
+    """The orbit family's work as views of ``f`` from ``at`` (core.arena): (Orbit, cursor after)."""
+    n = orbit.ORBIT_STATE_SIZE
+    state, at = arena.vector(f, at, n)
+    start, at = arena.vector(f, at, n)
+    stage, at = arena.matrix(f, at, 6, n)
+    measured, at = arena.vector(f, at, 6)
+    nominal, at = arena.vector(f, at, NOMINAL_SIZE)
+    command, at = arena.vector(f, at, 3)
+    thrust_dirs, at = arena.matrix(f, at, 2, 3)
+    torque, at = arena.vector(f, at, 3)
+    crossing, at = arena.vector(f, at, n)
+    work, at = arena.matrix(f, at, 9, 3)
+    return Orbit(state, start, stage, measured, nominal, command, thrust_dirs, torque, crossing, work), at
 
 
 @jit_noalloc

@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import dynamics, quaternion
+from refexmc.core import arena, dynamics, quaternion
 from refexmc.core.layout import (
     HISTORY_PER_WHEEL,
     HISTORY_SIZE,
@@ -78,24 +78,30 @@ class Plant(NamedTuple):
 
 @jit
 def plant(table):
-    """Work arrays for the wheels of ``table`` (zero rows: none): the wheels family's, allocated
-    once per flight by core.flight's kernel; :func:`start` fills them."""
+    """Work arrays for the wheels of ``table`` (zero rows: none), allocated; :func:`start` fills them."""
+    size = carve_plant(table, np.zeros(0), 0)[1]
+    return carve_plant(table, np.zeros(size), 0)[0]
+
+
+@jit
+def carve_plant(table, f, at):
+    """The wheels family's work as views of ``f`` from ``at`` (core.arena): (Plant, cursor after)."""
     n = table.shape[0]
-    return Plant(
-        table,
-        np.zeros(n + IMPULSE),
-        np.zeros(n),
-        np.zeros(n),
-        np.zeros((3, 3)),
-        np.zeros((3, 3)),
-        np.zeros((3, 3)),
-        np.zeros(4),
-        np.zeros((6, 7)),
-        np.zeros((8, n + IMPULSE)),
-        np.zeros((7, 3)),
-        np.zeros((3, 3)),
-        np.zeros(2),
-    )
+    h, at = arena.vector(f, at, n + IMPULSE)
+    motor, at = arena.vector(f, at, n)
+    demand, at = arena.vector(f, at, n)
+    inertia, at = arena.matrix(f, at, 3, 3)
+    inertia_b, at = arena.matrix(f, at, 3, 3)
+    inertia_b_inv, at = arena.matrix(f, at, 3, 3)
+    gravity, at = arena.vector(f, at, 4)
+    xwork, at = arena.matrix(f, at, 6, 7)
+    hwork, at = arena.matrix(f, at, 8, n + IMPULSE)
+    scratch, at = arena.matrix(f, at, 7, 3)
+    momentum, at = arena.matrix(f, at, 3, 3)
+    null_space, at = arena.vector(f, at, 2)
+    work = Plant(table, h, motor, demand, inertia, inertia_b, inertia_b_inv, gravity, xwork, hwork, scratch, momentum,
+                 null_space)  # fmt: skip
+    return work, at
 
 
 @jit_noalloc

@@ -1,0 +1,249 @@
+"""The GPU backend (refexmc run --backend cuda, docs/gpu.md), tested without a GPU.
+
+CI has none: the refusal without a GPU (exit 2, one line, nothing written) is tested as it is;
+the backend itself under numba-cuda's simulator (a kernel runs as Python, one thread per run,
+calling the CPU kernel on the thread's rows), whose runs table must be the CPU's bit for bit;
+and every family's kernel is compiled to PTX for an H100 (sm_90) the way the backend compiles
+it, so that a kernel numba-cuda cannot compile fails here. Tests that need numba-cuda skip
+without it (``pip install 'refexmc[cuda]'``; ``make test`` installs it).
+"""
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from refexmc import _jit
+from refexmc.cli import main
+from refexmc.config.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+HAS_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
+needs_numba_cuda = pytest.mark.skipif(not HAS_NUMBA_CUDA, reason="numba-cuda not installed (the cuda extra)")
+needs_jit = pytest.mark.skipif(_jit.DISABLED, reason="REFEXMC_DISABLE_JIT=1: no kernels to compile")
+
+# one campaign per family the GPU flies: ReFEx (table thrusters), SPORE (LP thrusters, orbit),
+# IRASSI (reaction wheels), the surveyor hop (local trajectory, cold-gas tank, time-optimal law)
+FAMILY_CAMPAIGNS = ["smoke", "spore-deorbit-iss", "irassi-fine-pointing", "surveyor-hop"]
+# compiled to PTX: one campaign of every vehicle family the shipped campaigns fly, the entry's aside
+PTX_CAMPAIGNS = [*FAMILY_CAMPAIGNS, "generic-slew", "refex-blow-down-mc100"]
+
+
+def _refused(monkeypatch, tmp_path, unavailable):
+    monkeypatch.setattr(_jit, "cuda_unavailable", lambda: unavailable)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(ROOT / "campaigns/smoke.yaml"), "-o", str(out), "--backend", "cuda"])
+    return result, out
+
+
+def test_without_numba_cuda_the_cuda_backend_exits_2_with_one_line_and_writes_nothing(monkeypatch, tmp_path):
+    result, out = _refused(monkeypatch, tmp_path, "numba-cuda is not installed (pip install 'refexmc[cuda]')")
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "numba-cuda is not installed" in lines[0] and "--backend" in lines[0]
+    assert not out.exists()
+
+
+_USER_WITHOUT_GPU = """
+import sys
+from refexmc import _jit
+if _jit.cuda_unavailable() is None:
+    print("a GPU is there")
+    sys.exit(0)
+from refexmc.cli import console
+sys.argv = ["refexmc", "run", "campaigns/smoke.yaml", "-o", sys.argv[1], "--backend", "cuda"]
+console()
+"""
+
+
+@needs_numba_cuda
+def test_without_a_gpu_and_without_the_simulator_the_cuda_backend_exits_2(tmp_path):
+    """As a user meets it: no simulator, no GPU on this machine (skipped where there is one)."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-c", _USER_WITHOUT_GPU, str(out)], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    if done.stdout.strip() == "a GPU is there":
+        pytest.skip("a GPU is there")
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no CUDA GPU" in lines[0], done.stderr
+    assert done.stdout == "" and not out.exists()
+
+
+def test_the_entry_flight_and_studies_are_refused_on_the_gpu_by_name(monkeypatch):
+    monkeypatch.setattr(_jit, "cuda_unavailable", lambda: None)
+    if not HAS_NUMBA_CUDA:
+        pytest.skip("numba-cuda not installed (the cuda extra)")
+    from refexmc.campaign import cuda_backend
+    from refexmc.campaign.run import resolve_campaign
+
+    _, entry = resolve_campaign(ROOT / "campaigns/x38-nominal.yaml")
+    with pytest.raises(ConfigError, match="entry flight"):
+        cuda_backend.check(entry)
+    _, smoke = resolve_campaign(ROOT / "campaigns/smoke.yaml")
+    cuda_backend.check(smoke)  # the ReFEx family flies
+    assert cuda_backend.refusal({**smoke, "sweep": {}}) is not None
+
+
+def test_launches_group_whole_chunks_in_order():
+    pytest.importorskip("numba_cuda")
+    from refexmc.campaign.cuda_backend import _batches
+
+    chunks = [(0, [0, 1, 2]), (1, [3, 4, 5]), (2, [6, 7]), (3, [8])]
+    batches = _batches(chunks, 6)
+    assert batches == [[(0, [0, 1, 2]), (1, [3, 4, 5])], [(2, [6, 7]), (3, [8])]]
+    assert _batches(chunks, 2) == [[c] for c in chunks]  # a chunk larger than a launch is never split
+
+
+_SIMULATED = r"""
+import json, sys
+import numpy as np
+from refexmc.campaign import storage
+from refexmc.campaign.chunk import fly_chunk
+from refexmc.campaign.run import resolve_campaign, run_campaign
+
+def bits(table):
+    out = {}
+    for name in table.columns:
+        column = table[name]
+        if column.dtype.kind == "f":
+            out[name] = column.to_numpy(dtype=np.float64).view(np.uint64).tolist()
+        else:
+            out[name] = [repr(v) for v in column.tolist()]
+    return out
+
+report = {}
+for name in sys.argv[2:]:
+    path = f"campaigns/{name}.yaml"
+    gpu = {}
+    for chunk_size in (2, 3):
+        result = run_campaign(path, out=f"{sys.argv[1]}/{name}-{chunk_size}", runs=3, backend="cuda",
+                              chunk_size=chunk_size, notify=lambda message: None)
+        gpu[chunk_size] = bits(result["runs"])
+    _, campaign = resolve_campaign(path, runs=3)
+    rows, _ = fly_chunk(campaign, [0, 1, 2])
+    cpu = bits(storage.runs_table(rows).to_pandas())
+    report[name] = {
+        "chunkings_equal": gpu[2] == gpu[3],
+        "columns_equal": list(gpu[2]) == list(cpu),
+        "different": sorted(c for c in cpu if gpu[2].get(c) != cpu[c]),
+        "statuses": gpu[2]["status"],
+    }
+print(json.dumps(report))
+"""
+
+
+@needs_numba_cuda
+@needs_jit
+@pytest.mark.slow
+def test_under_the_simulator_every_family_flies_the_cpu_runs_table_bit_for_bit(tmp_path):
+    """A GPU campaign under the simulator: the same rows as the CPU's ``fly_chunk`` (draws, p.
+    columns, every flown value: the simulator's threads call the CPU kernel), whatever the chunking."""
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
+    done = subprocess.run(
+        [sys.executable, "-c", _SIMULATED, str(tmp_path), *FAMILY_CAMPAIGNS],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    for name in FAMILY_CAMPAIGNS:
+        assert report[name]["statuses"] == ["'ok'"] * 3, (name, report[name])
+        assert report[name]["chunkings_equal"], name
+        assert report[name]["columns_equal"], name
+        assert report[name]["different"] == [], (name, report[name]["different"])
+
+
+def _compile_ptx(campaign_name):
+    """The PTX (sm_90) of a campaign's GPU kernel, compiled as the backend compiles it.
+
+    numba-cuda compiles a @jit function that a kernel calls with ``compile_device``, which asks the
+    current device for its compute capability even when ``compile_ptx`` is given one (numba-cuda
+    0.30.4): without a driver it fails. The only thing asked of the driver is that number, so the
+    device is stood in for by one of compute capability 9.0 while compiling.
+    """
+    import numba
+    import numba.cuda.dispatcher as cuda_dispatcher
+    from numba import cuda
+
+    from refexmc.campaign import cuda_backend
+    from refexmc.campaign.chunk import RunPlan
+    from refexmc.campaign.run import resolve_campaign
+    from refexmc.core import flight
+
+    _, campaign = resolve_campaign(ROOT / f"campaigns/{campaign_name}.yaml", runs=2)
+    plan = RunPlan(campaign)
+    batch = cuda_backend.Batch(plan, [0, 1], plan.prepare_runs([0, 1]), campaign["output"]["history_rate_hz"])
+    signature = tuple(numba.typeof(argument) for argument in batch.typing_arguments())
+    kernel = cuda_backend._fly_runs(flight.kernel_parts(*plan.family).fly_run)
+    stand_in = types.SimpleNamespace(compute_capability=(9, 0))
+    real = cuda_dispatcher.get_current_device
+    cuda_dispatcher.get_current_device = lambda: stand_in
+    try:
+        ptx, _ = cuda.compile_ptx(kernel, signature, cc=(9, 0))
+    finally:
+        cuda_dispatcher.get_current_device = real
+    return ptx
+
+
+@needs_numba_cuda
+@needs_jit
+@pytest.mark.slow
+@pytest.mark.parametrize("campaign_name", PTX_CAMPAIGNS)
+def test_every_gpu_familys_kernel_compiles_to_ptx_without_a_device(campaign_name):
+    ptx = _compile_ptx(campaign_name)
+    assert ".entry" in ptx and ".target sm_90" in ptx
+    assert "fma.rn.f64" in ptx  # numba-cuda contracts a*b+c (NVVM -fma=1): not the CPU's bits (docs/gpu.md)
+    assert np.char.count(ptx, "NRT_").sum() == 0  # no allocation, no reference counting on the device
+
+
+def test_the_ptx_test_covers_every_family_of_the_shipped_campaigns():
+    from refexmc.campaign.run import resolve_campaign
+    from refexmc.config.pack import pack
+    from refexmc.core import flight
+
+    def family(name):
+        _, campaign = resolve_campaign(ROOT / "campaigns" / f"{name}.yaml")
+        if "entry_flight" in campaign["mission"]:
+            return "entry"
+        return flight.family(pack(campaign["vehicle"], campaign["mission"]))
+
+    shipped = {family(path.stem) for path in (ROOT / "campaigns").glob("*.yaml")} - {"entry"}
+    compiled = [family(name) for name in PTX_CAMPAIGNS]
+    assert set(compiled) == shipped and len(compiled) == len(shipped)  # each family once
+
+
+def test_a_run_whose_tables_have_other_shapes_becomes_an_error_not_a_failed_launch():
+    pytest.importorskip("numba_cuda")
+    from refexmc.campaign.cuda_backend import _same_shapes
+    from refexmc.core.inputs import RunInputs
+
+    def run(n_thrusters):
+        tables = {name: np.zeros((1, 1)) for name in RunInputs._fields}
+        tables["thrusters"] = np.zeros((n_thrusters, 17))
+        return (0, None, {}, RunInputs(**tables))
+
+    broken = RuntimeError("draw failed")
+    checked = _same_shapes([broken, run(8), run(8), run(7)])
+    assert checked[0] is broken and checked[1][3].thrusters.shape == (8, 17) and checked[2] is not None
+    assert isinstance(checked[3], ValueError)
+
+
+def test_importing_refexmc_does_not_import_numba_cuda():
+    code = (
+        "import sys, refexmc.cli, refexmc.campaign.run, refexmc.campaign.backends, refexmc.simulate; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'numba_cuda' or m.startswith('numba.cuda')))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert result.stdout.strip() == "[]"
