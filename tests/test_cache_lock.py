@@ -183,7 +183,7 @@ class _Kernel:
 def test_a_family_kernel_is_compiled_holding_the_lock_and_the_lock_is_reentrant(tmp_path, monkeypatch, inputs):
     monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
     kernel = _Kernel()
-    monkeypatch.setattr(flight, "kernel", lambda *family: kernel)
+    monkeypatch.setattr(flight, "kernel_parts", lambda *family: SimpleNamespace(fly_run=kernel, run_flight=kernel))
     monkeypatch.setattr(simulate, "keyed_uniforms", lambda *args: None)  # loaded too; not what is checked here
     monkeypatch.setattr(simulate, "keyed_uniforms_for_runs", lambda *args: None)
     simulate.load_kernels([(0, 0, 0, 0)])

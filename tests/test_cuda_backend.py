@@ -177,16 +177,16 @@ def _compile_ptx(campaign_name):
     import numba.cuda.dispatcher as cuda_dispatcher
     from numba import cuda
 
-    from refexmc.campaign import cuda_backend
+    from refexmc import simulate_cuda
     from refexmc.campaign.chunk import RunPlan
     from refexmc.campaign.run import resolve_campaign
     from refexmc.core import flight
 
     _, campaign = resolve_campaign(ROOT / f"campaigns/{campaign_name}.yaml", runs=2)
     plan = RunPlan(campaign)
-    batch = cuda_backend.Batch(plan, [0, 1], plan.prepare_runs([0, 1]), campaign["output"]["history_rate_hz"])
+    batch = simulate_cuda.Batch(plan, [0, 1], plan.prepare_runs([0, 1]), campaign["output"]["history_rate_hz"])
     signature = tuple(numba.typeof(argument) for argument in batch.typing_arguments())
-    kernel = cuda_backend._fly_runs(flight.kernel_parts(*plan.family).fly_run)
+    kernel = simulate_cuda._fly_runs(flight.kernel_parts(*plan.family).fly_run)
     stand_in = types.SimpleNamespace(compute_capability=(9, 0))
     real = cuda_dispatcher.get_current_device
     cuda_dispatcher.get_current_device = lambda: stand_in
@@ -226,7 +226,7 @@ def test_the_ptx_test_covers_every_family_of_the_shipped_campaigns():
 
 def test_a_run_whose_tables_have_other_shapes_becomes_an_error_not_a_failed_launch():
     pytest.importorskip("numba_cuda")
-    from refexmc.campaign.cuda_backend import _same_shapes
+    from refexmc.simulate_cuda import _same_shapes
     from refexmc.core.inputs import RunInputs
 
     def run(n_thrusters):

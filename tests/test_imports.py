@@ -17,7 +17,8 @@ LAYERS = (
     # functions, the distributions' draws and supports, binomial intervals
     ("refexmc.smallmatrix", "refexmc.crmath", "refexmc.distributions", "refexmc.binomial"),
     ("refexmc.config",),  # YAML -> validated campaign (every check, in one pass) -> packed inputs
-    ("refexmc.simulate",),  # one run through the core (configured requirements' columns)
+    # one run through the core (configured requirements' columns); runs on a GPU (numba-cuda)
+    ("refexmc.simulate", "refexmc.simulate_cuda"),
     ("refexmc.campaign",),  # sampling, seeding, backends, storage, studies
     ("refexmc.report",),  # statistics, verdicts, figures of a stored output
     ("refexmc.cli",),  # the click layer over all of them
