@@ -36,13 +36,17 @@ baseline: $(STAMP)
 	cp -R runs/smoke-baseline/runs runs/smoke-baseline/manifest.json runs/smoke-baseline/campaign.resolved.yaml \
 		baselines/smoke/
 
-## test: the whole test suite (what CI runs)
+## test: the whole test suite (what CI runs), on TEST_WORKERS pytest-xdist workers (2: CI's cores). A file's tests
+## stay on one worker (--dist loadfile: module fixtures fly once), files in tests/conftest.py's order (longest first,
+## not xdist's by test count) so that the workers finish together. TEST_WORKERS=0 runs them in this process
+TEST_WORKERS ?= 2
+XDIST := -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(XDIST)
 
 ## test-fast: skip tests marked slow
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q $(XDIST) -m "not slow"
 
 ## mutate: mutation testing (mutmut) of refexmc/core/ and report/requirements.py against their unit tests, in a
 ## copy (build/mutate) whose kernels lose their @jit decorators (mutmut skips decorated functions; REFEXMC_DISABLE_JIT=1

@@ -1,6 +1,10 @@
 """Shared fixtures: the reference vehicle and mission, loaded once per session.
 
 The config dicts are shared; a test that changes one must ``copy.deepcopy`` it first.
+
+``make test`` runs the files on two pytest-xdist workers, a file at a time each (Makefile): the
+files that take minutes go first (:data:`LONGEST_FIRST`), so that no worker starts one of them while
+the other is about done.
 """
 
 from pathlib import Path
@@ -11,6 +15,31 @@ from refexmc.config.load import load_mission, load_vehicle
 from refexmc.config.pack import pack
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+# the test files of more than a minute on one core (cold kernel cache), about longest first; the
+# others follow in pytest's order. Measured with `make test` (pytest --durations): add a file that
+# gets long. test_cpu_independence (its cold generic-x86-64 compile: minutes on one core) starts
+# after the files that fly most families: in a cold cache its host flights then load their kernels
+# instead of compiling them again beside the other worker
+LONGEST_FIRST = [
+    "test_rare_event.py",
+    "test_compare.py",
+    "test_subset.py",
+    "test_pointing.py",
+    "test_knowledge.py",
+    "test_flight.py",
+    "test_cpu_independence.py",
+    "test_allocation.py",
+    "test_blending.py",
+    "test_cold_gas_fig8.py",
+]
+
+
+def pytest_collection_modifyitems(items):
+    """Files of :data:`LONGEST_FIRST` first, in its order (a stable sort: tests within a file and
+    the other files keep their order)."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
 @pytest.fixture(scope="session")

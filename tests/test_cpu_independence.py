@@ -211,9 +211,15 @@ def _fly_concurrently(tmp_path, variants, timeout=1200):
             stderr=subprocess.PIPE,
             text=True,
         )
-    for name, process in processes.items():
-        _, stderr = process.communicate(timeout=timeout)
-        assert process.returncode == 0, f"{name}: {stderr[-3000:]}"
+    try:
+        for name, process in processes.items():
+            _, stderr = process.communicate(timeout=timeout)
+            assert process.returncode == 0, f"{name}: {stderr[-3000:]}"
+    finally:  # a failure or a timeout leaves no compile running on through the tests after it
+        for process in processes.values():
+            if process.poll() is None:
+                process.kill()
+                process.communicate()
     return {name: json.loads((tmp_path / f"{name}.json").read_text()) for name in variants}
 
 
