@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo smoke baseline test test-fast mutate bench bench-campaign lint format clean
+.PHONY: demo smoke baseline test test-fast test-cuda mutate bench bench-campaign lint format clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -42,11 +42,16 @@ baseline: $(STAMP)
 TEST_WORKERS ?= 2
 XDIST := -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 test: $(STAMP)
-	$(BIN)/python -m pytest -q $(XDIST)
+	$(BIN)/python -m pytest -q $(XDIST) -m "not cuda"
 
 ## test-fast: skip tests marked slow
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q $(XDIST) -m "not slow"
+	$(BIN)/python -m pytest -q $(XDIST) -m "not slow and not cuda"
+
+## test-cuda: the GPU backend's simulator flights and every family's PTX compile (no GPU needed; minutes of
+## numba-cuda compiles, so apart from make test's 15 minutes; .ci/run runs both)
+test-cuda: $(STAMP)
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist load -m cuda
 
 ## mutate: mutation testing (mutmut) of refexmc/core/ and report/requirements.py against their unit tests, in a
 ## copy (build/mutate) whose kernels lose their @jit decorators (mutmut skips decorated functions; REFEXMC_DISABLE_JIT=1

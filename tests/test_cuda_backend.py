@@ -145,6 +145,7 @@ print(json.dumps(report))
 @needs_numba_cuda
 @needs_jit
 @pytest.mark.slow
+@pytest.mark.cuda
 def test_under_the_simulator_every_family_flies_the_cpu_runs_table_bit_for_bit(tmp_path):
     """A GPU campaign under the simulator: the same rows as the CPU's ``fly_chunk`` (draws, p.
     columns, every flown value: the simulator's threads call the CPU kernel), whatever the chunking."""
@@ -200,6 +201,7 @@ def _compile_ptx(campaign_name):
 @needs_numba_cuda
 @needs_jit
 @pytest.mark.slow
+@pytest.mark.cuda
 @pytest.mark.parametrize("campaign_name", PTX_CAMPAIGNS)
 def test_every_gpu_familys_kernel_compiles_to_ptx_without_a_device(campaign_name):
     ptx = _compile_ptx(campaign_name)
@@ -226,8 +228,8 @@ def test_the_ptx_test_covers_every_family_of_the_shipped_campaigns():
 
 def test_a_run_whose_tables_have_other_shapes_becomes_an_error_not_a_failed_launch():
     pytest.importorskip("numba_cuda")
-    from refexmc.simulate_cuda import _same_shapes
     from refexmc.core.inputs import RunInputs
+    from refexmc.simulate_cuda import _same_shapes
 
     def run(n_thrusters):
         tables = {name: np.zeros((1, 1)) for name in RunInputs._fields}
