@@ -279,3 +279,23 @@ def test_a_missing_vehicle_file_names_the_campaign_line(tmp_path):
 
 # every shipped campaign, vehicle and mission passes validate --strict, plausibility included:
 # test_design_checks.test_shipped_files_validate_without_design_warnings
+
+
+def test_a_swept_feed_value_in_another_unit_warns_at_the_axis(tmp_path):
+    """A tank temperature swept to 20 (degC typed into kelvin) flies that point as the file's value:
+    the same slip as in the vehicle file, named at the sweep axis' line; plausible points are silent."""
+    axis = "sweep:\n  axes:\n    - parameter: rcs.feed.temperature_k\n      values: [{}]\n"
+    good = _campaign(tmp_path, SURVEYOR)
+    good.write_text(good.read_text() + axis.format("250.0, 293.0"))
+    found = []
+    load_campaign(good, found)
+    assert not [w for w in found if isinstance(w, plausibility.PlausibilityWarning)]
+    slip = _campaign(tmp_path, SURVEYOR)
+    slip.write_text(slip.read_text() + axis.format("20.0, 293.0"))
+    line = slip.read_text().splitlines().index("      values: [20.0, 293.0]") + 1
+    found = []
+    load_campaign(slip, found)
+    message = _one(
+        [w for w in found if isinstance(w, plausibility.PlausibilityWarning)], slip, line, "sweep.axes.0.values"
+    )
+    assert "rcs.feed.temperature_k swept to 20 K" in message and "degC" in message

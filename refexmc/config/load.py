@@ -891,6 +891,7 @@ def load_campaign(path, warnings=None):
 
         campaign["sweep"] = data["sweep"]
         sweep.check_sweep(campaign, path, lines, columns)
+        found += plausibility.check_sweep(campaign["sweep"]["axes"], path, lines)
     if "rare_event" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
         from refexmc.config.rare_event import check_rare_event
 

@@ -346,6 +346,27 @@ def check_dispersions(specs, nominal, file, lines):
     return out
 
 
+def check_sweep(axes, file, lines):
+    """Plausibility warnings of a sweep's ``axes`` (config.sweep, checked): a swept rcs.feed key's
+    value outside its range (each point flies it as the file's value: the same slips as in the file)."""
+    from refexmc.config.sweep import axis_values  # the sweep's own arithmetic; no cycle at import
+
+    out = []
+    for i, axis in enumerate(axes):
+        limits = DISPERSION_RANGES.get(axis["parameter"])
+        if limits is None or "dispersion" in axis:
+            continue
+        key = ("sweep", "axes", i, "values" if "values" in axis else "range")
+        for value in axis_values(axis):
+            message = limits.problem(value) if math.isfinite(value) else None
+            if message:
+                line = lines.get(key) or lines.get(("sweep", "axes", i))
+                message = f"{axis['parameter']} swept to {message}"
+                out.append(PlausibilityWarning(message, file=file, line=line, path=key))
+                break
+    return out
+
+
 def _bounds_exclude(spec, nominal, warn):
     """A truncnorm whose [low, high] excludes its mean (the nominal by default): its draws pile up
     at the bound; or excludes the nominal (its mean given inside): no draw is the value the nominal
