@@ -299,3 +299,30 @@ def test_a_swept_feed_value_in_another_unit_warns_at_the_axis(tmp_path):
         [w for w in found if isinstance(w, plausibility.PlausibilityWarning)], slip, line, "sweep.axes.0.values"
     )
     assert "rcs.feed.temperature_k swept to 20 K" in message and "degC" in message
+
+
+def test_a_metric_named_for_another_missions_mode_suggests_this_ones(tmp_path):
+    """A sweep metric 't_hop_s' on a mission whose mode is 'cross': its columns carry the mode's
+    name, so the message offers 't_cross_s' (a new user's slip, copied from the hop's campaign)."""
+    mission, _ = _variant(tmp_path, HOP, "  - name: hop\n", "  - name: cross\n", "my-mission.yaml")
+    campaign = _campaign(tmp_path, SURVEYOR, mission)
+    campaign.write_text(
+        campaign.read_text()
+        + "sweep:\n  axes:\n    - parameter: rcs.feed.tank_volume_m3\n      values: [0.0008, 0.0012]\n"
+        + "  metrics: [t_hop_s]\n"
+    )
+    with pytest.raises(ConfigError, match=r"got 't_hop_s'; did you mean 't_cross_s'\?") as caught:
+        load_campaign(campaign)
+    assert caught.value.path == ("sweep", "metrics", 0)
+
+
+def test_a_requirement_written_as_a_mapping_says_how_a_requirement_is_written(tmp_path):
+    """A requirement written as a mapping of made-up keys is neither a pointing record nor a
+    string: the message shows both forms, not a pointing record's key list."""
+    campaign = _campaign(tmp_path, SURVEYOR)
+    campaign.write_text(
+        campaign.read_text() + 'requirements:\n  - {metric: position_error_end_m, stat: max, op: "<=", value: 0.05}\n'
+    )
+    with pytest.raises(ConfigError, match=r"'COLUMN\.STAT OP VALUE' .* or a pointing record") as caught:
+        load_campaign(campaign)
+    assert (caught.value.line, caught.value.path) == (7, ("requirements", 0))

@@ -880,6 +880,14 @@ def load_campaign(path, warnings=None):
     for i, item in enumerate(campaign["requirements"]):  # a pointing record: its schema, then its sense
         if pointing.is_pointing(item):
             prefix = ("requirements", i)
+            if not set(item) & set(schema.POINTING_REQUIREMENT["properties"]):  # not meant as a pointing record
+                raise ConfigError(
+                    "expected a requirement 'COLUMN.STAT OP VALUE' (e.g. 'position_error_end_m.max <= 0.05',"
+                    " docs/campaigns.md) or a pointing record (docs/pointing.md)",
+                    file=path,
+                    line=lines.get(prefix),
+                    path=prefix,
+                )
             within = {key[2:]: line for key, line in lines.items() if key[:2] == prefix}
             validate(item, schema.POINTING_REQUIREMENT, path, within, prefix=prefix)
     pointed = pointing.parse(campaign["requirements"], mission, campaign["dispersions"], path, lines)

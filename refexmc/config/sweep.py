@@ -19,6 +19,7 @@ every point (keyed seeds: common random numbers).
 """
 
 import copy
+import difflib
 import itertools
 import math
 
@@ -165,7 +166,16 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
                 )
     for j, metric in enumerate(sweep.get("metrics", [])):
         if metric not in columns:
-            fail(f"expected a runs column, got '{metric}'", "metrics", j)
+            fail(f"expected a runs column, got '{metric}'{_column_hint(metric, columns)}", "metrics", j)
+
+
+def _column_hint(metric, columns):
+    """'; did you mean ...?' or the campaign's own columns (a mode's columns carry its name)."""
+    own = [c for c in columns if not c.startswith("p.")]
+    guess = difflib.get_close_matches(str(metric), own, n=1, cutoff=0.6)
+    if guess:
+        return f"; did you mean '{guess[0]}'?"
+    return f"; this campaign's columns (and its p. inputs): {', '.join(own)}"
 
 
 def metrics(campaign, columns):
