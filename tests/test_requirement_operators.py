@@ -185,3 +185,16 @@ def test_the_words_around_a_verdict_count_and_list_runs():
     assert failing_description([3], []) == "failed flight 3"
     assert failing_description([3, 11], [7]) == "failed flights 3, 11 and errored run 7"
     assert failing_description([], [7, 8]) == "errored runs 7, 8"
+
+
+def test_a_success_rate_met_by_its_estimate_only_says_so(tmp_path):
+    """30 runs without a failure meet 'success_rate >= 0.95' by the estimate (1.0) but not with 95 %
+    confidence (one-sided Clopper-Pearson lower bound 0.05^(1/30) = 0.905): the verdict stands (the
+    requirement is written on the estimate) and its note says how to require it with confidence
+    and that 59 runs without a failure would (0.95^59 = 0.0485 <= 0.05 < 0.95^58)."""
+    judged, _, _ = verdicts(tmp_path, "estimate", ["success_rate >= 0.95", "success_rate >= 0.9"])
+    note = judged["success_rate >= 0.95"]["note"]
+    assert judged["success_rate >= 0.95"]["passed"] is True
+    assert f"lower bound is {0.05 ** (1 / 30):.3g} over 30 runs" in note
+    assert "'success_rate_lower95 >= 0.95'" in note and "at least 59 runs" in note
+    assert judged["success_rate >= 0.9"]["note"] == ""  # 0.905 >= 0.9: met with confidence too

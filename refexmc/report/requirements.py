@@ -106,6 +106,8 @@ def evaluate(requirement, campaign, level):
     passed = computable and bool(OPERATORS[requirement.op](actual, requirement.value))
     if not computable and not note:
         note = "not computable (no runs, or too few runs for this bound)"
+    if passed and requirement.metric == "success_rate" and requirement.op in (">=", ">"):
+        note = _estimate_only(level, requirement.value) or note
     verdict.update(
         actual=actual if computable else None,
         passed=passed,
@@ -116,6 +118,22 @@ def evaluate(requirement, campaign, level):
         note=note,
     )
     return verdict
+
+
+def _estimate_only(level, value):
+    """The note of a success rate met by its estimate but not by its 95 % lower bound ('' if met
+    by both): how to require it with confidence, and the runs that takes without a failure
+    (one-sided Clopper-Pearson with none: value^n <= 0.05)."""
+    lower = float(level["success_rate_lower95"])
+    if not lower < value:
+        return ""
+    note = (
+        f"met by the estimate only: the one-sided 95 % lower bound is {lower:.3g} over "
+        f"{plural(int(level['runs']), 'run')}; 'success_rate_lower95 >= {value:g}' requires it with confidence"
+    )
+    if 0.0 < value < 1.0:
+        note += f" (at least {math.ceil(math.log(0.05) / math.log(value))} runs without a failure)"
+    return note
 
 
 def overall_verdict(completeness, verdicts):
