@@ -456,7 +456,9 @@ def test_every_tank_and_local_dispersion_path_changes_the_surveyor_hop():
     campaign = load_campaign(ROOT / "campaigns/surveyor-hop.yaml")
     campaign["dispersions"] = {}
     paths = [p for p in dispersions.PARAMETERS if p.startswith(LOCAL_PATHS)]
-    assert _paths_change_the_flight(campaign, paths) == 3 + 3 + 3 + 3
+    # 3 navigation noises, every number of the feed (8: tank volume, gas constant, gamma, P0, T,
+    # throat, expansion ratio, ambient pressure; issue 34 point 7), position and velocity (3 each)
+    assert _paths_change_the_flight(campaign, paths) == 3 + 8 + 3 + 3
 
 
 def test_every_orbit_dispersion_path_changes_the_deorbit_flight():
