@@ -53,14 +53,14 @@ def strict_error(warnings):
     )
 
 
-def _where(fail):
-    """A warn(message, *path) that builds the warning where ``fail`` would raise the error."""
+def warning_at(fail, kind=DesignWarning):
+    """A warn(message, *path) that builds a ``kind`` warning where ``fail`` would raise the error."""
 
     def warn(message, *path):
         try:
             fail(message, *path)
         except ConfigError as exc:
-            return DesignWarning(exc.message, file=exc.file, line=exc.line, path=exc.path)
+            return kind(exc.message, file=exc.file, line=exc.line, path=exc.path)
         raise AssertionError("fail() must raise")  # pragma: no cover
 
     return warn
@@ -80,7 +80,7 @@ def check_vehicle(vehicle, fail):
     if fsw["actuation"] != "pwpf_table" or "allocation" not in fsw:
         return []
     _check_allocation_signs(vehicle, fail)
-    warn = _where(fail)
+    warn = warning_at(fail)
     return [*_thrusters_per_axis(vehicle, warn), *_pulse_limits(vehicle, warn)]
 
 
@@ -197,7 +197,7 @@ def check_flight(vehicle, mission, warn_fail):
     ``warn_fail(message, *key_path)`` raises ConfigError at a key path of the mission file."""
     if "rcs" not in vehicle or derived.deadbands(vehicle, derived.rcs_level_names(vehicle)[0]) is None:
         return []
-    warn = _where(warn_fail)
+    warn = warning_at(warn_fail)
     levels = derived.level_names(vehicle)
     out = []
     for m, mode in enumerate(mission["modes"]):

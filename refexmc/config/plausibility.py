@@ -47,7 +47,7 @@ import contextlib
 import math
 from typing import NamedTuple
 
-from refexmc.config.design_checks import DesignWarning
+from refexmc.config.design_checks import DesignWarning, warning_at
 from refexmc.config.errors import ConfigError
 
 FEED_TEMPERATURE_K = (100.0, 1000.0)
@@ -72,15 +72,7 @@ class PlausibilityWarning(DesignWarning):
 
 def _warning_at(fail):
     """A warn(message, *path) that builds the PlausibilityWarning where ``fail`` would raise."""
-
-    def warn(message, *path):
-        try:
-            fail(message, *path)
-        except ConfigError as exc:
-            return PlausibilityWarning(exc.message, file=exc.file, line=exc.line, path=exc.path)
-        raise AssertionError("fail() must raise")  # pragma: no cover
-
-    return warn
+    return warning_at(fail, PlausibilityWarning)
 
 
 class Range(NamedTuple):
