@@ -6,9 +6,8 @@ ln density, speed of sound and temperature are linear in altitude (density expon
 the first and above the last row the end cell is extended the same way.
 """
 
-import math
-
 from refexmc._jit import jit_noalloc
+from refexmc.core import elementary
 
 ATM_ALTITUDE = 0
 ATM_LN_DENSITY = 1
@@ -45,4 +44,4 @@ def properties(table, altitude):
     ln_rho = table[k, ATM_LN_DENSITY] + f * (table[k + 1, ATM_LN_DENSITY] - table[k, ATM_LN_DENSITY])
     sound = table[k, ATM_SPEED_OF_SOUND] + f * (table[k + 1, ATM_SPEED_OF_SOUND] - table[k, ATM_SPEED_OF_SOUND])
     temperature = table[k, ATM_TEMPERATURE] + f * (table[k + 1, ATM_TEMPERATURE] - table[k, ATM_TEMPERATURE])
-    return math.exp(ln_rho), sound, temperature
+    return elementary.exp(ln_rho), sound, temperature

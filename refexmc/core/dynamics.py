@@ -7,6 +7,8 @@ linearly over the step: the run loop places step boundaries on the thrust-profil
 where thrust is piecewise linear in time, so each step sees a smooth right-hand side.
 """
 
+import math
+
 from refexmc._jit import jit_noalloc
 
 STATE_SIZE = 7
@@ -88,7 +90,7 @@ def rk4_step(x, h, torque_start, torque_end, inertia, inertia_inv, work):
     derivative(stage, tau, inertia, inertia_inv, k4)
     for i in range(STATE_SIZE):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    n = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]) ** 0.5
+    n = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
     for i in range(4):
         x[i] /= n
 

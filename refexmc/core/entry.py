@@ -15,13 +15,12 @@ deorbit module's thrust (003's T_deorbit) is off: it is jettisoned before the en
 Gravity is central, g = mu / r^2.
 """
 
-import math
 from typing import NamedTuple
 
 import numpy as np
 
 from refexmc._jit import jit_noalloc
-from refexmc.core import aerodynamics, atmosphere
+from refexmc.core import aerodynamics, atmosphere, elementary
 from refexmc.core.aerodynamics import AC_DRAG, AC_LIFT, AC_SIDE_BETA
 
 ENTRY_STATE_SIZE = 6
@@ -85,10 +84,10 @@ def equations_of_motion(model, state, mass, bank, lift, drag, side, out):
     r = model.planet[PLANET_RADIUS] + h
     omega = model.planet[PLANET_ROTATION]
     g = model.planet[PLANET_MU] / (r * r)
-    sin_g, cos_g = math.sin(gamma), math.cos(gamma)
-    sin_c, cos_c = math.sin(chi), math.cos(chi)
-    sin_d, cos_d = math.sin(delta), math.cos(delta)
-    sin_m, cos_m = math.sin(bank), math.cos(bank)
+    sin_g, cos_g = elementary.sincos(gamma)
+    sin_c, cos_c = elementary.sincos(chi)
+    sin_d, cos_d = elementary.sincos(delta)
+    sin_m, cos_m = elementary.sincos(bank)
     centripetal = omega * omega * r * cos_d
     out[EN_ALTITUDE] = v * sin_g
     out[EN_LONGITUDE] = v * cos_g * sin_c / (r * cos_d)
@@ -102,8 +101,8 @@ def equations_of_motion(model, state, mass, bank, lift, drag, side, out):
     )
     out[EN_HEADING] = (
         (lift * sin_m + side * cos_m) / (mass * v * cos_g)
-        + v * cos_g * sin_c * math.tan(delta) / r
-        - 2.0 * omega * (math.tan(gamma) * cos_d * cos_c - sin_d)
+        + v * cos_g * sin_c * elementary.tan(delta) / r
+        - 2.0 * omega * (elementary.tan(gamma) * cos_d * cos_c - sin_d)
         + centripetal / (v * cos_g) * sin_d * sin_c
     )
 
@@ -136,16 +135,21 @@ def ranges(start, end, radius):
     lat0, lon0, chi0 = start[EN_LATITUDE], start[EN_LONGITUDE], start[EN_HEADING]
     lat1, lon1 = end[EN_LATITUDE], end[EN_LONGITUDE]
     # unit vectors: the start point p, its heading direction e, the end point x
-    px, py, pz = math.cos(lat0) * math.cos(lon0), math.cos(lat0) * math.sin(lon0), math.sin(lat0)
-    north_x, north_y, north_z = -math.sin(lat0) * math.cos(lon0), -math.sin(lat0) * math.sin(lon0), math.cos(lat0)
-    east_x, east_y, east_z = -math.sin(lon0), math.cos(lon0), 0.0
-    ex = math.cos(chi0) * north_x + math.sin(chi0) * east_x
-    ey = math.cos(chi0) * north_y + math.sin(chi0) * east_y
-    ez = math.cos(chi0) * north_z + math.sin(chi0) * east_z
-    xx, xy, xz = math.cos(lat1) * math.cos(lon1), math.cos(lat1) * math.sin(lon1), math.sin(lat1)
+    sin_lat0, cos_lat0 = elementary.sincos(lat0)
+    sin_lon0, cos_lon0 = elementary.sincos(lon0)
+    sin_chi0, cos_chi0 = elementary.sincos(chi0)
+    sin_lat1, cos_lat1 = elementary.sincos(lat1)
+    sin_lon1, cos_lon1 = elementary.sincos(lon1)
+    px, py, pz = cos_lat0 * cos_lon0, cos_lat0 * sin_lon0, sin_lat0
+    north_x, north_y, north_z = -sin_lat0 * cos_lon0, -sin_lat0 * sin_lon0, cos_lat0
+    east_x, east_y, east_z = -sin_lon0, cos_lon0, 0.0
+    ex = cos_chi0 * north_x + sin_chi0 * east_x
+    ey = cos_chi0 * north_y + sin_chi0 * east_y
+    ez = cos_chi0 * north_z + sin_chi0 * east_z
+    xx, xy, xz = cos_lat1 * cos_lon1, cos_lat1 * sin_lon1, sin_lat1
     # the great circle's pole n = p x e; the right-hand side of the track is -n
     nx, ny, nz = py * ez - pz * ey, pz * ex - px * ez, px * ey - py * ex
     off = -(nx * xx + ny * xy + nz * xz)
-    cross = radius * math.asin(min(max(off, -1.0), 1.0))
-    down = radius * math.atan2(ex * xx + ey * xy + ez * xz, px * xx + py * xy + pz * xz)
+    cross = radius * elementary.asin(min(max(off, -1.0), 1.0))
+    down = radius * elementary.atan2(ex * xx + ey * xy + ez * xz, px * xx + py * xy + pz * xz)
     return down, cross

@@ -13,7 +13,7 @@ velocity) to the lift direction, positive towards the right: core.entry's conven
 import math
 
 from refexmc._jit import jit_noalloc
-from refexmc.core import quaternion
+from refexmc.core import elementary, quaternion
 from refexmc.core.entry import EN_FLIGHT_PATH, EN_HEADING, EN_LATITUDE, EN_LONGITUDE
 
 AXES_SCRATCH = (8, 3)  # rows: north, east, down, velocity unit, lift0, right0, lift, spare
@@ -25,14 +25,14 @@ def local_frame(state, t, rotation, scratch):
     (the Earth turned by rotation t); row 3: the unit air-relative velocity."""
     lon = state[EN_LONGITUDE] + rotation * t
     lat = state[EN_LATITUDE]
-    sl, cl = math.sin(lon), math.cos(lon)
-    sd, cd = math.sin(lat), math.cos(lat)
+    sl, cl = elementary.sincos(lon)
+    sd, cd = elementary.sincos(lat)
     north, east, down, along = scratch[0], scratch[1], scratch[2], scratch[3]
     north[0], north[1], north[2] = -sd * cl, -sd * sl, cd
     east[0], east[1], east[2] = -sl, cl, 0.0
     down[0], down[1], down[2] = -cd * cl, -cd * sl, -sd
-    sg, cg = math.sin(state[EN_FLIGHT_PATH]), math.cos(state[EN_FLIGHT_PATH])
-    sc, cc = math.sin(state[EN_HEADING]), math.cos(state[EN_HEADING])
+    sg, cg = elementary.sincos(state[EN_FLIGHT_PATH])
+    sc, cc = elementary.sincos(state[EN_HEADING])
     for i in range(3):
         along[i] = cg * cc * north[i] + cg * sc * east[i] - sg * down[i]
 
@@ -66,12 +66,12 @@ def aerodynamic_angles(state, t, rotation, attitude, scratch):
         work[i] = along[i]
     quaternion.rotate_inverse(attitude, work, work)  # velocity direction in body axes
     u, v, w = work[0], work[1], work[2]
-    alpha = math.atan2(w, u)
-    beta = math.asin(min(max(v, -1.0), 1.0))
-    sa, ca = math.sin(alpha), math.cos(alpha)
+    alpha = elementary.atan2(w, u)
+    beta = elementary.asin(min(max(v, -1.0), 1.0))
+    sa, ca = elementary.sincos(alpha)
     work[0], work[1], work[2] = sa, 0.0, -ca  # lift direction -z_w in body axes
     quaternion.rotate(attitude, work, work)
-    bank = math.atan2(
+    bank = elementary.atan2(
         work[0] * right0[0] + work[1] * right0[1] + work[2] * right0[2],
         work[0] * lift0[0] + work[1] * lift0[1] + work[2] * lift0[2],
     )
@@ -85,12 +85,13 @@ def attitude_from_angles(state, t, rotation, alpha, beta, bank, scratch, out):
     _zero_bank_axes(scratch)
     lift0, right0 = scratch[4], scratch[5]
     x_w, y_w, z_w = scratch[3], scratch[6], scratch[7]  # x_w: the velocity direction
-    cm, sm = math.cos(bank), math.sin(bank)
+    sm, cm = elementary.sincos(bank)
     for i in range(3):
         lift = cm * lift0[i] + sm * right0[i]
         y_w[i] = cm * right0[i] - sm * lift0[i]
         z_w[i] = -lift
-    ca, sa, cb, sb = math.cos(alpha), math.sin(alpha), math.cos(beta), math.sin(beta)
+    sa, ca = elementary.sincos(alpha)
+    sb, cb = elementary.sincos(beta)
     # body axes from wind axes: columns of the body-to-wind matrix (module docstring)
     bx0 = ca * cb * x_w[0] - ca * sb * y_w[0] - sa * z_w[0]
     bx1 = ca * cb * x_w[1] - ca * sb * y_w[1] - sa * z_w[1]

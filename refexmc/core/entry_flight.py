@@ -38,7 +38,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import aerodynamics, blending, dynamics, entry, entry_attitude, quaternion
+from refexmc.core import aerodynamics, blending, dynamics, elementary, entry, entry_attitude, quaternion
 from refexmc.core.aerodynamics import (
     AC_DRAG,
     AC_LIFT,
@@ -280,7 +280,7 @@ def hinge_limit(qbar, alpha, hinge_moment_max, area_arm):
     ratio = hinge_moment_max / (2.0 * qbar * area_arm)
     if ratio >= 1.0:
         return 0.5 * math.pi - alpha
-    return math.asin(math.sqrt(ratio)) - alpha
+    return elementary.asin(math.sqrt(ratio)) - alpha
 
 
 @jit_noalloc
@@ -350,11 +350,11 @@ def control(vehicle, wk, t, alpha_cmd, bank_cmd):
     alpha_dot = ct[CT_ANGLE_GAIN] * (errors_alpha + ki * wk.integral[0])
     beta_dot = ct[CT_ANGLE_GAIN + 1] * (errors_beta + ki * wk.integral[1])
     bank_dot = ct[CT_ANGLE_GAIN + 2] * (errors_bank + ki * wk.integral[2])
-    ca, sa = math.cos(alpha), math.sin(alpha)
-    p_s = bank_dot * math.cos(beta)
+    sa, ca = elementary.sincos(alpha)
+    p_s = bank_dot * elementary.cos(beta)
     r_s = -beta_dot
     p_cmd = p_s * ca - r_s * sa
-    q_cmd = alpha_dot + math.tan(beta) * p_s
+    q_cmd = alpha_dot + elementary.tan(beta) * p_s
     r_cmd = p_s * sa + r_s * ca
     # inner loop: dynamic inversion of 003 eq. 4
     k = ct[CT_RATE_GAIN]
@@ -420,7 +420,7 @@ def actuate(vehicle, wk, dt):
     flap does not move."""
     sf = vehicle.surfaces
     tau = sf[SF_TIME_CONSTANT]
-    share = 1.0 - math.exp(-dt / tau) if tau > 0.0 else 1.0
+    share = 1.0 - elementary.exp(-dt / tau) if tau > 0.0 else 1.0
     blocked = int(sf[SF_BLOCKED_FLAP])
     for i in range(3):
         if i == blocked:

@@ -9,6 +9,7 @@ drag; its state is ``[x, z, v_x, v_z]``.
 import math
 
 from refexmc._jit import jit_noalloc
+from refexmc.core import elementary
 from refexmc.core.layout import (
     M_EARTH_MU,
     M_EARTH_RADIUS,
@@ -33,7 +34,7 @@ def density(atmosphere, altitude):
         if altitude >= atmosphere[k, 0]:
             row = k
             break
-    return atmosphere[row, 1] * math.exp(-(altitude - atmosphere[row, 0]) / atmosphere[row, 2])
+    return atmosphere[row, 1] * elementary.exp(-(altitude - atmosphere[row, 0]) / atmosphere[row, 2])
 
 
 @jit_noalloc
@@ -42,8 +43,8 @@ def initial_state(mission, out):
     gamma = mission[M_SEP_FLIGHT_PATH]
     out[0] = 0.0
     out[1] = 0.0
-    out[2] = mission[M_SEP_SPEED] * math.cos(gamma)
-    out[3] = -mission[M_SEP_SPEED] * math.sin(gamma)
+    out[2] = mission[M_SEP_SPEED] * elementary.cos(gamma)
+    out[3] = -mission[M_SEP_SPEED] * elementary.sin(gamma)
 
 
 @jit_noalloc
@@ -133,7 +134,7 @@ def trajectory_step_from(mission, vehicle, atmosphere, state, ax1, az1, h, stage
 @jit_noalloc
 def velocity_pitch(state):
     """Angle of the velocity above the inertial x axis, a rotation about +y (rad)."""
-    return math.atan2(-state[3], state[2])
+    return elementary.atan2(-state[3], state[2])
 
 
 @jit_noalloc
@@ -150,7 +151,7 @@ def predicted_velocity_pitch(mission, state, exit_altitude):
     rx, rz, r = radial(mission, state)
     vx, vz = state[2], state[3]
     mu = mission[M_EARTH_MU]
-    pitch_now = math.atan2(-vz, vx)
+    pitch_now = elementary.atan2(-vz, vx)
     r_exit = mission[M_EARTH_RADIUS] + exit_altitude
     h = abs(rx * vz - rz * vx)  # specific angular momentum, motion in the x-z plane
     v_radial = (rx * vx + rz * vz) / r
@@ -160,13 +161,13 @@ def predicted_velocity_pitch(mission, state, exit_altitude):
     if r <= r_exit or radial2_exit <= 0.0:
         return pitch_now
     v_radial_exit = -math.sqrt(radial2_exit)  # descending branch
-    anomaly_now = math.atan2(v_radial * h / mu, h * h / (mu * r) - 1.0)
-    anomaly_exit = math.atan2(v_radial_exit * h / mu, h * h / (mu * r_exit) - 1.0)
+    anomaly_now = elementary.atan2(v_radial * h / mu, h * h / (mu * r) - 1.0)
+    anomaly_exit = elementary.atan2(v_radial_exit * h / mu, h * h / (mu * r_exit) - 1.0)
     travelled = anomaly_exit - anomaly_now
     if travelled < 0.0:
         travelled += 2.0 * math.pi
-    gamma_now = math.atan2(v_radial, h / r)
-    gamma_exit = math.atan2(v_radial_exit, v_transverse_exit)
+    gamma_now = elementary.atan2(v_radial, h / r)
+    gamma_exit = elementary.atan2(v_radial_exit, v_transverse_exit)
     return pitch_now + (gamma_exit - gamma_now) - travelled
 
 

@@ -32,7 +32,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import arena
+from refexmc.core import arena, elementary
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     T_SCALE,
@@ -107,7 +107,7 @@ def pressure_after(pressure, open_time, tau, regulator):
             return pressure - drop
         open_time -= (pressure - regulator) * tau / regulator
         pressure = regulator
-    return pressure * math.exp(-open_time / tau)
+    return pressure * elementary.exp(-open_time / tau)
 
 
 @jit_noalloc

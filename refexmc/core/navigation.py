@@ -17,7 +17,7 @@ then each process's a and sqrt(1 - a^2).
 import math
 
 from refexmc._jit import jit_inline, jit_noalloc
-from refexmc.core import quaternion, rng
+from refexmc.core import elementary, quaternion, rng
 from refexmc.core.layout import (
     N_ATT_BIAS,
     N_ATT_GM_SIGMA,
@@ -45,13 +45,13 @@ def calibration_factor(nav, time_calibrating):
     tau = nav[N_CALIBRATION_TIME]
     if tau <= 0.0 or time_calibrating <= 0.0:
         return 1.0
-    return math.exp(-time_calibrating / tau)
+    return elementary.exp(-time_calibrating / tau)
 
 
 @jit_noalloc
 def gauss_markov_coefficients(dt, tau):
     """(a, sqrt(1 - a^2)) of the exact discrete first-order Gauss-Markov step ``dt`` (scalar libm)."""
-    a = math.exp(-dt / tau)
+    a = elementary.exp(-dt / tau)
     return a, math.sqrt(1.0 - a * a)
 
 

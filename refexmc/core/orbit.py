@@ -11,6 +11,7 @@ The Earth is a sphere turning at a constant rate; entry-state angles are geocent
 import math
 
 from refexmc._jit import jit_noalloc
+from refexmc.core import elementary
 
 ORBIT_STATE_SIZE = 7
 G0 = 9.80665  # standard gravity for the specific impulse (m/s^2)
@@ -111,7 +112,7 @@ def entry_state(state, t, earth_rate, out):
     latitude (deg N), speed (m/s), flight-path angle (deg) and heading (deg from north,
     clockwise, 0..360), into ``out[0:5]`` (the Earth turned ``earth_rate * t`` since t = 0)."""
     angle = earth_rate * t
-    c, s = math.cos(angle), math.sin(angle)
+    s, c = elementary.sincos(angle)
     rx, ry, rz = state[0], state[1], state[2]
     # relative velocity v - w x r, w = (0, 0, earth_rate); then both into the Earth-fixed frame
     vx = state[3] + earth_rate * ry
@@ -120,20 +121,20 @@ def entry_state(state, t, earth_rate, out):
     x, y = c * rx + s * ry, -s * rx + c * ry
     u, w = c * vx + s * vy, -s * vx + c * vy
     r = math.sqrt(x * x + y * y + rz * rz)
-    longitude = math.atan2(y, x)
-    latitude = math.asin(rz / r)
+    longitude = elementary.atan2(y, x)
+    latitude = elementary.asin(rz / r)
     speed = math.sqrt(u * u + w * w + vz * vz)
     # local up, east, north
-    cl, sl = math.cos(longitude), math.sin(longitude)
-    cp, sp = math.cos(latitude), math.sin(latitude)
+    sl, cl = elementary.sincos(longitude)
+    sp, cp = elementary.sincos(latitude)
     up = u * cp * cl + w * cp * sl + vz * sp
     east = -u * sl + w * cl
     north = -u * sp * cl - w * sp * sl + vz * cp
     out[0] = math.degrees(longitude)
     out[1] = math.degrees(latitude)
     out[2] = speed
-    out[3] = math.degrees(math.atan2(up, math.sqrt(east * east + north * north)))  # asin(up / speed) can NaN
-    heading = math.degrees(math.atan2(east, north))
+    out[3] = math.degrees(elementary.atan2(up, math.sqrt(east * east + north * north)))  # asin(up / speed) can NaN
+    heading = math.degrees(elementary.atan2(east, north))
     out[4] = heading + 360.0 if heading < 0.0 else heading
 
 

@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import arena, deorbit, orbit, quaternion
+from refexmc.core import arena, deorbit, elementary, orbit, quaternion
 from refexmc.core.layout import (
     F_ENGINE_AXIS,
     F_GUIDANCE_LAW,
@@ -143,7 +143,7 @@ def steer(nominal, fsw, nav, vehicle, x, orb, guide, rng_state, status, t, burni
         d = orb.work[0]
         thrust_direction(vehicle, x[0:4], d)
         c = d[0] * orb.command[0] + d[1] * orb.command[1] + d[2] * orb.command[2]
-        angle = math.acos(max(-1.0, min(1.0, c)))
+        angle = elementary.acos(max(-1.0, min(1.0, c)))
         status[ST_POINTING_SUM2] += angle * angle
         status[ST_POINTING_COUNT] += 1.0
         status[ST_POINTING_MAX] = max(status[ST_POINTING_MAX], angle)

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import quaternion
+from refexmc.core import elementary, quaternion
 from refexmc.core.layout import (
     ERROR_AXIS,
     ERROR_LOS,
@@ -97,7 +97,7 @@ def error_vector(dq, row, work, out):
         if s == 0.0:
             out[0], out[1], out[2] = 0.0, 0.0, 0.0
             return
-        angle = math.atan2(s, b[0] * moved[0] + b[1] * moved[1] + b[2] * moved[2])
+        angle = elementary.atan2(s, b[0] * moved[0] + b[1] * moved[1] + b[2] * moved[2])
         out[0], out[1], out[2] = cx / s * angle, cy / s * angle, cz / s * angle
         return
     quaternion.to_rotation_vector(q, out)

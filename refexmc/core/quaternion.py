@@ -9,6 +9,7 @@ All functions write into caller-owned ``out`` arrays; ``out`` may alias an input
 import math
 
 from refexmc._jit import jit_noalloc
+from refexmc.core import elementary
 
 
 @jit_noalloc
@@ -76,11 +77,11 @@ def from_rotation_vector(rx, ry, rz, out):
     if angle < 1e-8:
         s = 0.5 - angle * angle / 48.0  # sin(a/2)/a to second order
     else:
-        s = math.sin(half) / angle
+        s = elementary.sin(half) / angle
     out[0] = rx * s
     out[1] = ry * s
     out[2] = rz * s
-    out[3] = math.cos(half)
+    out[3] = elementary.cos(half)
 
 
 @jit_noalloc
@@ -93,7 +94,7 @@ def to_rotation_vector(q, out):
     if s < 1e-12:
         k = 2.0 / w  # angle / sin(angle/2) -> 2 as the angle -> 0
     else:
-        k = 2.0 * math.atan2(s, w) / s
+        k = 2.0 * elementary.atan2(s, w) / s
     out[0] = k * x
     out[1] = k * y
     out[2] = k * z
@@ -105,7 +106,7 @@ def angle_between(p, q):
     d = abs(p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3])
     if d > 1.0:
         d = 1.0
-    return 2.0 * math.acos(d)
+    return 2.0 * elementary.acos(d)
 
 
 @jit_noalloc
@@ -122,8 +123,8 @@ def slerp_arc(q0, q1):
         dot = -dot
     if dot > 1.0 - 1e-12:
         return sign, 0.0, 0.0
-    omega = math.acos(dot)
-    return sign, omega, math.sin(omega)
+    omega = elementary.acos(dot)
+    return sign, omega, elementary.sin(omega)
 
 
 @jit_noalloc
@@ -138,8 +139,8 @@ def slerp_on_arc(q0, q1, sign, omega, sin_omega, h, out):
         a = 0.0
         b = sign
     else:
-        a = math.sin((1.0 - h) * omega) / sin_omega
-        b = sign * math.sin(h * omega) / sin_omega
+        a = elementary.sin((1.0 - h) * omega) / sin_omega
+        b = sign * elementary.sin(h * omega) / sin_omega
     for i in range(4):
         out[i] = a * q0[i] + b * q1[i]
 

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from refexmc._jit import jit_noalloc
+from refexmc.core import elementary
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -33,4 +34,4 @@ def next_normal(state):
     """Standard normal draw (Box-Muller, one of the pair); advances ``state`` twice."""
     u1 = next_uniform(state)
     u2 = next_uniform(state)
-    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+    return math.sqrt(-2.0 * elementary.log(u1)) * elementary.cos(2.0 * math.pi * u2)

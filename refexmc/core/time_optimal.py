@@ -22,6 +22,7 @@ u = +-1: x3 e^-h, x2 + u x3 (1 - e^-h), x1 + x2 h + u x3 (h - 1 + e^-h); u = 0: 
 import math
 
 from refexmc._jit import jit_noalloc
+from refexmc.core import elementary
 
 # columns of a history row of fly_normalised
 TO_T, TO_X1, TO_X2, TO_X3, TO_U = 0, 1, 2, 3, 4
@@ -45,7 +46,7 @@ def sigma0(x1, x2, x3):
         return _sign(x1) * math.inf if x1 != 0.0 else 0.0
     if x3 <= a:  # the origin is out of reach from here (eq. 46): brake
         return _sign(x2) * math.inf
-    bracket = x1 + (x3 + a) / (x3 - a) * x2 - _sign(x2) * (x3 + a) * math.log(x3 / (x3 - a))
+    bracket = x1 + (x3 + a) / (x3 - a) * x2 - _sign(x2) * (x3 + a) * elementary.log(x3 / (x3 - a))
     return x3 / (x2 * x2) * bracket
 
 
@@ -61,7 +62,7 @@ def sigma2(x1, x2, x3):
     a = abs(x2)
     if x3 <= a:  # out of reach (eq. 46): brake
         return _sign(x2) * math.inf
-    return x1 + x2 - _sign(x2) * (x3 - a) * math.log(x3 / (x3 - a))
+    return x1 + x2 - _sign(x2) * (x3 - a) * elementary.log(x3 / (x3 - a))
 
 
 @jit_noalloc
@@ -86,7 +87,7 @@ def advance(x1, x2, x3, u, h):
     """eq. 21 over ``h`` with ``u`` held: the closed form (module doc)."""
     if u == 0.0:
         return x1 + x2 * h, x2, x3
-    decay = math.exp(-h)
+    decay = elementary.exp(-h)
     return x1 + x2 * h + u * x3 * (h - 1.0 + decay), x2 + u * x3 * (1.0 - decay), x3 * decay
 
 
