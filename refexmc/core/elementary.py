@@ -140,6 +140,8 @@ _QS4 = 7.70381505559019352791e-02
 _ASIN_NEAR_ONE = 0.974999904632568359375  # high word >= 0x3fef3333
 
 _VELTKAMP = 134217729.0  # 2**27 + 1
+_TINY_SPLIT = 2.0**-450  # Dekker products of numbers within these stay exact (no under/overflow)
+_HUGE_SPLIT = 2.0**450
 _TWO_M16 = 2.0**-16
 _TWO_M49 = 2.0**-49
 
@@ -335,10 +337,15 @@ def exp(x):
         return 1.0 + x
     xx = x * x
     c = x - xx * (_P1 + xx * (_P2 + xx * (_P3 + xx * (_P4 + xx * _P5))))
-    y = 1.0 + (x * c / (2.0 - c) - lo + hi)
+    t = x * c / (2.0 - c) - lo + hi  # e**x = (1 + t) 2**k
+    if k < -1021:  # subnormal result: 2**k and t 2**k each on the subnormal grid, one rounding
+        if k < -1074:  # (1 + t) 2**-1075 rounds to the least subnormal where t > 0, else to 0
+            return 5e-324 if t > 0.0 else 0.0
+        return math.ldexp(1.0, k) + math.ldexp(t, k)
+    y = 1.0 + t
     if k == 0:
         return y
-    return math.ldexp(y, k)  # exact scaling by 2**k (one rounding where the result is subnormal)
+    return math.ldexp(y, k)  # exact scaling by 2**k
 
 
 @jit_noalloc
@@ -369,20 +376,23 @@ def log(x):
 
 
 @jit_noalloc
-def _atan_positive(x):
-    """atan x for x >= 0 or NaN (fdlibm ``atan`` after its sign handling)."""
+def _atan_positive(x, tail):
+    """atan(x + tail) as ``(high, u)``, the value ``high - u``, for x >= 0 or NaN, ``tail`` far below
+    an ulp of ``x`` (fdlibm ``atan`` after its sign handling; the tail, atan2's division remainder,
+    enters as tail / (1 + x**2); atan2 adds pi to the two parts apart)."""
     if not x < 7.378697629483821e19:  # x >= 2**66 or NaN
         if x != x:
-            return x
-        return _ATAN_HI_3
+            return x, 0.0
+        return _ATAN_HI_3, 0.0
     if x < 0.4375:
         if x < 7.450580596923828e-09:  # 2**-27
-            return x
+            return x, -tail
         z = x * x
         w = z * z
         s1 = z * (_AT0 + w * (_AT2 + w * (_AT4 + w * (_AT6 + w * (_AT8 + w * _AT10)))))
         s2 = w * (_AT1 + w * (_AT3 + w * (_AT5 + w * (_AT7 + w * _AT9))))
-        return x - x * (s1 + s2)
+        return x, x * (s1 + s2) - tail / (1.0 + z)
+    slope_tail = 0.0 if tail == 0.0 else tail / (1.0 + x * x)
     if x < 1.1875:
         if x < 0.6875:
             hi, lo = _ATAN_HI_0, _ATAN_LO_0
@@ -400,15 +410,34 @@ def _atan_positive(x):
     w = z * z
     s1 = z * (_AT0 + w * (_AT2 + w * (_AT4 + w * (_AT6 + w * (_AT8 + w * _AT10)))))
     s2 = w * (_AT1 + w * (_AT3 + w * (_AT5 + w * (_AT7 + w * _AT9))))
-    return hi - (x * (s1 + s2) - lo - x)
+    return hi, (x * (s1 + s2) - lo - x) - slope_tail
 
 
 @jit_noalloc
 def atan(x):
     """arctan x in [-pi/2, pi/2] (fdlibm ``atan``); odd exactly."""
-    if x < 0.0:
-        return -_atan_positive(-x)
-    return _atan_positive(x)
+    high, u = _atan_positive(math.fabs(x), 0.0)
+    z = high - u
+    return -z if x < 0.0 else z
+
+
+@jit_noalloc
+def _quotient_tail(a, b):
+    """``a / b - fl(a / b)`` to a few ulps of itself (a Dekker product gives the exact remainder
+    ``a - q b``), for positive ``a``, ``b`` within 2**-450 .. 2**450 (else 0): without it, the rounding
+    of y / x alone puts fdlibm's atan2 up to 1.3 ulp off."""
+    if not (_TINY_SPLIT < a < _HUGE_SPLIT and _TINY_SPLIT < b < _HUGE_SPLIT):
+        return 0.0
+    q = a / b
+    if not _TINY_SPLIT < q < _HUGE_SPLIT:
+        return 0.0
+    p = q * b
+    q_high = _split_high(q)
+    b_high = _split_high(b)
+    q_low = q - q_high
+    b_low = b - b_high
+    product_error = ((q_high * b_high - p) + q_high * b_low + q_low * b_high) + q_low * b_low  # q b - p, exact
+    return ((a - p) - product_error) / b  # a - p is exact (Sterbenz)
 
 
 @jit_noalloc
@@ -434,9 +463,14 @@ def atan2(y, x):
         return -z if y_negative else z
     if ay == math.inf:
         return -_PIO2_HI if y_negative else _PIO2_HI
-    z = _atan_positive(ay / ax)  # y / x overflowing to inf gives pi/2, as fdlibm's |y/x| > 2**64 test
-    if x_negative:
-        z = _PI - (z - _PI_LO)
+    high, u = _atan_positive(ay / ax, _quotient_tail(ay, ax))  # y / x = inf: pi/2 (fdlibm's 2**64 test)
+    if x_negative:  # pi - (high - u), pi - high exactly (Knuth's two-sum): one rounding at the end
+        s = _PI - high
+        moved = s - _PI
+        e = (_PI - (s - moved)) - (high + moved)
+        z = s + (e + (_PI_LO + u))
+    else:
+        z = high - u
     return -z if y_negative else z
 
 
