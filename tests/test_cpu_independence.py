@@ -5,7 +5,7 @@ A subprocess stands in for another CPU: numpy limited to SSE4.2 (``NPY_ENABLE_CP
 ``NPY_DISABLE_CPU_FEATURES`` does not turn AVX-512 off), numpy's OpenBLAS on another kernel set
 (``OPENBLAS_CORETYPE``: Nehalem's SSE kernels without FMA, Haswell's and Zen's with it, SkylakeX's
 AVX-512 ones where the CPU has AVX-512), glibc's libm without its FMA/AVX2 variants
-(``GLIBC_TUNABLES``; the draws only, see below), numba compiling for ``NUMBA_CPU_NAME=generic``
+(``GLIBC_TUNABLES``), numba compiling for ``NUMBA_CPU_NAME=generic``
 (x86-64 baseline: SSE2, no FMA), in a cold kernel cache of its own. On the old sampler (numpy's
 ``np.exp``, LAPACK's eigh and BLAS products for the inertia, libm's sin/cos/atan2 for rotations)
 each of these changed some draws by an ulp on an AVX-512 machine with FMA; on the old packing
@@ -190,6 +190,7 @@ def _cpu_variants(tmp_path):
         for name, flags in CORETYPES.items()
         if flags <= CPU_FLAGS
     }
+    variants["glibc-without-fma-variants"] = NO_FMA_LIBM  # the flights call no libm (core/elementary.py)
     variants["sse42-nehalem-generic"] = {
         **OLD_CPU,
         "NUMBA_CPU_NAME": "generic",
@@ -228,8 +229,10 @@ def _fly_concurrently(tmp_path, variants, timeout=1200):
 def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(tmp_path):
     """A few runs of every vehicle family (thrusters, feeds, wheels with and without a detected
     failure, local, orbit with LP, attitude only, entry), flown here and in subprocesses under
-    each of :func:`_cpu_variants`: every runs-table value the same bits. glibc's libm keeps its
-    variant: the flight kernels call it (numba's math.exp, math.sin, ...), see docs/campaigns.md.
+    each of :func:`_cpu_variants`: every runs-table value the same bits, glibc's libm without its
+    FMA/AVX2 variants too. Before issue 37 the flight kernels called glibc's exp, sin, atan2, ...
+    (numba's math.exp, ...): without those variants 20 of 521 columns differed (IRASSI's pointing
+    and wheel momentum, X-38's entry columns); they now call refexmc.core.elementary.
     Before issue 32 the wheels' distribution matrix came from LAPACK's SVD and OpenBLAS's
     products: the IRASSI columns with a detected failure differed between OpenBLAS's Nehalem and
     Haswell kernels (and, without a failure, between two AVX-512 machines). ~3 min on 2 cores
@@ -419,12 +422,33 @@ def _fma_in(objects):
     return found
 
 
+# libm's rounded functions (the exact frexp, ldexp and sqrt's correctly rounded one are allowed)
+LIBM = re.compile(
+    r"^(?:__)?(?:sin|cos|tan|sincos|exp|exp2|expm1|log|log2|log10|log1p|pow|atan2|atan|asin|acos|sinh|cosh|tanh"
+    r"|asinh|acosh|atanh|hypot|cbrt|erf|erfc|lgamma|tgamma|fmod|remainder)f?(?:_finite)?$"
+)
+
+
+def _libm_calls_in(objects):
+    """{object file name: libm functions it calls}: the undefined symbols ``nm -u`` lists."""
+    found = {}
+    for batch in itertools.batched(objects, 200) if hasattr(itertools, "batched") else [objects]:
+        listing = subprocess.run(["nm", "-u", *map(str, batch)], capture_output=True, text=True, check=True).stdout
+        for part in re.split(r"\n(?=\S+\.o:\s*$)", listing, flags=re.MULTILINE):
+            name = part.split(":", 1)[0].strip()
+            called = sorted({line.split()[-1] for line in part.splitlines()[1:] if LIBM.match(line.split()[-1])})
+            if called:
+                found[Path(name).name] = called
+    return found
+
+
 CONTROL = """
+import math
 import numba
 
 @numba.njit(fastmath=True, cache=True)
 def multiply_add(a, b, c):
-    return a * b + c
+    return a * b + math.exp(c)
 
 multiply_add(1.0, 2.0, 3.0)
 """
@@ -435,9 +459,10 @@ def test_the_flight_kernels_have_no_fast_math_no_svml_and_no_fma(tmp_path):
     """Same bits on any CPU needs each kernel's arithmetic as written: numba compiles without
     fast-math (refexmc._jit), so LLVM contracts no a * b + c into an FMA, which would round once
     where the source rounds twice and only where the CPU has FMA; and without Intel's SVML (its
-    vector sin, exp, ... are not libm's). Scanned: the machine code of every kernel in the
-    on-disk cache after flying ReFEx and IRASSI runs. The scan finds the FMA that a fast-math
-    kernel gets on a CPU with FMA (the control)."""
+    vector sin, exp, ... are not libm's); and no call to libm's exp, sin, pow, ... at all, whose
+    variants glibc picks per CPU (issue 37: refexmc.core.elementary instead). Scanned: the machine
+    code of every kernel in the on-disk cache after flying a run of every family. The scan finds
+    the FMA and the call to ``exp`` of a fast-math kernel (the control)."""
     import numba
 
     from refexmc._jit import JIT_OPTIONS, cache_dir
@@ -446,16 +471,19 @@ def test_the_flight_kernels_have_no_fast_math_no_svml_and_no_fma(tmp_path):
 
     assert JIT_OPTIONS["fastmath"] is False
     assert not numba.config.USING_SVML
-    for name in ("smoke", "irassi-fine-pointing"):
+    for _, name, _, changes in CAMPAIGNS:
         campaign = load_campaign(ROOT / "campaigns" / f"{name}.yaml")
-        campaign["runs"] = 2
-        fly_chunk(campaign, range(2))
+        campaign.update(changes, runs=1)
+        fly_chunk(campaign, range(1))
     (tmp_path / "kernels").mkdir()
     objects = _kernel_objects(cache_dir(), tmp_path / "kernels")
     assert len(objects) >= 20, f"{len(objects)} kernels in {cache_dir()}"
     assert not _fma_in(objects), "kernels with FMA instructions"
+    assert not _libm_calls_in(objects), "kernels calling libm (refexmc.core.elementary has them all)"
     if "fma" in Path("/proc/cpuinfo").read_text().split():
         (tmp_path / "control").mkdir()
         (tmp_path / "control.py").write_text(CONTROL)
         _python("import control", [], {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(tmp_path)})
-        assert _fma_in(_kernel_objects(tmp_path / "cache", tmp_path / "control"))
+        control = _kernel_objects(tmp_path / "cache", tmp_path / "control")
+        assert _fma_in(control)
+        assert list(_libm_calls_in(control).values()) == [["exp"]]
