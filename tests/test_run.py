@@ -5,6 +5,7 @@ worker deaths happen in the middle of a campaign while the tests stay short.
 """
 
 import io
+import json
 import os
 import signal
 import subprocess
@@ -123,6 +124,25 @@ def test_resume_of_a_different_campaign_is_refused(tmp_path, change):
         result = invoke_run(campaign, "-o", out, "--resume", *change)
     assert result.exit_code == 2, result.output
     assert "different campaign" in result.output and "Traceback" not in result.output
+    assert result.output.startswith("error: ") and len(result.output.strip().splitlines()) == 1
+    assert snapshot(out) == before
+
+
+@pytest.mark.parametrize("flown_by", ["0123456789abcdef", None], ids=["other-flight-code", "before-issue-37"])
+def test_resume_of_an_output_flown_by_other_flight_code_is_refused(tmp_path, flown_by):
+    """A partial OUT whose manifest names other flight code (or none: written before issue 37
+    changed every flight's bits) is not finished with this code's bits: exit 2, one line, untouched."""
+    campaign = campaign_file(tmp_path, runs=3)
+    out = tmp_path / "out"
+    assert invoke_run(campaign, "-o", out, "--no-progress").exit_code == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["flight_code"] == run_module.storage.flight_code()
+    manifest = {**manifest, "status": "running", "flight_code": flown_by}
+    (out / "manifest.json").write_text(json.dumps({k: v for k, v in manifest.items() if v is not None}))
+    before = snapshot(out)
+    result = invoke_run(campaign, "-o", out, "--resume", "--no-progress")
+    assert result.exit_code == 2, result.output
+    assert "other flight code" in result.output and (flown_by or "before issue 37") in result.output
     assert result.output.startswith("error: ") and len(result.output.strip().splitlines()) == 1
     assert snapshot(out) == before
 

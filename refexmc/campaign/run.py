@@ -125,6 +125,14 @@ def check_resumable(out, campaign, extend=False):
             "use --overwrite or another -o",
             file=out,
         )
+    if manifest.get("flight_code") != storage.flight_code():
+        flown_by = manifest.get("flight_code") or "code of before issue 37, which recorded none"
+        raise ConfigError(
+            f"cannot resume: its runs were flown by other flight code ({flown_by}; now {storage.flight_code()}: "
+            "refexmc/core or numba changed), whose bits the runs flown now would not match; "
+            "use --overwrite or another -o",
+            file=out,
+        )
     return manifest
 
 

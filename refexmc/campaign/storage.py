@@ -262,6 +262,22 @@ def campaign_digest(campaign):
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+@functools.cache
+def flight_code():
+    """sha256 (16 hex digits) of what flies a run: ``refexmc/_jit.py``, ``refexmc/core/*.py`` and
+    numba's version (not imported: the writing process never flies). Any change there may move a
+    run's last bits (issue 37 moved every flight's), so ``--resume`` refuses an output whose
+    manifest names other flight code (campaign.run.check_resumable): its runs and the ones flown
+    now would not be one campaign's bits."""
+    package = Path(refexmc.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted([package / "_jit.py", *(package / "core").glob("*.py")]):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    digest.update(metadata.version("numba").encode())
+    return digest.hexdigest()[:16]
+
+
 def manifest(campaign_file, campaign, chunk_size, status, started, finished=None, counts=None, **extra):
     """manifest.json content; ``extra`` (execution details: jobs, backend, ...) is added as is."""
     data = Path(campaign_file).read_bytes() if campaign_file else b""
@@ -270,6 +286,7 @@ def manifest(campaign_file, campaign, chunk_size, status, started, finished=None
         "python": platform.python_version(),
         "numpy": np.__version__,
         "numba": metadata.version("numba"),  # not imported: the writing process never flies
+        "flight_code": flight_code(),
         "pyarrow": pa.__version__,
         "campaign_file": str(campaign_file) if campaign_file else None,
         "campaign_sha256": hashlib.sha256(data).hexdigest(),
