@@ -1,4 +1,4 @@
-"""Correctly rounded exp, sin, cos and atan2, elementwise: the same bits on every CPU.
+"""Correctly rounded exp, log, pow, sin, cos, asin and atan2, elementwise: the same bits on every CPU.
 
 A campaign's draws must not depend on the machine that draws them (a campaign and seed give the
 same runs table anywhere). Two ways the usual functions do:
@@ -34,6 +34,21 @@ def _elementwise(function, *arguments):
 def exp(x):
     """e**x of each element, correctly rounded."""
     return _elementwise(_BINARY64.exp, x)
+
+
+def log(x):
+    """Natural logarithm of each element, correctly rounded (-inf at 0, NaN below)."""
+    return _elementwise(_BINARY64.log, x)
+
+
+def pow(x, y):  # noqa: A001 - the C name; refexmc.crmath.pow never shadows the builtin where imported
+    """x**y of each pair of elements, correctly rounded."""
+    return _elementwise(_BINARY64.pow, x, y)
+
+
+def asin(x):
+    """arcsin of each element (radians, in [-pi/2, pi/2]; NaN outside [-1, 1]), correctly rounded."""
+    return _elementwise(_BINARY64.asin, x)
 
 
 def sin(x):

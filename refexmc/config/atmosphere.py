@@ -7,11 +7,11 @@ that package at 1000 altitudes.
 """
 
 import functools
-import math
 from pathlib import Path
 
 import numpy as np
 
+from refexmc import crmath
 from refexmc.core.atmosphere import ATMOSPHERE_COLUMNS
 
 USSA1976_CSV = Path(__file__).resolve().parents[2] / "configs" / "atmospheres" / "ussa1976.csv"
@@ -24,7 +24,7 @@ def _read(path):
         raise ValueError(f"{path}: expected rows altitude_m,density,speed_of_sound,temperature, altitude increasing")
     table = np.empty((data.shape[0], ATMOSPHERE_COLUMNS))
     table[:, 0] = data[:, 0]
-    table[:, 1] = [math.log(rho) for rho in data[:, 1]]  # scalar libm: the same bits on every CPU
+    table[:, 1] = crmath.log(data[:, 1])  # correctly rounded: the same bits on every CPU
     table[:, 2] = data[:, 2]
     table[:, 3] = data[:, 3]
     table.setflags(write=False)

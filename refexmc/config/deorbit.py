@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from refexmc import crmath
 from refexmc.config.errors import ConfigError
 from refexmc.core import deorbit, orbit
 from refexmc.core import layout as L
@@ -37,12 +38,28 @@ class Plan(NamedTuple):
     entry_time_s: float
 
 
+def _crmath_sin(x):
+    return float(crmath.sin(x))  # correctly rounded: math.sin is glibc's, whose variant depends on the CPU
+
+
+def _crmath_cos(x):
+    return float(crmath.cos(x))
+
+
+def _crmath_asin(x):
+    return float(crmath.asin(x))
+
+
+def _crmath_atan2(y, x):
+    return float(crmath.atan2(y, x))
+
+
 def _circular_state(radius, mu, inclination, node, latitude_argument, mass):
     """ECI state of a circular orbit (right ascension ``node``, argument of latitude)."""
     speed = math.sqrt(mu / radius)
-    cu, su = math.cos(latitude_argument), math.sin(latitude_argument)
-    ci, si = math.cos(inclination), math.sin(inclination)
-    co, so = math.cos(node), math.sin(node)
+    cu, su = _crmath_cos(latitude_argument), _crmath_sin(latitude_argument)
+    ci, si = _crmath_cos(inclination), _crmath_sin(inclination)
+    co, so = _crmath_cos(node), _crmath_sin(node)
     position = radius * np.array([co * cu - so * su * ci, so * cu + co * su * ci, su * si])
     velocity = speed * np.array([-co * su - so * cu * ci, -so * su + co * cu * ci, cu * si])
     return np.concatenate([position, velocity, [mass]])
@@ -65,7 +82,8 @@ class _Flight:
         self.ignition = plan["deorbit"]["burn_start_s"]
         self.stage = np.zeros((6, orbit.ORBIT_STATE_SIZE))
         self.prev = np.zeros(orbit.ORBIT_STATE_SIZE)
-        self.period = 2 * math.pi * math.sqrt((earth["radius_m"] + plan["altitude_m"]) ** 3 / self.mu)
+        orbit_radius = earth["radius_m"] + plan["altitude_m"]
+        self.period = 2 * math.pi * math.sqrt(orbit_radius * orbit_radius * orbit_radius / self.mu)
 
     def at_ignition(self, state0):
         """Coast from t = 0 to ignition with the core's step (the control period)."""
@@ -138,14 +156,14 @@ def plan(vehicle, mission, fsw_period, guidance_period, where=None):
     inclination = math.radians(spec["inclination_deg"])
     mass = vehicle["mass_kg"]
     latitude = math.radians(target["entry_latitude_deg"])
-    if abs(math.sin(latitude)) > math.sin(inclination) + 1e-12:
+    if abs(_crmath_sin(latitude)) > _crmath_sin(inclination) + 1e-12:
         raise ConfigError(
             f"an orbit inclined {spec['inclination_deg']:g} deg never reaches latitude "
             f"{target['entry_latitude_deg']:g} deg",
             **where,
         )
     max_duration = vehicle["main_engine"]["propellant_kg"] / flight.mass_flow
-    u_target = math.asin(max(-1.0, min(1.0, math.sin(latitude) / math.sin(inclination))))
+    u_target = _crmath_asin(max(-1.0, min(1.0, _crmath_sin(latitude) / _crmath_sin(inclination))))
     if target["pass"] == "descending":
         u_target = math.pi - u_target
     # The burn time sets the inertial entry; the Earth-relative flight-path angle also depends a
@@ -172,10 +190,10 @@ def plan(vehicle, mission, fsw_period, guidance_period, where=None):
 
 def _latitude_argument(position, inclination, node):
     """Argument of latitude of ``position`` in the orbit plane (node, inclination)."""
-    co, so = math.cos(node), math.sin(node)
+    co, so = _crmath_cos(node), _crmath_sin(node)
     x = co * position[0] + so * position[1]  # toward the ascending node
-    y = (-so * position[0] + co * position[1]) * math.cos(inclination) + position[2] * math.sin(inclination)
-    return math.atan2(y, x)
+    y = (-so * position[0] + co * position[1]) * _crmath_cos(inclination) + position[2] * _crmath_sin(inclination)
+    return _crmath_atan2(y, x)
 
 
 def _wrap(angle):

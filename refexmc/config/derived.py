@@ -296,7 +296,7 @@ def deadbands(vehicle, level):
     with np.errstate(divide="ignore", invalid="ignore"):  # 0 / 0 where a gain and the torque are 0
         rate = np.where(kd > 0.0, tau_min / (scale * kd), np.inf)
         ratio = np.where(kp > 0.0, tau_min / (scale * kp), np.inf)
-    angle = np.where(ratio < 1.0, 2.0 * np.arcsin(np.minimum(ratio, 1.0)), np.pi)  # beyond 1: never fires
+    angle = np.where(ratio < 1.0, 2.0 * crmath.asin(np.minimum(ratio, 1.0)), np.pi)  # beyond 1: never fires
     return rate, np.where(kp > 0.0, angle, np.inf)  # inf: no gain, the error is never acted on
 
 
@@ -587,7 +587,11 @@ def _distribute_torque(vehicle, torque):
 
 def gravity_gradient_coefficient(bodies):
     """sum mu_k / r_k^3 over the bodies (1/s^2) of 001 eq. 11 (the Sun and the Earth seen from L2)."""
-    return float(sum(body["mu_m3_s2"] / body["distance_m"] ** 3 for body in bodies))
+    total = 0.0
+    for body in bodies:
+        r = body["distance_m"]
+        total += body["mu_m3_s2"] / (r * r * r)  # not r ** 3: glibc's pow, whose variant depends on the CPU
+    return float(total)
 
 
 def initial_rotation_vector(initial):

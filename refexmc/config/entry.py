@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from refexmc import smallmatrix
+from refexmc import crmath, smallmatrix
 from refexmc.config import schema
 
 # The core (numba) is imported only where arrays are packed: validating a file stays numba-free.
@@ -274,7 +274,7 @@ def entry_vehicle(
     truth = nominal
     if density_factor != 1.0 or coefficient_factors:
         atmosphere = nominal.atmosphere.copy()
-        atmosphere[:, 1] += math.log(density_factor)
+        atmosphere[:, 1] += float(crmath.log(density_factor))  # correctly rounded: any CPU's bits
         coefficients = nominal.coefficients.copy()
         slots = coefficient_slots()
         for key, factor in (coefficient_factors or {}).items():
@@ -391,7 +391,7 @@ def design(vehicle):
             "qbar_pa": list(HINGE_CHECK_QBAR_PA),
             "deflection_deg": [min(r, flaps["max_deg"]) for r in reach],
             "binds_above_qbar_pa": flaps["hinge_moment_max_n_m"]
-            / (2.0 * flaps["hinge_area_arm_m3"] * math.sin(worst) ** 2),
+            / (2.0 * flaps["hinge_area_arm_m3"] * float(crmath.sin(worst) * crmath.sin(worst))),
         }
     if "blocked" in flaps:
         out["flaps"]["blocked"] = dict(flaps["blocked"])

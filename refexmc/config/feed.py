@@ -8,18 +8,25 @@ exhaust velocity, blow-down time constant, thrusts and total impulse.
 
 import math
 
+from refexmc import crmath
 from refexmc.config import schema
 
 MODELS = {"constant": 0, "blow_down": 1, "regulated": 2}
 AMBIENT_PRESSURE_DEFAULT_PA = schema.FEED["properties"]["ambient_pressure_pa"]["default"]  # declared in the schema
 
 
+def _pow(x, y):
+    """x**y correctly rounded (refexmc.crmath): Python's ``**`` is glibc's pow, whose variant and
+    last bit depend on the CPU (docs/campaigns.md); these feed every cold-gas run."""
+    return float(crmath.pow(x, y))
+
+
 def area_ratio(mach, gamma):
     """A_e / A_t at exit Mach number ``mach``: (1/M) [(2/(gamma+1)) (1 + (gamma-1)/2 M^2)]^((gamma+1)/(2(gamma-1)))
     (Sutton eq. 3-14). 002 eq. 6 as printed leaves 2/(gamma+1) outside the power, which gives
     1.58 instead of 1 at the throat (M = 1, gamma = 1.4): a misprint, not used."""
-    base = (2.0 / (gamma + 1.0)) * (1.0 + 0.5 * (gamma - 1.0) * mach**2)
-    return base ** ((gamma + 1.0) / (2.0 * (gamma - 1.0))) / mach
+    base = (2.0 / (gamma + 1.0)) * (1.0 + 0.5 * (gamma - 1.0) * mach * mach)
+    return _pow(base, (gamma + 1.0) / (2.0 * (gamma - 1.0))) / mach
 
 
 def exit_mach(expansion_ratio, gamma):
@@ -44,14 +51,14 @@ def exit_mach(expansion_ratio, gamma):
 def thrust_coefficient(expansion_ratio, gamma):
     """Vacuum thrust coefficient C_F = F / (A_t P_c) at P_a = 0: the bracket of 002 eq. 15."""
     mach = exit_mach(expansion_ratio, gamma)
-    base = 1.0 + 0.5 * (gamma - 1.0) * mach**2
-    momentum = gamma * mach * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (2.0 * (gamma - 1.0))) * base**-0.5
-    return momentum + expansion_ratio * base ** (-gamma / (gamma - 1.0))
+    base = 1.0 + 0.5 * (gamma - 1.0) * mach * mach
+    momentum = gamma * mach * _pow(2.0 / (gamma + 1.0), (gamma + 1.0) / (2.0 * (gamma - 1.0))) / math.sqrt(base)
+    return momentum + expansion_ratio * _pow(base, -gamma / (gamma - 1.0))
 
 
 def flow_factor(gamma):
     """Gamma of 002 eq. 10: mdot = A_t P_c Gamma / sqrt(R T)."""
-    return math.sqrt(gamma * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (gamma - 1.0)))
+    return math.sqrt(gamma * _pow(2.0 / (gamma + 1.0), (gamma + 1.0) / (gamma - 1.0)))
 
 
 def nozzle_constants(heat_capacity_ratio, expansion_ratio):
