@@ -142,7 +142,8 @@ def _hex_rows(rows):
 
 def test_irassi_runs_without_gauss_markov_error_keep_their_bits():
     """baselines/irassi-white: 5 runs of the IRASSI campaign as it was before issue 35, flown by
-    the code just before issue 35 merged (white estimator noise, one undetected failed wheel in run 3).
+    the code just before issue 35 merged (white estimator noise, one undetected failed wheel in run 3),
+    re-flown by issue 37 (core/elementary.py moved every flight's last bits; a pin since).
     Its files keep the names of before issue 34 (``separation.*``, ``theta_t_handover_deg``): the old
     campaign still loads, and its rows are the same bits under the new names (config.renames)."""
     folder = ROOT / "baselines/irassi-white"

@@ -104,7 +104,8 @@ def test_zero_noise_flies_the_surveyor_hop_of_before_bit_for_bit(tmp_path):
     """baselines/surveyor-hop-40: runs 0-39 of campaigns/surveyor-hop.yaml flown by main before the
     navigation noise (commit bc41557, 3 of them with a stuck valve), regenerated on purpose by
     issue 33 (each segment's thrust over the mass at its points, Simpson's rule: every run moved
-    by micrometres, four changed a valve decision). With every new sigma a constant 0 the table
+    by micrometres, four changed a valve decision) and by issue 37 (core/elementary.py: every
+    flight's last bits; a pin since). With every new sigma a constant 0 the table
     is the same, bit for bit, apart from the constant columns of the new paths."""
     text = (ROOT / "campaigns/surveyor-hop.yaml").read_text()
     replace = []
