@@ -6,7 +6,7 @@ last bits between machines and targets (docs/campaigns.md, "The flights and elem
 functions"). These are ports of Sun's fdlibm as musl libc carries it (function names cited per
 function), evaluated in a fixed order with IEEE operations that are correctly rounded on every
 target (+ - * /, ``math.sqrt``), comparisons, ``math.fabs``/``copysign``, and the exact scalings
-``math.frexp``/``math.ldexp``; no other libm call, and no fused multiply-add (numba compiles
+``math.frexp``; no other libm call, and no fused multiply-add (numba compiles
 without fast-math; the CUDA side compiles without contraction). fdlibm's bit manipulations are
 replaced by arithmetic equivalents: exponent tests by comparisons with the constant they encode,
 the low-word zeroing of asin/acos/tan by a Veltkamp split (``_split_high``), which leaves an
@@ -143,6 +143,9 @@ _VELTKAMP = 134217729.0  # 2**27 + 1
 _TINY_SPLIT = 2.0**-450  # Dekker products of numbers within these stay exact (no under/overflow)
 _HUGE_SPLIT = 2.0**450
 _TWO_M16 = 2.0**-16
+_TWO_P62 = 2.0**62
+_TWO_M62 = 2.0**-62
+_TWO_M1022 = 2.0**-1022
 _TWO_M49 = 2.0**-49
 
 
@@ -341,11 +344,28 @@ def exp(x):
     if k < -1021:  # subnormal result: 2**k and t 2**k each on the subnormal grid, one rounding
         if k < -1074:  # (1 + t) 2**-1075 rounds to the least subnormal where t > 0, else to 0
             return 5e-324 if t > 0.0 else 0.0
-        return math.ldexp(1.0, k) + math.ldexp(t, k)
+        step = _times_power_of_two(1.0, k + 1022)  # 2**(k + 1022), k + 1022 in [-52, -1]: exact
+        return step * _TWO_M1022 + (t * step) * _TWO_M1022  # one rounding, in the last product
     y = 1.0 + t
     if k == 0:
         return y
-    return math.ldexp(y, k)  # exact scaling by 2**k
+    return _times_power_of_two(y, k)
+
+
+@jit_noalloc
+def _times_power_of_two(y, k):
+    """``y * 2**k`` exactly where every partial product is normal (what math.ldexp gives; numba's
+    ldexp is a call into its C helpers, ~5x the time of this): steps of 2**62, then one of
+    ``float(1 << |k|)``."""
+    while k > 62:
+        y *= _TWO_P62
+        k -= 62
+    while k < -62:
+        y *= _TWO_M62
+        k += 62
+    if k >= 0:
+        return y * float(1 << k)
+    return y / float(1 << -k)
 
 
 @jit_noalloc
