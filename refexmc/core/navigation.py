@@ -50,7 +50,7 @@ def calibration_factor(nav, time_calibrating):
 
 @jit_noalloc
 def gauss_markov_coefficients(dt, tau):
-    """(a, sqrt(1 - a^2)) of the exact discrete first-order Gauss-Markov step ``dt`` (scalar libm)."""
+    """(a, sqrt(1 - a^2)) of the exact discrete first-order Gauss-Markov step ``dt`` (core.elementary)."""
     a = elementary.exp(-dt / tau)
     return a, math.sqrt(1.0 - a * a)
 
