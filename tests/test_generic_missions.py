@@ -35,9 +35,10 @@ def _bits(column):
 
 def test_smoke_runs_table_is_bit_identical_to_the_baseline():
     """baselines/smoke was flown by the seven-mode loop before the mode program: same table, bit for
-    bit (its values re-flown by issue 37, which moved every flight's last bits: core/elementary.py,
-    a pin since). It was written before issue 34's names: read through storage, its theta_t_handover_deg and
-    p.separation.* columns are attitude_error_end_deg and p.initial_state.*, nothing else changed."""
+    bit (issue 37's elementary functions, core/elementary.py, left these 20 runs' bits unchanged; the
+    IRASSI and hop baselines moved). It was written before issue 34's names: read through storage,
+    its theta_t_handover_deg and p.separation.* columns are attitude_error_end_deg and
+    p.initial_state.*, nothing else changed."""
     campaign = load_campaign(ROOT / "campaigns/smoke.yaml")
     rows, _ = fly_chunk(campaign, range(campaign["runs"]))
     flown = storage.runs_table(rows)

@@ -21,7 +21,6 @@ from refexmc.config.load import apply_overrides, load_campaign, load_mission
 from refexmc.report import data
 
 BASELINE = ROOT / "baselines" / "smoke"  # written before issue 34: p.separation.*, theta_t_handover_deg
-# (its values re-flown by issue 37's elementary functions, under the old names)
 OLD_COLUMNS = ("theta_t_handover_deg", "p.separation.rates_deg_s.x", "p.separation.attitude_error_deg.z")
 NEW_COLUMNS = ("attitude_error_end_deg", "p.initial_state.rates_deg_s.x", "p.initial_state.attitude_rotvec_deg.z")
 
@@ -157,7 +156,8 @@ def test_an_old_output_resumes_under_the_new_names(tmp_path):
     storage.write_table_atomic(first, out / "runs" / storage.part_name(0))
     storage.write_table_atomic(storage.empty_history_table(), out / "histories" / storage.part_name(0))
     manifest = json.loads((out / "manifest.json").read_text())
-    # flown by this flight code (the baseline's bits were re-flown by issue 37's; the manifest is older)
+    # as if flown by this flight code: its manifest is older, but issue 37's elementary functions
+    # (which --resume refuses for) left these 20 runs' bits as they were (test_generic_missions)
     manifest = {**manifest, "chunk_size": 10, "status": "running", "flight_code": storage.flight_code()}
     (out / "manifest.json").write_text(json.dumps(manifest))
     smoke = tmp_path / "smoke.yaml"
