@@ -181,10 +181,60 @@ def cuda_unavailable():
 
 
 def cuda_kernel(function):
-    """``function`` as a CUDA kernel (launched ``kernel[blocks, threads](...)``), fast-math off."""
+    """``function`` as a CUDA kernel (launched ``kernel[blocks, threads](...)``), fast-math off and
+    compiled without contraction (:func:`cuda_without_contraction`)."""
     from numba import cuda
 
-    return cuda.jit(fastmath=False)(function)
+    return _UncontractedKernel(cuda.jit(fastmath=False)(function))
+
+
+class _UncontractedKernel:
+    """A numba-cuda kernel whose launches (the first one compiles it) run under
+    :func:`cuda_without_contraction`."""
+
+    def __init__(self, dispatcher):
+        self.dispatcher = dispatcher
+
+    def __getitem__(self, launch_configuration):
+        launcher = self.dispatcher[launch_configuration]
+
+        def launch(*args):
+            with cuda_without_contraction():
+                return launcher(*args)
+
+        return launch
+
+
+@contextlib.contextmanager
+def cuda_without_contraction():
+    """numba-cuda compiles with NVVM's default ``-fma=1`` even with fast-math off: a*b + c becomes
+    one fused multiply-add, rounded once, where the CPU rounds twice (about 2,100 ``fma.rn.f64`` in
+    each family's PTX). While this context is open, numba-cuda's NVVM compilations get ``-fma=0``,
+    so the device does each + and * as the CPU does. numba-cuda 0.30 has no public option for it
+    (its ``fastmath`` switches -fma on, never off): the option is added where numba-cuda turns its
+    options into NVVM's (``numba.cuda.cudadrv.nvvm.compile_ir``). ``make test-cuda`` compiles every
+    family's PTX under it and finds no ``fma``, so a numba-cuda that moves this fails there."""
+    if CUDA_SIMULATOR:  # the simulator runs Python: nothing is compiled
+        yield
+        return
+    from numba.cuda.cudadrv import nvvm
+
+    compile_ir = nvvm.compile_ir
+
+    def compile_ir_without_fma(llvmir, **options):
+        if not options.get("fastmath"):
+            options["fma"] = False
+        return compile_ir(llvmir, **options)
+
+    with _CUDA_COMPILE_PATCH:
+        nvvm.compile_ir = compile_ir_without_fma
+        try:
+            yield
+        finally:
+            nvvm.compile_ir = compile_ir
+
+
+_CUDA_COMPILE_PATCH = threading.RLock()
 
 
 def cuda_device(kernel):
