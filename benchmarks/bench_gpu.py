@@ -155,13 +155,39 @@ def compare_tables(cpu_out, gpu_out):
         for c in cpu.columns
         if c.startswith("p.") and cpu[c].dtype.kind == "f"
     )
+    columns_identical = all(c["bit_identical"] == c["of"] for c in columns.values())
+    every_value = (~same).sum() == 0 and parameters_equal and columns_identical
     return {
         "runs": len(common),
+        "every_value_bit_identical": bool(every_value),
         "outcome_differs": int((~same).sum()),
         "differing_runs": differing,
         "parameters_bit_identical": bool(parameters_equal),
         "columns": columns,
     }
+
+
+def compare_histories(cpu_out, gpu_out, runs=2000):
+    """The histories of the first ``runs`` runs of two OUTs, every column by its bits: the names of
+    the columns that differ (none where the GPU flies the CPU's bits)."""
+    import pyarrow.dataset as ds
+
+    def table(out):
+        data = ds.dataset(Path(out) / "histories", format="parquet")
+        frame = data.to_table(filter=ds.field("run_id") < runs).to_pandas()
+        return frame.sort_values(["run_id", "t_s"], ignore_index=True)
+
+    cpu, gpu = table(cpu_out), table(gpu_out)
+    if cpu.shape != gpu.shape or list(cpu.columns) != list(gpu.columns):
+        return {"runs": runs, "same_shape": False, "cpu": list(cpu.shape), "gpu": list(gpu.shape)}
+    differ = []
+    for name in cpu.columns:
+        a, b = cpu[name].to_numpy(), gpu[name].to_numpy()
+        if a.dtype.kind == "f":
+            a, b = a.view(f"u{a.itemsize}"), b.view(f"u{b.itemsize}")
+        if not np.array_equal(a, b):
+            differ.append(name)
+    return {"runs": runs, "same_shape": True, "samples": len(cpu), "columns_differing": differ}
 
 
 def report_time(out):
@@ -239,9 +265,11 @@ def main():
     gpu_out = work / f"gpu-{args.cpu_runs}"
     if cpu_out.exists() and gpu_out.exists():
         results["bits"] = compare_tables(cpu_out, gpu_out)
+        results["history_bits"] = compare_histories(cpu_out, gpu_out)
         done = sh([*REFEXMC, "compare", str(cpu_out), str(gpu_out)], cwd=ROOT)
         results["compare"] = {"exit": done.returncode, "output": done.stdout[-4000:]}
         print(json.dumps({k: v for k, v in results["bits"].items() if k != "columns"}, indent=1), flush=True)
+        print(json.dumps(results["history_bits"]), flush=True)
     if left() > 60 and args.sizes:
         first = args.sizes[0]
         _, _, _ = fly_gpu(first, work / f"gpu-{first}-rechunked", chunk_size=37)
