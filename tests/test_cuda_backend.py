@@ -300,3 +300,57 @@ def test_importing_refexmc_does_not_import_numba_cuda():
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert result.stdout.strip() == "[]"
+
+
+CACHE_KEYS = """
+import json
+from pathlib import Path
+
+from numba.cuda.dispatcher import CUDACache
+
+from refexmc import _jit, simulate_cuda
+from refexmc.campaign.chunk import RunPlan
+from refexmc.campaign.run import resolve_campaign
+from refexmc.core import flight
+
+
+class Codegen:  # what numba-cuda's codegen tells its cache: the CUDA runtime's version, the device's cc
+    def magic_tuple(self):
+        return ((12, 9), (9, 0))
+
+
+out = {}
+for name in ["smoke", "irassi-fine-pointing"]:
+    family = RunPlan(resolve_campaign(Path("campaigns") / f"{name}.yaml", runs=2)[1]).family
+    kernel = simulate_cuda._fly_runs(flight.kernel_parts(*family).fly_run)
+    keyed = _jit._keyed_cuda_cache(kernel, ("fly_runs", tuple(int(v) for v in family)))
+    out[name] = {
+        "keyed": repr(keyed._index_key(("signature",), Codegen())),
+        "numba_cuda": repr(CUDACache(kernel)._index_key(("signature",), Codegen())),
+        "in_cache_dir": str(keyed._cache_path).startswith(str(_jit.cache_dir())),
+    }
+print(json.dumps(out))
+"""
+
+
+@needs_numba_cuda
+@needs_jit
+def test_a_gpu_kernel_is_cached_under_its_family_the_same_in_every_process():
+    """numba-cuda keys a kernel closure by its pickled cells; the grid kernel's cell is the family's
+    jitted ``fly_run``, which pickles with a per-process uuid, so numba-cuda's key differs in every
+    process (the kernel would never be found again). refexmc's key is the family's: the same in
+    two processes, different for two families, and the entries live in refexmc's cache directory
+    (whose name hashes the core's source)."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+
+    def keys():
+        done = subprocess.run([sys.executable, "-c", CACHE_KEYS], cwd=ROOT, env=env, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-3000:]
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    first, second = keys(), keys()
+    assert first["smoke"]["keyed"] == second["smoke"]["keyed"]
+    assert first["irassi-fine-pointing"]["keyed"] == second["irassi-fine-pointing"]["keyed"]
+    assert first["smoke"]["keyed"] != first["irassi-fine-pointing"]["keyed"]
+    assert first["smoke"]["numba_cuda"] != second["smoke"]["numba_cuda"]  # why refexmc keys it itself
+    assert all(first[name]["in_cache_dir"] for name in first)
