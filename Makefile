@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo smoke baseline test test-fast test-cuda mutate bench bench-campaign lint format clean
+.PHONY: demo smoke baseline test test-fast test-cuda device-wheels mutate bench bench-campaign lint format clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -58,6 +58,13 @@ test-cuda: $(STAMP)
 ## makes them plain Python anyway). Hours on 2 cores, not in CI; MUTANTS='refexmc.core.navigation*' narrows it and
 ## a second run only tries what changed (docs/mutation.md)
 MUTATE_DIR := build/mutate
+# the wheels benchmarks/gpu_device.sh installs on a lent GPU machine (Python 3.12, no network there)
+DEVICE_WHEELS = numpy==2.4.6 numba-cuda==0.30.4 gmpy2 SALib multiprocess dill jsonschema jsonschema-specifications referencing rpds-py
+device-wheels: $(STAMP)
+	rm -rf .whl && $(VENV)/bin/pip download -q --no-deps --only-binary=:all: --python-version 3.12 \
+	  --implementation cp --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 \
+	  --platform manylinux2014_x86_64 --platform manylinux_2_24_x86_64 -d .whl $(DEVICE_WHEELS)
+
 mutate: $(STAMP)
 	mkdir -p $(MUTATE_DIR)
 	rm -rf $(MUTATE_DIR)/refexmc $(MUTATE_DIR)/tests

@@ -4,7 +4,9 @@ Made to fit one 10-minute call on a 16-core H100/H200 machine (``--budget-s``, d
 
 0. The machine: GPU (``nvidia-smi -L``), CPU model and cores, numpy / numba / numba-cuda versions.
 1. Warm-up: the CPU kernel cache (a 64-run ``refexmc run``), then the GPU kernel in this process
-   (numba-cuda's NVVM compile is not cached on disk: its time is reported apart, ``gpu_compile_s``).
+   (compiled or loaded from the disk cache: ``gpu_compile_s``), then a whole ``refexmc run --backend
+   cuda`` of 256 runs in a fresh process (``gpu_command_s``: interpreter, imports, the kernel from
+   the disk cache: the fixed cost a command adds to the in-process flight times below).
 2. GPU campaigns of 10^4, 10^5 and 10^6 runs (``run_campaign(..., backend="cuda")`` in this process:
    the ``refexmc run`` command without its interpreter start, kernel warm), histories as the
    campaign declares; wall time, runs/s, the largest ``memory.used`` nvidia-smi reports meanwhile.
@@ -155,13 +157,39 @@ def compare_tables(cpu_out, gpu_out):
         for c in cpu.columns
         if c.startswith("p.") and cpu[c].dtype.kind == "f"
     )
+    columns_identical = all(c["bit_identical"] == c["of"] for c in columns.values())
+    every_value = (~same).sum() == 0 and parameters_equal and columns_identical
     return {
         "runs": len(common),
+        "every_value_bit_identical": bool(every_value),
         "outcome_differs": int((~same).sum()),
         "differing_runs": differing,
         "parameters_bit_identical": bool(parameters_equal),
         "columns": columns,
     }
+
+
+def compare_histories(cpu_out, gpu_out, runs=2000):
+    """The histories of the first ``runs`` runs of two OUTs, every column by its bits: the names of
+    the columns that differ (none where the GPU flies the CPU's bits)."""
+    import pyarrow.dataset as ds
+
+    def table(out):
+        data = ds.dataset(Path(out) / "histories", format="parquet")
+        frame = data.to_table(filter=ds.field("run_id") < runs).to_pandas()
+        return frame.sort_values(["run_id", "t_s"], ignore_index=True)
+
+    cpu, gpu = table(cpu_out), table(gpu_out)
+    if cpu.shape != gpu.shape or list(cpu.columns) != list(gpu.columns):
+        return {"runs": runs, "same_shape": False, "cpu": list(cpu.shape), "gpu": list(gpu.shape)}
+    differ = []
+    for name in cpu.columns:
+        a, b = cpu[name].to_numpy(), gpu[name].to_numpy()
+        if a.dtype.kind == "f":
+            a, b = a.view(f"u{a.itemsize}"), b.view(f"u{b.itemsize}")
+        if not np.array_equal(a, b):
+            differ.append(name)
+    return {"runs": runs, "same_shape": True, "samples": len(cpu), "columns_differing": differ}
 
 
 def report_time(out):
@@ -204,6 +232,14 @@ def main():
     results["gpu_compile_s"] = time.perf_counter() - start
     gpu_warm = f"gpu compile + {4 * args.warm_runs} runs {results['gpu_compile_s']:.1f} s"
     print(f"warm: cpu {results['cpu_warm_s']:.1f} s, {gpu_warm}", flush=True)
+    # the whole command in a fresh process: the GPU kernel from the disk cache (compiled above), if
+    # numba-cuda's cache works here; else this includes the compile again
+    start = time.perf_counter()
+    done = sh([*REFEXMC, "run", str(CAMPAIGN), "--runs", str(4 * args.warm_runs), "--backend", "cuda", "-o",
+               str(work / "warm-gpu-command"), "--overwrite", "--no-progress"], cwd=ROOT)  # fmt: skip
+    results["gpu_command_s"] = {"runs": 4 * args.warm_runs, "wall_s": time.perf_counter() - start,
+                                "exit": done.returncode, "stderr": done.stderr[-1500:]}  # fmt: skip
+    print(f"a fresh `refexmc run --backend cuda` of {4 * args.warm_runs} runs: {results['gpu_command_s']}", flush=True)
 
     # 2. GPU campaigns
     rate = None
@@ -239,9 +275,11 @@ def main():
     gpu_out = work / f"gpu-{args.cpu_runs}"
     if cpu_out.exists() and gpu_out.exists():
         results["bits"] = compare_tables(cpu_out, gpu_out)
+        results["history_bits"] = compare_histories(cpu_out, gpu_out)
         done = sh([*REFEXMC, "compare", str(cpu_out), str(gpu_out)], cwd=ROOT)
         results["compare"] = {"exit": done.returncode, "output": done.stdout[-4000:]}
         print(json.dumps({k: v for k, v in results["bits"].items() if k != "columns"}, indent=1), flush=True)
+        print(json.dumps(results["history_bits"]), flush=True)
     if left() > 60 and args.sizes:
         first = args.sizes[0]
         _, _, _ = fly_gpu(first, work / f"gpu-{first}-rechunked", chunk_size=37)

@@ -180,11 +180,105 @@ def cuda_unavailable():
     return "no CUDA GPU or driver found here (NUMBA_ENABLE_CUDASIM=1 runs numba-cuda's simulator instead)"
 
 
-def cuda_kernel(function):
-    """``function`` as a CUDA kernel (launched ``kernel[blocks, threads](...)``), fast-math off."""
+def cuda_kernel(function, cache_key=None):
+    """``function`` as a CUDA kernel (launched ``kernel[blocks, threads](...)``), fast-math off and
+    compiled without contraction (:func:`cuda_without_contraction`). With a ``cache_key`` (a
+    repr-stable description of what ``function``'s closure captures), the compiled kernel is kept
+    on disk beside the CPU kernels (:func:`_keyed_cuda_cache`), and the first launch, which
+    compiles or loads it, holds :func:`cache_lock`."""
     from numba import cuda
 
-    return cuda.jit(fastmath=False)(function)
+    dispatcher = cuda.jit(fastmath=False)(function)
+    if cache_key is not None and not CUDA_SIMULATOR:
+        dispatcher._cache = _keyed_cuda_cache(function, cache_key)
+    return _UncontractedKernel(dispatcher)
+
+
+class _UncontractedKernel:
+    """A numba-cuda kernel whose launches (the first one compiles it) run under
+    :func:`cuda_without_contraction`, the first one under :func:`cache_lock` too."""
+
+    def __init__(self, dispatcher):
+        self.dispatcher = dispatcher
+        self.launched = False
+
+    def __getitem__(self, launch_configuration):
+        launcher = self.dispatcher[launch_configuration]
+
+        def launch(*args):
+            with cache_lock() if not self.launched else contextlib.nullcontext(), cuda_without_contraction():
+                result = launcher(*args)
+            self.launched = True
+            return result
+
+        return launch
+
+
+def _keyed_cuda_cache(function, cache_key):
+    """numba-cuda's disk cache for the kernel ``function``, keyed by ``cache_key`` where numba-cuda
+    keys a closure by its pickled cells: a cell holding a jitted CPU function pickles with that
+    dispatcher's per-process uuid, so numba-cuda's own key would never match in another process
+    (and its index would grow by one entry a run). The device functions' source is in the cache
+    directory's name (:func:`cache_dir`), the kernel's own bytecode and source stamp in numba-cuda's
+    key. A failure to load or save is a recompile, not a failed campaign."""
+    import warnings
+
+    from numba.cuda.core import config as cuda_config
+    from numba.cuda.dispatcher import CUDACache
+
+    cuda_config.CACHE_DIR = str(cache_dir() / "cuda")
+    stable = hashlib.sha256(repr(cache_key).encode()).hexdigest()
+
+    class KeyedCUDACache(CUDACache):
+        def _index_key(self, sig, codegen):
+            key = super()._index_key(sig, codegen)  # (sig, magic, version, (code, cells), [launch config])
+            return (*key[:3], (key[3][0], stable), *key[4:])
+
+        def load_overload(self, sig, target_context):
+            try:
+                return super().load_overload(sig, target_context)
+            except Exception:  # noqa: BLE001 - an unreadable entry is compiled again
+                return None
+
+        def save_overload(self, sig, data):
+            try:
+                super().save_overload(sig, data)
+            except Exception as exc:  # noqa: BLE001 - the kernel flies; only the next process recompiles
+                warnings.warn(f"the GPU kernel was not cached ({type(exc).__name__}: {exc})", stacklevel=2)
+
+    return KeyedCUDACache(function)
+
+
+@contextlib.contextmanager
+def cuda_without_contraction():
+    """numba-cuda compiles with NVVM's default ``-fma=1`` even with fast-math off: a*b + c becomes
+    one fused multiply-add, rounded once, where the CPU rounds twice (about 2,100 ``fma.rn.f64`` in
+    each family's PTX). While this context is open, numba-cuda's NVVM compilations get ``-fma=0``,
+    so the device does each + and * as the CPU does. numba-cuda 0.30 has no public option for it
+    (its ``fastmath`` switches -fma on, never off): the option is added where numba-cuda turns its
+    options into NVVM's (``numba.cuda.cudadrv.nvvm.compile_ir``). ``make test-cuda`` compiles every
+    family's PTX under it and finds no ``fma``, so a numba-cuda that moves this fails there."""
+    if CUDA_SIMULATOR:  # the simulator runs Python: nothing is compiled
+        yield
+        return
+    from numba.cuda.cudadrv import nvvm
+
+    compile_ir = nvvm.compile_ir
+
+    def compile_ir_without_fma(llvmir, **options):
+        if not options.get("fastmath"):
+            options["fma"] = False
+        return compile_ir(llvmir, **options)
+
+    with _CUDA_COMPILE_PATCH:
+        nvvm.compile_ir = compile_ir_without_fma
+        try:
+            yield
+        finally:
+            nvvm.compile_ir = compile_ir
+
+
+_CUDA_COMPILE_PATCH = threading.RLock()
 
 
 def cuda_device(kernel):

@@ -45,7 +45,9 @@ def grid_kernel(family):
     """The CUDA kernel of a vehicle family: thread k flies run k of a launch."""
     if family not in _grid_kernels:
         fly_run = _jit.cuda_device(flight.kernel_parts(*family).fly_run)
-        _grid_kernels[family] = _jit.cuda_kernel(_fly_runs(fly_run))
+        _grid_kernels[family] = _jit.cuda_kernel(
+            _fly_runs(fly_run), cache_key=("fly_runs", tuple(int(v) for v in family))
+        )
     return _grid_kernels[family]
 
 

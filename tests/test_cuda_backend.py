@@ -11,11 +11,13 @@ without it (``pip install 'refexmc[cuda]'``; ``make test`` installs it).
 import importlib.util
 import json
 import os
+import re
 import subprocess
 import sys
 import types
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -174,9 +176,10 @@ def _compile_ptx(campaign_name):
     0.30.4): without a driver it fails. The only thing asked of the driver is that number, so the
     device is stood in for by one of compute capability 9.0 while compiling.
     """
-    import numba
     import numba.cuda.dispatcher as cuda_dispatcher
     from numba import cuda
+    from numba.cuda import types as types_
+    from numba.cuda.compiler import compile_cuda
 
     from refexmc import simulate_cuda
     from refexmc.campaign.chunk import RunPlan
@@ -192,10 +195,28 @@ def _compile_ptx(campaign_name):
     real = cuda_dispatcher.get_current_device
     cuda_dispatcher.get_current_device = lambda: stand_in
     try:
-        ptx, _ = cuda.compile_ptx(kernel, signature, cc=(9, 0))
+        with _jit.cuda_without_contraction():
+            ptx, _ = cuda.compile_ptx(kernel, signature, cc=(9, 0))
+            # the NVVM IR numba-cuda hands to NVVM before libdevice is linked in: what it calls
+            ir = compile_cuda(kernel, types_.void, signature, cc=(9, 0)).library.get_llvm_str()
     finally:
         cuda_dispatcher.get_current_device = real
-    return ptx
+    return ptx, ir
+
+
+# libdevice functions whose result is exact (no rounding: any correct implementation gives the
+# same bits) and LLVM intrinsics NVVM lowers to IEEE-rounded instructions (sqrt.rn, ...)
+EXACT_DEVICE_FUNCTIONS = {
+    "__nv_frexp", "__nv_ldexp", "__nv_fabs", "__nv_floor", "__nv_ceil", "__nv_trunc", "__nv_copysign",
+    "__nv_isnand", "__nv_isinfd", "__nv_isfinited", "__nv_fmin", "__nv_fmax",
+    "llvm.sqrt.f64", "llvm.fabs.f64", "llvm.floor.f64", "llvm.ceil.f64", "llvm.trunc.f64",
+    "llvm.copysign.f64", "llvm.minnum.f64", "llvm.maxnum.f64",
+}  # fmt: skip
+
+
+def _math_called(ir):
+    """The libdevice functions and floating-point LLVM intrinsics the NVVM IR ``ir`` calls."""
+    return set(re.findall(r'@"?(__nv_\w+|llvm\.[a-z0-9_.]+\.f64)\b', ir))
 
 
 @needs_numba_cuda
@@ -204,10 +225,40 @@ def _compile_ptx(campaign_name):
 @pytest.mark.cuda
 @pytest.mark.parametrize("campaign_name", PTX_CAMPAIGNS)
 def test_every_gpu_familys_kernel_compiles_to_ptx_without_a_device(campaign_name):
-    ptx = _compile_ptx(campaign_name)
+    ptx, ir = _compile_ptx(campaign_name)
     assert ".entry" in ptx and ".target sm_90" in ptx
-    assert "fma.rn.f64" in ptx  # numba-cuda contracts a*b+c (NVVM -fma=1): not the CPU's bits (docs/gpu.md)
+    # the CPU's operations, each rounded as the CPU rounds it (docs/gpu.md): no contraction into
+    # fused multiply-adds (NVVM -fma=0) and no transcendental function of CUDA's libdevice (the
+    # core's own, refexmc/core/elementary.py, on both targets)
+    assert "fma.rn" not in ptx
+    assert _math_called(ir) <= EXACT_DEVICE_FUNCTIONS, _math_called(ir) - EXACT_DEVICE_FUNCTIONS
     assert np.char.count(ptx, "NRT_").sum() == 0  # no allocation, no reference counting on the device
+
+
+@needs_numba_cuda
+@needs_jit
+def test_without_contraction_nvvm_rounds_a_product_and_a_sum_separately():
+    """What :func:`refexmc._jit.cuda_without_contraction` is for, on a kernel with no device
+    function (compiles without a driver, in a second): numba-cuda's default NVVM options fuse
+    ``a * b + c`` into one ``fma.rn.f64``; under the context it stays ``mul.rn`` then ``add.rn``,
+    the CPU's two roundings. If numba-cuda ever stops contracting by default, the first half
+    fails: the context is then no longer needed (docs/gpu.md)."""
+    from numba import cuda
+
+    def axpy(out, a, b, c):
+        i = cuda.grid(1)
+        if i < out.shape[0]:
+            out[i] = a[i] * b[i] + c[i]
+
+    signature = (numba.float64[::1],) * 4
+    contracted, _ = cuda.compile_ptx(axpy, signature, cc=(9, 0))
+    with _jit.cuda_without_contraction():
+        separate, _ = cuda.compile_ptx(axpy, signature, cc=(9, 0))
+    assert "fma.rn.f64" in contracted
+    assert "fma.rn" not in separate and "mul.rn.f64" in separate and "add.rn.f64" in separate
+    from numba.cuda.cudadrv import nvvm
+
+    assert nvvm.compile_ir.__name__ == "compile_ir"  # the context put numba-cuda's function back
 
 
 def test_the_ptx_test_covers_every_family_of_the_shipped_campaigns():
@@ -249,3 +300,57 @@ def test_importing_refexmc_does_not_import_numba_cuda():
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert result.stdout.strip() == "[]"
+
+
+CACHE_KEYS = """
+import json
+from pathlib import Path
+
+from numba.cuda.dispatcher import CUDACache
+
+from refexmc import _jit, simulate_cuda
+from refexmc.campaign.chunk import RunPlan
+from refexmc.campaign.run import resolve_campaign
+from refexmc.core import flight
+
+
+class Codegen:  # what numba-cuda's codegen tells its cache: the CUDA runtime's version, the device's cc
+    def magic_tuple(self):
+        return ((12, 9), (9, 0))
+
+
+out = {}
+for name in ["smoke", "irassi-fine-pointing"]:
+    family = RunPlan(resolve_campaign(Path("campaigns") / f"{name}.yaml", runs=2)[1]).family
+    kernel = simulate_cuda._fly_runs(flight.kernel_parts(*family).fly_run)
+    keyed = _jit._keyed_cuda_cache(kernel, ("fly_runs", tuple(int(v) for v in family)))
+    out[name] = {
+        "keyed": repr(keyed._index_key(("signature",), Codegen())),
+        "numba_cuda": repr(CUDACache(kernel)._index_key(("signature",), Codegen())),
+        "in_cache_dir": str(keyed._cache_path).startswith(str(_jit.cache_dir())),
+    }
+print(json.dumps(out))
+"""
+
+
+@needs_numba_cuda
+@needs_jit
+def test_a_gpu_kernel_is_cached_under_its_family_the_same_in_every_process():
+    """numba-cuda keys a kernel closure by its pickled cells; the grid kernel's cell is the family's
+    jitted ``fly_run``, which pickles with a per-process uuid, so numba-cuda's key differs in every
+    process (the kernel would never be found again). refexmc's key is the family's: the same in
+    two processes, different for two families, and the entries live in refexmc's cache directory
+    (whose name hashes the core's source)."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+
+    def keys():
+        done = subprocess.run([sys.executable, "-c", CACHE_KEYS], cwd=ROOT, env=env, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-3000:]
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    first, second = keys(), keys()
+    assert first["smoke"]["keyed"] == second["smoke"]["keyed"]
+    assert first["irassi-fine-pointing"]["keyed"] == second["irassi-fine-pointing"]["keyed"]
+    assert first["smoke"]["keyed"] != first["irassi-fine-pointing"]["keyed"]
+    assert first["smoke"]["numba_cuda"] != second["smoke"]["numba_cuda"]  # why refexmc keys it itself
+    assert all(first[name]["in_cache_dir"] for name in first)
