@@ -204,13 +204,14 @@ def _compile_ptx(campaign_name):
     return ptx, ir
 
 
-# libdevice functions whose result is exact (no rounding: any correct implementation gives the
-# same bits) and LLVM intrinsics NVVM lowers to IEEE-rounded instructions (sqrt.rn, ...)
+# libdevice functions whose result has one right answer (exact, or correctly rounded: sqrt is
+# sqrt.rn.f64), which the CPU computes too, and LLVM intrinsics of the same kind. Not fmin/fmax:
+# they answer otherwise than the CPU's min/max for a NaN first argument and for -0 against +0
+# (the core's float min/max are core.elementary.smaller/larger)
 EXACT_DEVICE_FUNCTIONS = {
-    "__nv_frexp", "__nv_ldexp", "__nv_fabs", "__nv_floor", "__nv_ceil", "__nv_trunc", "__nv_copysign",
-    "__nv_isnand", "__nv_isinfd", "__nv_isfinited", "__nv_fmin", "__nv_fmax",
-    "llvm.sqrt.f64", "llvm.fabs.f64", "llvm.floor.f64", "llvm.ceil.f64", "llvm.trunc.f64",
-    "llvm.copysign.f64", "llvm.minnum.f64", "llvm.maxnum.f64",
+    "__nv_sqrt", "__nv_frexp", "__nv_ldexp", "__nv_fabs", "__nv_floor", "__nv_ceil", "__nv_trunc",
+    "__nv_copysign", "__nv_isnand", "__nv_isinfd", "__nv_isfinited",
+    "llvm.sqrt.f64", "llvm.fabs.f64", "llvm.floor.f64", "llvm.ceil.f64", "llvm.trunc.f64", "llvm.copysign.f64",
 }  # fmt: skip
 
 

@@ -6,7 +6,7 @@ realised by pulse-width modulation (:func:`pwm_on_time`, in the run loop's actua
 """
 
 from refexmc._jit import jit_inline, jit_noalloc
-from refexmc.core import pulse_modulation
+from refexmc.core import elementary, pulse_modulation
 from refexmc.core.layout import (
     ACTUATION_PWPF_TABLE,
     F_PWPF_CORRECTION,
@@ -82,7 +82,7 @@ def pwm_on_time(u, u_max, period, min_on):
         return 0.0
     on = period * (u / u_max if u < u_max else 1.0)
     if on < min_on:
-        return 0.0 if on < 0.5 * min_on else min(min_on, period)
+        return 0.0 if on < 0.5 * min_on else elementary.smaller(min_on, period)
     return on
 
 

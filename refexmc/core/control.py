@@ -5,7 +5,7 @@ The controller is chosen by ``controller_id`` (layout.CONTROLLER_*); new laws ad
 """
 
 from refexmc._jit import jit_inline
-from refexmc.core import quaternion
+from refexmc.core import elementary, quaternion
 from refexmc.core.layout import CONTROLLER_PD, CONTROLLER_PD_FEEDBACK_LINEARISATION, CONTROLLER_SMC
 
 
@@ -62,7 +62,7 @@ def pd(q_error, rate_error, kp, kd, attitude_controlled, out):
 def sat(value, width):
     """001 eq. 12's sat(sigma, epsilon): sigma / epsilon inside the boundary layer, its sign outside."""
     ratio = value / width
-    return min(1.0, max(-1.0, ratio))
+    return elementary.smaller(1.0, elementary.larger(-1.0, ratio))
 
 
 @jit_inline

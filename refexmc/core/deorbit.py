@@ -94,7 +94,7 @@ def steer(measured, nominal, law, position_gain, velocity_gain, out):
     else:
         for i in range(3):
             out[i] = nominal[NM_THRUST_ACCEL + i]
-    n = math.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
+    n = math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
     for i in range(3):
         out[i] /= n
 
@@ -135,7 +135,7 @@ def thrust_attitude(direction, position, velocity, engine_axis, q_out, work):
 @jit_noalloc
 def _nominal_derivative(state, mu, thrust, mass_flow, approach, fixed, out):
     if approach == APPROACH_OPPOSITE_VELOCITY:
-        v = math.sqrt(state[3] ** 2 + state[4] ** 2 + state[5] ** 2)
+        v = math.sqrt(state[3] * state[3] + state[4] * state[4] + state[5] * state[5])
         orbit.derivative(state, mu, thrust, mass_flow, -state[3] / v, -state[4] / v, -state[5] / v, out)
     else:
         orbit.derivative(state, mu, thrust, mass_flow, fixed[0], fixed[1], fixed[2], out)
@@ -148,7 +148,7 @@ def hohmann_direction(state, out):
     radial = (state[0] * state[3] + state[1] * state[4] + state[2] * state[5]) / r
     for i in range(3):
         out[i] = -(state[3 + i] - radial * state[i] / r)
-    n = math.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
+    n = math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
     for i in range(3):
         out[i] /= n
 

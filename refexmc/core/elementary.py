@@ -551,3 +551,21 @@ def acos(x):
     c = (z - df * df) / (s + df)
     w = _asin_rational(z) * s + c
     return 2.0 * (df + w)
+
+
+# --- min and max of floats -------------------------------------------------------------------
+# numba-cuda compiles the builtin min/max of floats to libdevice's fmin/fmax (PTX min.f64/max.f64),
+# which answer otherwise than numba's CPU min/max (a comparison and a select, Python's rule) for a
+# NaN first argument and for zeros of opposite signs; these two are that select on both targets.
+
+
+@jit_noalloc(force_inline=True)
+def smaller(a, b):
+    """min(a, b) as Python takes it: ``b`` only if ``b < a``, else ``a`` (a NaN ``a`` stays)."""
+    return b if b < a else a
+
+
+@jit_noalloc(force_inline=True)
+def larger(a, b):
+    """max(a, b) as Python takes it: ``b`` only if ``b > a``, else ``a`` (a NaN ``a`` stays)."""
+    return b if b > a else a

@@ -34,6 +34,7 @@ from refexmc.core import (
     arena,
     control,
     dynamics,
+    elementary,
     environment,
     feed,
     guidance,
@@ -738,7 +739,8 @@ def _record(history, row, t, mode, theta_t, controlled, fuel_fraction, valves, r
     history[row, H_T] = t
     history[row, H_MODE] = mode
     history[row, H_THETA_T] = theta_t * _DEG
-    history[row, H_OMEGA_M] = math.sqrt(rate_meas[0] ** 2 + rate_meas[1] ** 2 + rate_meas[2] ** 2) * _DEG
+    rate_squared = rate_meas[0] * rate_meas[0] + rate_meas[1] * rate_meas[1] + rate_meas[2] * rate_meas[2]
+    history[row, H_OMEGA_M] = math.sqrt(rate_squared) * _DEG
     if controlled:
         quaternion.to_rotation_vector(act.q_error, rotvec)
     for i in range(3):
@@ -982,7 +984,7 @@ def _fly(
             for i in range(3):
                 status[ST_POINTING_WINDOW_SUM2 + i] += window_error[i] * window_error[i]
             status[ST_POINTING_WINDOW_COUNT] += 1.0
-            status[ST_POINTING_WINDOW_MAX] = max(status[ST_POINTING_WINDOW_MAX], angle)
+            status[ST_POINTING_WINDOW_MAX] = elementary.larger(status[ST_POINTING_WINDOW_MAX], angle)
         if pointing_record.table.shape[0] > 0:  # pointing requirements (core.pointing), at the control rate
             pointing.record(pointing_record, body.x[0:4], guide.q_ref, sensed.q_meas, has_reference, flown, t)
 
@@ -1017,7 +1019,7 @@ def _fly(
         )  # fmt: skip
         if wh is not None:
             peak = wheels.largest_relative_momentum(wh.table, wh.h, body.x[4:7])
-            status[ST_WHEEL_MOMENTUM_PEAK] = max(status[ST_WHEEL_MOMENTUM_PEAK], peak)
+            status[ST_WHEEL_MOMENTUM_PEAK] = elementary.larger(status[ST_WHEEL_MOMENTUM_PEAK], peak)
         if orb is not None:
             orbit_flight.translate(mission, vehicle, body.x, orb, status, summary, t, dt)
         summary[S_PER_MODE + mode] += dt

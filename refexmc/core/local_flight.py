@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import arena, feed, quaternion, rng, time_optimal
+from refexmc.core import arena, elementary, feed, quaternion, rng, time_optimal
 from refexmc.core.bits import lowest_bit
 from refexmc.core.layout import (
     F_TRANSLATION_DEADBAND,
@@ -157,7 +157,7 @@ def measure(nav, state, pressure, rng_state, out):
             out[3 + i] += sigma_velocity * rng.next_normal(rng_state)
     out[6] = pressure
     if sigma_pressure > 0.0:
-        out[6] = max(pressure + sigma_pressure * rng.next_normal(rng_state), 0.0)
+        out[6] = elementary.larger(pressure + sigma_pressure * rng.next_normal(rng_state), 0.0)
 
 
 @jit_noalloc
@@ -206,7 +206,7 @@ def _pd_pwm(fsw, loc, axis, error, velocity, accel_available, phase, steps):
     control periods at the start of each modulation period of ``steps`` periods; u this period."""
     if phase == 0:
         accel = -fsw[F_TRANSLATION_PD_GAINS] * error - fsw[F_TRANSLATION_PD_GAINS + 1] * velocity
-        fraction = min(abs(accel) / accel_available, 1.0) if accel_available > 0.0 else 0.0
+        fraction = elementary.smaller(abs(accel) / accel_available, 1.0) if accel_available > 0.0 else 0.0
         loc.status[LS_PWM + axis] = math.copysign(math.floor(fraction * steps + 0.5), accel)
     width = loc.status[LS_PWM + axis]
     if phase < abs(width):

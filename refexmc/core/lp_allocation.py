@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import allocation, arena, rcs
+from refexmc.core import allocation, arena, elementary, rcs
 from refexmc.core.layout import F_CONTROL_PERIOD, F_MIN_ON, LV_THRUST_DESIGN
 from refexmc.core.status import MASK_ACTIVE, MASK_OPEN
 
@@ -85,8 +85,8 @@ def _simplex(a, lower, upper, cost, x, basis, in_basis, binv, w):
     n = a.shape[1]
     scale = 0.0
     for j in range(n):
-        scale = max(scale, abs(cost[j]))
-    tolerance = COST_TOLERANCE * max(scale, 1.0)
+        scale = elementary.larger(scale, abs(cost[j]))
+    tolerance = COST_TOLERANCE * elementary.larger(scale, 1.0)
     for iteration in range(MAX_ITERATIONS):
         if not _invert_basis(a, basis, binv):
             return -1
@@ -191,7 +191,7 @@ def allocate(arms, u_max, torque, u_out, work, basis, in_basis):
     # phase A: the largest attainable share of the torque
     cost[s] = -1.0
     _simplex(a, lower, upper, cost, x, basis, in_basis, binv, w)
-    scale = min(max(x[s], 0.0), 1.0)
+    scale = elementary.smaller(elementary.larger(x[s], 0.0), 1.0)
     # phase B: that share with the least propellant
     lower[s] = scale
     upper[s] = scale

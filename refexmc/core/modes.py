@@ -211,9 +211,8 @@ def predicate_holds(predicate, value, now, t1, rate_meas, rate_ref, q_meas, q_ta
     if predicate == PREDICATE_RATES_BELOW:
         return abs(rate_meas[0]) < value and abs(rate_meas[1]) < value and abs(rate_meas[2]) < value
     if predicate == PREDICATE_RATE_ERROR_BELOW:
-        error = math.sqrt(
-            (rate_meas[0] - rate_ref[0]) ** 2 + (rate_meas[1] - rate_ref[1]) ** 2 + (rate_meas[2] - rate_ref[2]) ** 2
-        )
+        dx, dy, dz = rate_meas[0] - rate_ref[0], rate_meas[1] - rate_ref[1], rate_meas[2] - rate_ref[2]
+        error = math.sqrt(dx * dx + dy * dy + dz * dz)
         return error < value
     if predicate == PREDICATE_ANGLE_ERROR_BELOW:
         return quaternion.angle_between(q_meas, q_target) < value

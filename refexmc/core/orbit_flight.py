@@ -143,10 +143,10 @@ def steer(nominal, fsw, nav, vehicle, x, orb, guide, rng_state, status, t, burni
         d = orb.work[0]
         thrust_direction(vehicle, x[0:4], d)
         c = d[0] * orb.command[0] + d[1] * orb.command[1] + d[2] * orb.command[2]
-        angle = elementary.acos(max(-1.0, min(1.0, c)))
+        angle = elementary.acos(elementary.larger(-1.0, elementary.smaller(1.0, c)))
         status[ST_POINTING_SUM2] += angle * angle
         status[ST_POINTING_COUNT] += 1.0
-        status[ST_POINTING_MAX] = max(status[ST_POINTING_MAX], angle)
+        status[ST_POINTING_MAX] = elementary.larger(status[ST_POINTING_MAX], angle)
 
 
 @jit_noalloc
@@ -159,8 +159,10 @@ def engine_period(mission, vehicle, inertia, x, orb, status, t, dt, burn_mode):
     if burn_mode:
         mass_flow = vehicle[V_ENGINE_THRUST] / (vehicle[V_ENGINE_ISP] * orbit.G0)
         left = vehicle[V_ENGINE_PROPELLANT] - (vehicle[V_MASS] - orb.state[6])
-        on = max(t, mission[M_BURN_START])
-        off = min(t + dt, mission[M_BURN_START] + mission[M_BURN_DURATION], t + left / mass_flow)
+        on = elementary.larger(t, mission[M_BURN_START])
+        off = elementary.smaller(
+            elementary.smaller(t + dt, mission[M_BURN_START] + mission[M_BURN_DURATION]), t + left / mass_flow
+        )
         if off < on:
             off = on
     status[ST_ENGINE_ON] = on

@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refexmc._jit import jit, jit_noalloc
-from refexmc.core import arena, dynamics, quaternion
+from refexmc.core import arena, dynamics, elementary, quaternion
 from refexmc.core.layout import (
     HISTORY_PER_WHEEL,
     HISTORY_SIZE,
@@ -113,7 +113,7 @@ def drive(distribution, wh, rate_meas, omega, torque_cmd, compensate, active, st
             wh.motor[i] = 0.0
         return
     peak, limited = command(distribution, wh, rate_meas, omega, torque_cmd, compensate)
-    status[ST_WHEEL_TORQUE_PEAK] = max(status[ST_WHEEL_TORQUE_PEAK], peak)
+    status[ST_WHEEL_TORQUE_PEAK] = elementary.larger(status[ST_WHEEL_TORQUE_PEAK], peak)
     if limited:
         status[ST_WHEEL_SATURATED] += dt
 
@@ -215,8 +215,9 @@ def momentum_residual(x, plant):
     angular_momentum(x, plant, plant.momentum[1:3])
     change, size = 0.0, 0.0
     for i in range(3):
-        change += (plant.momentum[1, i] - plant.momentum[0, i] - plant.h[n + i]) ** 2
-        size = max(size, abs(plant.momentum[0, i]), abs(plant.momentum[1, i]))
+        d = plant.momentum[1, i] - plant.momentum[0, i] - plant.h[n + i]
+        change += d * d
+        size = elementary.larger(elementary.larger(size, abs(plant.momentum[0, i])), abs(plant.momentum[1, i]))
     return math.sqrt(change) / size if size > 0.0 else 0.0
 
 
@@ -495,7 +496,7 @@ def null_space_torque(distribution, wheels, h, rate_meas, out):
     peak = 0.0
     for i in range(n):
         out[i] *= gain
-        peak = max(peak, abs(out[i]))
+        peak = elementary.larger(peak, abs(out[i]))
     cap = wheels[0, W_NULL_SPACE_TORQUE_MAX]
     capped = peak > cap
     if capped:
@@ -551,7 +552,7 @@ def command(distribution, plant, rate_meas, omega, torque_cmd, compensate):
         if manage:
             d += demand[i]  # the null-space torque
         demand[i] = d
-        peak = max(peak, abs(d))
+        peak = elementary.larger(peak, abs(d))
         if wheels[i, W_FAILED] == 0.0 and abs(d) * scale > wheels[i, W_TORQUE_MAX]:
             scale = wheels[i, W_TORQUE_MAX] / abs(d)
     limited = scale < 1.0
@@ -569,7 +570,7 @@ def largest_relative_momentum(wheels, h, omega):
     """The largest |I_w Omega_i| over the wheels (0 without wheels)."""
     peak = 0.0
     for i in range(wheels.shape[0]):
-        peak = max(peak, abs(relative_momentum(wheels, i, h, omega)))
+        peak = elementary.larger(peak, abs(relative_momentum(wheels, i, h, omega)))
     return peak
 
 
