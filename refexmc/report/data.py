@@ -380,11 +380,10 @@ def present_columns(campaign):
     """History columns every part of the OUT with rows has (a part without rows, of a chunk whose
     runs all errored, has the columns of no family): each family writes only its own columns."""
     names = None
-    for part in campaign.history_parts:
-        parquet = pq.ParquetFile(part)
-        if parquet.metadata.num_rows == 0:
+    for metadata in map_on_threads(pq.read_metadata, campaign.history_parts):  # 10^6 runs: 10,000 footers
+        if metadata.num_rows == 0:
             continue
-        here = set(parquet.schema_arrow.names)
+        here = set(metadata.schema.names)
         names = here if names is None else names & here
     return names or set()
 
