@@ -36,9 +36,10 @@ from refexmc.report import make_report
 make_report(sys.argv[1], html=True)
 """
 CHECK = """
+import sys
 import refexmc
 from pathlib import Path
-assert not sys.argv[2] or Path(refexmc.__file__).is_relative_to(sys.argv[2]), f"{refexmc.__file__} is not {sys.argv[2]}'s"
+assert not sys.argv[2] or Path(refexmc.__file__).is_relative_to(sys.argv[2]), f"{refexmc.__file__}: not {sys.argv[2]}"
 """
 
 
@@ -50,7 +51,7 @@ def report_once(out, root=None):
     start = time.perf_counter()
     proc = subprocess.Popen(
         # -P: not the working directory first on sys.path, where it would win over PYTHONPATH
-        [sys.executable, "-P", "-c", CHILD + CHECK, str(out), str(root or "")],
+        [sys.executable, "-P", "-c", CHECK + CHILD, str(out), str(root or "")],
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,

@@ -218,6 +218,10 @@ def test_rank_gram_is_the_exact_integer_gram_at_a_million_runs_on_any_split(monk
     assert np.array_equal(gram, exact.astype(float))
     monkeypatch.setattr(stats, "GRAM_THREAD_ROWS", 99_991)  # 11 uneven tasks
     assert np.array_equal(stats.rank_gram(ranks, output), gram)
+    # beyond ~2 million runs the blocks add up as Python integers: the same sums, no int64 to overflow
+    rows = stats._gram_rows(ranks, output, 0, 50_000, 4093, dtype=object)
+    assert all(type(v) is int for v in rows.ravel())
+    assert np.array_equal(rows.astype(np.int64), both[:50_000].T @ both[:50_000])
 
 
 def test_missing_and_repeated_run_ids_are_those_of_setdiff1d_and_unique():

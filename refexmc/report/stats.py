@@ -341,7 +341,8 @@ def _gram_rows(ranks, output_ranks, start, stop, block_rows, dtype=np.int64):
         rows = min(block_rows, stop - first)
         block[:rows, :k] = ranks[first : first + rows]
         block[:rows, k] = output_ranks[first : first + rows]
-        gram += np.einsum("ij,ik->jk", block[:rows], block[:rows]).astype(np.int64)
+        products = np.einsum("ij,ik->jk", block[:rows], block[:rows]).astype(np.int64)
+        gram += products if dtype is np.int64 else products.astype(object)  # object: Python ints, no np.int64
     return gram
 
 
