@@ -35,6 +35,12 @@ import sys
 from refexmc.report import make_report
 make_report(sys.argv[1], html=True)
 """
+CHECK = """
+import sys
+import refexmc
+from pathlib import Path
+assert not sys.argv[2] or Path(refexmc.__file__).is_relative_to(sys.argv[2]), f"{refexmc.__file__}: not {sys.argv[2]}"
+"""
 
 
 def report_once(out, root=None):
@@ -44,7 +50,11 @@ def report_once(out, root=None):
         env["PYTHONPATH"] = str(root)
     start = time.perf_counter()
     proc = subprocess.Popen(
-        [sys.executable, "-c", CHILD, str(out)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        # -P: not the working directory first on sys.path, where it would win over PYTHONPATH
+        [sys.executable, "-P", "-c", CHECK + CHILD, str(out), str(root or "")],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
     )
     stderr = proc.stderr.read()
     _, status, usage = os.wait4(proc.pid, 0)

@@ -77,7 +77,8 @@ def make_big_out(src, dest, times, histories=True, overwrite=False):
     (dest / "histories").mkdir()
     for folder in folders:
         for k, name in enumerate(names):
-            table = pq.read_table(src / folder / name)
+            path = src / folder / name  # runs in today's column names (config.renames), as flown now
+            table = storage.read_runs_part(path) if folder == "runs" else pq.read_table(path)
             for copy in range(times):
                 target = dest / folder / storage.part_name(copy * parts + k)
                 storage.write_table_atomic(shifted(table, copy * runs), target)

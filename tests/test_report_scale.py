@@ -13,8 +13,9 @@ import pytest
 from test_report import synthetic_runs, write_out
 
 from refexmc.campaign import storage
+from refexmc.config import renames
 from refexmc.config.errors import ConfigError
-from refexmc.report import aggregate, data, make_report
+from refexmc.report import aggregate, data, factors, make_report, stats
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -174,3 +175,83 @@ def test_a_campaign_repeated_three_times_reports_the_same_envelopes(tmp_path):
         manifest.update(chunk_size=7)
         storage.write_manifest(src, manifest)
         tool.make_big_out(src, tmp_path / "other", 2)
+
+
+def test_runs_parts_of_old_and_new_names_join_in_todays_names(tmp_path, monkeypatch):
+    """Parts written before and after the issue-34 renames (an OUT resumed across versions), and one
+    without a column, join in today's names and reasons whatever the grouping, as read one by one."""
+    rows = synthetic_runs(n=40, failed=(3, 11, 27))
+    for row in rows[3:4] + rows[27:28]:
+        row["failure_reason"] = "attitude_error_end_above_max"
+    tables = [storage.runs_table(rows[k : k + 10]) for k in range(0, 40, 10)]
+    old_names = {new: old for old, new in renames.COLUMNS.items()}
+    tables[0] = tables[0].rename_columns([old_names.get(c, c) for c in tables[0].column_names])
+    old_reasons = {new: old for old, new in renames.FAILURE_REASONS.items()}
+    reasons = [old_reasons.get(v, v) for v in tables[2].column("failure_reason").to_pylist()]
+    tables[2] = tables[2].set_column(4, "failure_reason", pa.array(reasons, pa.string()))
+    tables[3] = tables[3].drop_columns(["p.rcs.isp_s"])
+    parts = write_parts(tmp_path / "runs", tables)
+    assert pq.read_schema(parts[0]).names != pq.read_schema(parts[1]).names
+    expected = pa.concat_tables([storage.read_runs_part(p) for p in parts], promote_options="default")
+    for per_group in (1, 2, 3, 64):
+        monkeypatch.setattr(data, "RUNS_PARTS_PER_GROUP", per_group)
+        table = data.read_runs_parts(parts)
+        assert table.equals(expected)
+    assert "attitude_error_end_deg" in table.column_names and "theta_t_handover_deg" not in table.column_names
+    assert table.column("failure_reason").to_pylist().count("attitude_error_end_above_max") == 2
+    assert table.column("p.rcs.isp_s").null_count == 10
+
+
+def test_rank_gram_is_the_exact_integer_gram_at_a_million_runs_on_any_split(monkeypatch):
+    """At 10^6 runs a block's sum of rank products passes 2^53: the Gram matrix is summed as
+    integers, so it is the exact one (int64 products of the ranks, numpy's integer matmul, no
+    floats) rounded once, however the rows are split over threads."""
+    n = 1_000_000
+    rng = np.random.default_rng(7)
+    ranks = np.column_stack([stats.doubled_centred_ranks(rng.permutation(n)) for _ in range(2)])
+    ranks[:, 1] = np.where(ranks[:, 0] > 0, ranks[:, 0], ranks[:, 1])  # correlated: large off-diagonal sums
+    output = stats.doubled_centred_ranks(ranks[:, 0] + rng.normal(0.0, n / 10, n))
+    both = np.column_stack([ranks, output]).astype(np.int64)
+    exact = both.T @ both  # |sums| < n^3 < 2^63
+    assert exact[0, 0] == n * (n * n - 1) // 3 > 2**53  # sum of (2i - n - 1)^2: above float64's integers
+    gram = stats.rank_gram(ranks, output)
+    assert np.array_equal(gram, exact.astype(float))
+    monkeypatch.setattr(stats, "GRAM_THREAD_ROWS", 99_991)  # 11 uneven tasks
+    assert np.array_equal(stats.rank_gram(ranks, output), gram)
+    # beyond ~2 million runs the blocks add up as Python integers: the same sums, no int64 to overflow
+    rows = stats._gram_rows(ranks, output, 0, 50_000, 4093, dtype=object)
+    assert all(type(v) is int for v in rows.ravel())
+    assert np.array_equal(rows.astype(np.int64), both[:50_000].T @ both[:50_000])
+
+
+def test_missing_and_repeated_run_ids_are_those_of_setdiff1d_and_unique():
+    rng = np.random.default_rng(5)
+    for planned, ids in [
+        (0, np.array([], dtype=np.int64)),
+        (5, np.arange(5, dtype=np.int64)),
+        (10, np.array([0, 1, 1, 4, 4, 4, 9], dtype=np.int64)),
+        (50, rng.integers(-5, 60, 80)),  # unsorted, repeated, negative and beyond the plan
+        (1000, np.sort(rng.integers(0, 1000, 900))),
+    ]:
+        expected = np.setdiff1d(np.arange(planned, dtype=np.int64), ids)
+        assert data.missing_run_ids(planned, ids).tolist() == expected.tolist()
+        assert data.duplicate_count(ids) == len(ids) - len(np.unique(ids))
+
+
+def test_failure_factors_parsed_per_distinct_text_equal_those_parsed_per_run():
+    """``factors`` parses each distinct failed-units text once: the indicators and the set labels
+    are those of parsing every run's text (the obvious loop, written here)."""
+    texts = np.array(["", "3", "1,3", None, "3,1", "", "12", "3", None, "1,3"] * 7, dtype=object)
+    runs = pd.DataFrame({"run_id": np.arange(len(texts)), "failed_thrusters": texts})
+    campaign = data.Campaign(Path("."), runs, {"failures": {"detected": True}}, {})
+    sets = [[int(u) for u in str(t or "").split(",") if u.strip()] for t in texts]
+    expected = [
+        (f"thruster {u} failed (detected)", "failure", np.array([u in s for s in sets], dtype=np.int8))
+        for u in (1, 3, 12)
+    ]
+    expected.append(("failed thruster set (detected)", "failure set", [",".join(map(str, sorted(s))) for s in sets]))
+    found = factors.factors(campaign, runs)
+    assert [(name, kind) for name, kind, _ in found] == [(name, kind) for name, kind, _ in expected]
+    for (_, _, labels), (_, _, wanted) in zip(found, expected, strict=True):
+        assert np.asarray(labels).tolist() == list(wanted)
+        assert np.asarray(labels).dtype == np.asarray(wanted, dtype=labels.dtype).dtype

@@ -19,6 +19,7 @@ column list. A renamed path keeps drawing the values it drew under its first nam
 (:func:`seed_path`): a campaign's runs are the same bits apart from the renamed columns.
 """
 
+import functools
 import re
 
 OLD_BLOCK, NEW_BLOCK = "separation", "initial_state"
@@ -62,14 +63,29 @@ def new_text(text):
     return _OLD_NAME.sub(lambda m: (m.group(1) or "") + (COLUMNS.get(m.group(2)) or PATHS[m.group(2)]), text)
 
 
-def runs_table(table):
-    """A runs part (pyarrow Table) with the current column names and failure reasons."""
+def runs_table(table, reasons=True):
+    """A runs part (pyarrow Table) with the current column names and (``reasons``) failure reasons.
+    ``reasons=False`` leaves the reasons to one :func:`runs_failure_reasons` of the joined parts."""
+    names = _new_columns(tuple(table.column_names))
+    if names is not None:
+        table = table.rename_columns(names)
+    return runs_failure_reasons(table) if reasons else table
+
+
+@functools.lru_cache(maxsize=16)
+def _new_columns(names):
+    """The current names of runs columns ``names`` (a tuple), None when they are current: the
+    parts of one output share their names, so a campaign of 10,000 parts maps them once."""
+    renamed = [new_column(name) for name in names]
+    return None if renamed == list(names) else renamed
+
+
+def runs_failure_reasons(table):
+    """A runs table (pyarrow) with the current failure reasons."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    names = [new_column(name) for name in table.column_names]
-    if names != table.column_names:
-        table = table.rename_columns(names)
+    names = table.column_names
     if "failure_reason" in names:
         column = table.column("failure_reason")
         if pa.types.is_string(column.type) and pc.any(pc.is_in(column, pa.array(list(FAILURE_REASONS)))).as_py():

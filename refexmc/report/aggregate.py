@@ -168,26 +168,37 @@ def history_range(campaign, column):
 
 def statistics_min_max(parts, columns):
     """{column: (min, max)} over the Parquet row-group statistics of ``parts`` (no data read; each
-    part's footer once); a column that no part has, or without statistics in some row group, is left out."""
+    part's footer once, on threads); a column that no part has, or without statistics in some row
+    group, is left out."""
+    low, high, missing = {}, {}, set()
+    for part_low, part_high, part_missing in data.map_on_threads(lambda part: _part_min_max(part, columns), parts):
+        missing |= part_missing
+        for column, value in part_low.items():
+            low[column] = min(low.get(column, math.inf), value)
+            high[column] = max(high.get(column, -math.inf), part_high[column])
+    return {c: (low[c], high[c]) for c in low if c not in missing}
+
+
+def _part_min_max(part, columns):
+    """({column: min}, {column: max}, {columns without statistics}) of one part's footer."""
     import pyarrow.parquet as pq
 
+    metadata = pq.read_metadata(part)
+    # a part written before a rename (config.renames): its columns by their names of now
+    names = [renames.new_column(name) for name in metadata.schema.names]
     low, high, missing = {}, {}, set()
-    for part in parts:
-        metadata = pq.ParquetFile(part).metadata
-        # a part written before a rename (config.renames): its columns by their names of now
-        names = [renames.new_column(metadata.schema.column(i).name) for i in range(metadata.num_columns)]
-        for column in columns:
-            if column not in names or column in missing:
-                continue
-            index = names.index(column)
-            for group in range(metadata.num_row_groups):
-                statistics = metadata.row_group(group).column(index).statistics
-                if statistics is None or not statistics.has_min_max:
-                    missing.add(column)
-                    break
-                low[column] = min(low.get(column, math.inf), float(statistics.min))
-                high[column] = max(high.get(column, -math.inf), float(statistics.max))
-    return {c: (low[c], high[c]) for c in low if c not in missing}
+    for column in columns:
+        if column not in names:
+            continue
+        index = names.index(column)
+        for group in range(metadata.num_row_groups):
+            statistics = metadata.row_group(group).column(index).statistics
+            if statistics is None or not statistics.has_min_max:
+                missing.add(column)
+                break
+            low[column] = min(low.get(column, math.inf), float(statistics.min))
+            high[column] = max(high.get(column, -math.inf), float(statistics.max))
+    return low, high, missing
 
 
 def history_ranges(campaign, columns):

@@ -17,6 +17,7 @@ A factor is named for what it is: ``wheel 1 failed (undetected)``, ``thruster 3 
 """
 
 import numpy as np
+import pandas as pd
 
 from refexmc.report import stats
 
@@ -49,14 +50,17 @@ def factors(campaign, runs):
         if column not in runs:
             continue
         known = "detected" if (campaign.resolved.get(key) or {}).get("detected", False) else "undetected"
-        sets = [_units(text) for text in runs[column].to_numpy()]
+        # each distinct text parsed once, then spread to the runs by its code (10^6 runs: few texts)
+        codes, texts = pd.factorize(runs[column].to_numpy(), use_na_sentinel=False)
+        sets = [_units(None if pd.isna(text) else text) for text in texts]
         units = sorted({u for s in sets for u in s})
         for unit in units:
-            labels = np.array([unit in s for s in sets], dtype=np.int8)
+            labels = np.array([unit in s for s in sets], dtype=np.int8)[codes]
             if 0 < labels.sum() < len(labels):
                 found.append((f"{word} {unit} failed ({known})", "failure", labels))
-        labels = np.array([",".join(map(str, sorted(s))) for s in sets], dtype=object)
-        if len(set(labels) - {""}) > 1:  # which unit(s) failed, jointly: a cause no single indicator holds
+        joined = [",".join(map(str, sorted(s))) for s in sets]
+        labels = np.array(joined or [""], dtype=object)[codes]
+        if len(set(joined) - {""}) > 1:  # which unit(s) failed, jointly: a cause no single indicator holds
             found.append((f"failed {word} set ({known})", "failure set", labels))
     for column in choice_columns(campaign):
         labels = runs[column].to_numpy(dtype=float)

@@ -321,6 +321,7 @@ def rank_eta2(ranks, labels):
 
 
 GRAM_CHUNK_ROWS = 16384  # rows per block of the rank products: small float64 blocks, exact integer sums
+GRAM_THREAD_ROWS = 1 << 17  # rows of the rank products per thread task
 
 
 def doubled_centred_ranks(values):
@@ -330,20 +331,40 @@ def doubled_centred_ranks(values):
     return np.rint(2.0 * sps.rankdata(values) - (len(values) + 1)).astype(np.int32)
 
 
+def _gram_rows(ranks, output_ranks, start, stop, block_rows, dtype=np.int64):
+    """The rank products of rows start..stop, as exact integer sums (``dtype``: int64, or object,
+    Python's integers, where int64 could overflow) of exact float64 blocks."""
+    k = ranks.shape[1]
+    gram = np.zeros((k + 1, k + 1), dtype=dtype)
+    block = np.empty((min(stop - start, block_rows), k + 1))
+    for first in range(start, stop, block_rows):
+        rows = min(block_rows, stop - first)
+        block[:rows, :k] = ranks[first : first + rows]
+        block[:rows, k] = output_ranks[first : first + rows]
+        products = np.einsum("ij,ik->jk", block[:rows], block[:rows]).astype(np.int64)
+        gram += products if dtype is np.int64 else products.astype(object)  # object: Python ints, no np.int64
+    return gram
+
+
 def rank_gram(ranks, output_ranks):
     """Gram matrix [k + 1, k + 1] of the columns of ``ranks`` [n, k] and ``output_ranks`` (doubled
-    centred ranks), summed in float64 blocks of ``GRAM_CHUNK_ROWS`` rows (exact: integer products,
-    sums below 2^53 up to 10^5 runs). einsum, not BLAS: OpenBLAS's first call starts a thread
-    pool, seconds on a busy machine."""
+    centred ranks, |r| < n), exact: each float64 block of rows sums integer products below 2^53
+    (``GRAM_CHUNK_ROWS`` rows, fewer above ~70,000 runs), the blocks add up as integers (int64 up
+    to ~2 million runs, n^3 < 2^63; Python's beyond), so the sum is the same in any order, and row
+    ranges are summed on threads (einsum releases the GIL); rounded to float64 once. einsum, not
+    BLAS: OpenBLAS's first call starts a thread pool, seconds on a busy machine, and its float sums
+    depend on the CPU's kernels."""
     n, k = ranks.shape
-    gram = np.zeros((k + 1, k + 1))
-    block = np.empty((min(n, GRAM_CHUNK_ROWS), k + 1))
-    for start in range(0, n, GRAM_CHUNK_ROWS):
-        rows = min(GRAM_CHUNK_ROWS, n - start)
-        block[:rows, :k] = ranks[start : start + rows]
-        block[:rows, k] = output_ranks[start : start + rows]
-        gram += np.einsum("ij,ik->jk", block[:rows], block[:rows])
-    return gram
+    largest = max(n, 1) ** 2  # a product of two ranks, at most
+    block_rows = max(1, min(GRAM_CHUNK_ROWS, (1 << 53) // largest))
+    dtype = np.int64 if n**3 < 1 << 63 else object
+    from refexmc.report import data  # the report's thread count; imported here: refexmc.report imports stats
+
+    parts = data.map_on_threads(
+        lambda start: _gram_rows(ranks, output_ranks, start, min(n, start + GRAM_THREAD_ROWS), block_rows, dtype),
+        range(0, n, GRAM_THREAD_ROWS),
+    )
+    return np.sum(parts, axis=0, dtype=dtype).astype(float) if parts else np.zeros((k + 1, k + 1))
 
 
 def _rank_correlation_p(rho, dof):

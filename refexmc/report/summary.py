@@ -285,7 +285,9 @@ SENSITIVITY_LISTED = 10
 def varying_parameters(campaign):
     """``p.`` columns that vary over the ok runs (a constant input drives nothing)."""
     ok = campaign.ok
-    return [c for c in campaign.parameter_columns if np.ptp(np.nan_to_num(ok[c].to_numpy(dtype=float))) > 0]
+    columns = campaign.parameter_columns
+    varies = data.map_on_threads(lambda c: np.ptp(np.nan_to_num(ok[c].to_numpy(dtype=float))) > 0, columns)
+    return [c for c, varying in zip(columns, varies, strict=True) if varying]
 
 
 def sensitivity_targets(plan, verdicts):
@@ -351,6 +353,16 @@ def sensitivity(campaign, plan=None, verdicts=()):
         return ranks
 
     ranks = ranked(finite_inputs) if finite_inputs.all() else None
+    latest = {"keep": None, "ranks": None}  # targets with no value in the same runs (the failed flights) share ranks
+
+    def ranked_over(keep):
+        if ranks is not None and keep.all():
+            return ranks
+        if latest["keep"] is None or not np.array_equal(latest["keep"], keep):
+            latest["ranks"] = None  # one matrix at a time: 400 MB at 10^6 runs and 100 inputs
+            latest.update(keep=keep, ranks=ranked(keep))
+        return latest["ranks"]
+
     for output in targets:
         y = ok[output].to_numpy(dtype=float)
         keep = finite_inputs & np.isfinite(y)
@@ -360,7 +372,7 @@ def sensitivity(campaign, plan=None, verdicts=()):
             continue
         rows = []
         if parameters:
-            here = ranks if ranks is not None and keep.all() else ranked(keep)
+            here = ranked_over(keep)
             gram = stats.rank_gram(here, stats.doubled_centred_ranks(y[keep]))
             rhos, ps = stats.spearman_from_gram(gram, count)
             prcc, prcc_p = stats.prcc_from_gram(gram, count)
@@ -593,23 +605,21 @@ def inputs_section(campaign):
     dispersed = np.ones(len(runs), dtype=bool)
     if campaign.nominal_run_id is not None and len(runs) > 1:
         dispersed = runs["run_id"].to_numpy() != campaign.nominal_run_id
+
+    def drawn_range(column):
+        values = runs[column].to_numpy(dtype=float)[dispersed]
+        values = values[np.isfinite(values)]
+        return (float(values.min()), float(values.max())) if len(values) else (math.nan, math.nan)
+
     rows = []
     for key, spec in (campaign.resolved.get("dispersions") or {}).items():
         spec = spec if isinstance(spec, dict) else {"value": spec}
         prefix = f"p.{key}"
         columns = [c for c in campaign.parameter_columns if c == prefix or c.startswith(prefix + ".")]
-        drawn = []
-        for column in columns:
-            values = runs[column].to_numpy(dtype=float)[dispersed]
-            values = values[np.isfinite(values)]
-            drawn.append(
-                {
-                    "component": column[len(prefix) + 1 :],
-                    "column": column,
-                    "min": float(values.min()) if len(values) else math.nan,
-                    "max": float(values.max()) if len(values) else math.nan,
-                }
-            )
+        drawn = [
+            {"component": column[len(prefix) + 1 :], "column": column, "min": low, "max": high}
+            for column, (low, high) in zip(columns, data.map_on_threads(drawn_range, columns), strict=True)
+        ]
         rows.append(
             {
                 "parameter": key,
