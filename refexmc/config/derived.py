@@ -596,13 +596,53 @@ def gravity_gradient_coefficient(bodies):
 
 def initial_rotation_vector(initial):
     """The initial attitude's rotation vector (rad): ``attitude_error_deg``, or the rotation of
-    ``attitude_euler_deg`` in ``euler_sequence`` (scipy Rotation, as the inertial target). Both are
+    ``attitude_euler_deg`` in ``euler_sequence`` (:func:`euler_quaternion`, as the inertial target). Both are
     from body x along the velocity, wings level (no trajectory: from the inertial axes)."""
     if "attitude_euler_deg" not in initial:
         return np.radians(initial["attitude_rotvec_deg"])
-    from scipy.spatial.transform import Rotation  # only for Euler attitudes: scipy costs 0.4 s to import
+    return rotation_vector(euler_quaternion(initial["euler_sequence"], initial["attitude_euler_deg"]))
 
-    return Rotation.from_euler(initial["euler_sequence"], initial["attitude_euler_deg"], degrees=True).as_rotvec()
+
+def euler_quaternion(sequence, angles_deg):
+    """The unit quaternion (scalar last) of Euler angles ``angles_deg`` about the axes of
+    ``sequence`` ('xyz': extrinsic, fixed axes; 'XYZ': intrinsic, moving axes), as scipy's
+    ``Rotation.from_euler(sequence, angles, degrees=True).as_quat()`` composes it, with correctly
+    rounded sin and cos and the products in a fixed order: it feeds runs, so no libm (the same
+    bits on every CPU; tests/test_derived.py compares with scipy)."""
+    intrinsic = sequence.isupper()
+    quaternion = None
+    for axis, angle in zip(sequence.lower(), np.radians(np.asarray(angles_deg, dtype=float)), strict=True):
+        elementary = np.zeros(4)
+        half = 0.5 * float(angle)
+        elementary["xyz".index(axis)] = float(crmath.sin(half))
+        elementary[3] = float(crmath.cos(half))
+        if quaternion is None:
+            quaternion = elementary
+        elif intrinsic:
+            quaternion = _compose(quaternion, elementary)
+        else:
+            quaternion = _compose(elementary, quaternion)
+    return quaternion
+
+
+def _compose(p, q):
+    """The quaternion product p q (scalar last), in scipy's order of operations."""
+    cross = smallmatrix.cross(p[:3], q[:3])
+    vector = [p[3] * q[i] + q[3] * p[i] + cross[i] for i in range(3)]
+    return np.array([*vector, p[3] * q[3] - (p[0] * q[0] + p[1] * q[1] + p[2] * q[2])])
+
+
+def rotation_vector(quaternion):
+    """The rotation vector (rad) of a unit quaternion (scalar last), the shorter way round, as
+    scipy's ``as_rotvec`` computes it, with correctly rounded atan2 and sin."""
+    q = -np.asarray(quaternion, dtype=float) if quaternion[3] < 0.0 else np.asarray(quaternion, dtype=float)
+    angle = 2.0 * float(crmath.atan2(smallmatrix.norm(q[:3]), q[3]))
+    if angle <= 1e-3:  # angle / sin(angle / 2) by its series (scipy's threshold and terms)
+        angle2 = angle * angle
+        scale = 2.0 + angle2 / 12.0 + 7.0 * angle2 * angle2 / 2880.0
+    else:
+        scale = angle / float(crmath.sin(0.5 * angle))
+    return scale * q[:3]
 
 
 def rotate_by_rotation_vector(vector, rotvec_deg):

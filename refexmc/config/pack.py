@@ -314,9 +314,7 @@ def target_quaternion(target):
     if "quaternion" in target:
         q = np.asarray(target["quaternion"], dtype=float)
         return smallmatrix.unit(q)
-    from scipy.spatial.transform import Rotation  # only for Euler targets: scipy costs 0.4 s to import
-
-    return Rotation.from_euler(target["sequence"], target["euler_deg"], degrees=True).as_quat()
+    return derived.euler_quaternion(target["sequence"], target["euler_deg"])
 
 
 def _predicate_value(name, value):
