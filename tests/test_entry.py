@@ -88,7 +88,8 @@ def reference_forces():
     table = standard_table()
     alpha_axis, mach_axis, coefficients = aero_tables()
     # one interpolator of the three coefficients (lift, drag, side force): the same bilinear
-    # weights on each, bit for bit three interpolators' values, in 60 % of their time
+    # weights on each (at alpha = 40 deg, a node of the axis: the same bits as three
+    # interpolators, measured on 2,000 Mach numbers), in 60 % of their time
     interpolator = RegularGridInterpolator((alpha_axis, mach_axis), np.moveaxis(coefficients[:3], 0, -1))
 
     def air(h):
