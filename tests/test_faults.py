@@ -8,6 +8,7 @@ be found). A full disk and a read-only OUT are real too where a private mount na
 """
 
 import errno
+import json
 import os
 import shutil
 import signal
@@ -99,12 +100,27 @@ def reference(tmp_path_factory):
     return campaign, read_runs(folder / "out")
 
 
+@pytest.fixture(scope="module")
+def finished_once(tmp_path_factory):
+    """The 6-run smoke campaign of :func:`finished`, flown once for the module (a `refexmc run`
+    starts its process pool: seconds per test otherwise)."""
+    folder = tmp_path_factory.mktemp("finished")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv(run_module.CHUNK_SIZE_ENV, "2")
+        assert invoke_run(smoke(folder), "-o", folder / "out", "--runs", 6, "--no-progress").exit_code == 0
+    return folder
+
+
 @pytest.fixture
-def finished(tmp_path, monkeypatch):
-    """A finished 6-run smoke campaign in chunks of 2: (campaign file, OUT)."""
+def finished(finished_once, tmp_path, monkeypatch):
+    """A finished 6-run smoke campaign in chunks of 2: (campaign file, OUT), a test's own copy of
+    :func:`finished_once` whose manifest names the copied campaign file, as its own flight would."""
     monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "2")
     campaign, out = smoke(tmp_path), tmp_path / "out"
-    assert invoke_run(campaign, "-o", out, "--runs", 6, "--no-progress").exit_code == 0
+    shutil.copytree(finished_once / "out", out)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["campaign_file"] == str(finished_once / "smoke.yaml")
+    storage.write_manifest(out, {**manifest, "campaign_file": str(campaign)})
     return campaign, out
 
 
