@@ -44,16 +44,11 @@ LONGEST_FIRST = [
 ]
 
 
-# files that read what the others compiled (the kernels in the shared cache): last
-LAST = ["test_kernel_code.py"]
-
-
 def pytest_collection_modifyitems(items):
-    """Files of :data:`LONGEST_FIRST` first, in its order, those of :data:`LAST` last (a stable
-    sort: tests within a file and the other files keep their order)."""
+    """Files of :data:`LONGEST_FIRST` first, in its order (a stable sort: tests within a file and
+    the other files keep their order)."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
-    last = {name: len(rank) + 1 + i for i, name in enumerate(LAST)}
-    items.sort(key=lambda item: last.get(item.path.name, rank.get(item.path.name, len(rank))))
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
 @pytest.fixture(scope="session")
