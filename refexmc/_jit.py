@@ -24,6 +24,8 @@ import os
 import threading
 from pathlib import Path
 
+import refexmc
+
 os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # before numba reads its configuration
 
 import numba  # noqa: E402
@@ -33,13 +35,7 @@ DISABLED = os.environ.get("REFEXMC_DISABLE_JIT", "0") not in ("", "0")
 
 
 def _source_hash():
-    package = Path(__file__).resolve().parent
-    digest = hashlib.sha256()
-    for path in sorted([package / "_jit.py", *(package / "core").glob("*.py")]):
-        digest.update(path.name.encode())
-        digest.update(path.read_bytes())
-    digest.update(numba.__version__.encode())
-    return digest.hexdigest()[:16]
+    return refexmc.flight_code_digest(numba.__version__)
 
 
 def cache_dir():

@@ -264,18 +264,12 @@ def campaign_digest(campaign):
 
 @functools.cache
 def flight_code():
-    """sha256 (16 hex digits) of what flies a run: ``refexmc/_jit.py``, ``refexmc/core/*.py`` and
-    numba's version (not imported: the writing process never flies). Any change there may move a
+    """The flight code of runs flown now (:func:`refexmc.flight_code_digest`, with numba's version
+    not imported: the writing process never flies; the same digest names the kernel cache). Any change there may move a
     run's last bits (issue 37 moved every flight's), so ``--resume`` refuses an output whose
     manifest names other flight code (campaign.run.check_resumable): its runs and the ones flown
     now would not be one campaign's bits."""
-    package = Path(refexmc.__file__).resolve().parent
-    digest = hashlib.sha256()
-    for path in sorted([package / "_jit.py", *(package / "core").glob("*.py")]):
-        digest.update(path.name.encode())
-        digest.update(path.read_bytes())
-    digest.update(metadata.version("numba").encode())
-    return digest.hexdigest()[:16]
+    return refexmc.flight_code_digest(metadata.version("numba"))
 
 
 def manifest(campaign_file, campaign, chunk_size, status, started, finished=None, counts=None, **extra):
