@@ -28,6 +28,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from refexmc import _jit
+from refexmc.core import layout as L
+
 ROOT = Path(__file__).resolve().parents[1]
 SSE42 = "SSE SSE2 SSE3 SSSE3 SSE41 POPCNT SSE42"
 OLD_CPU = {
@@ -140,14 +143,34 @@ import json, sys
 import numpy as np
 import pyarrow as pa
 from refexmc.campaign import storage
-from refexmc.campaign.chunk import fly_chunk
+from refexmc.campaign.chunk import fly_chunk, plan_for
 from refexmc.config.load import load_campaign
+from refexmc.core import allocation, environment, feed, local_flight, lp_allocation, orbit_flight, rcs, switching
+from refexmc.core import wheels
 
-out = {}
+STEPS = {  # each family's own step functions: compiled only by a kernel of that family
+    "thrusters": [rcs.update, rcs.next_breakpoint, rcs.segment_thrust, rcs.open_mask, rcs.torque_arms],
+    "pwpf_table": [switching.enforce, allocation.table_masks],
+    "lp_pwm": [lp_allocation.pulse_width, lp_allocation.allocate, allocation.nominal_arms],
+    "wheels": [wheels.drive, wheels.start, wheels.step, wheels.rk4_step],
+    "planar_drag": [environment.advance_nodes, environment.interpolate],
+    "orbit": [orbit_flight.start, orbit_flight.steer, orbit_flight.engine_period, orbit_flight.translate],
+    "feed": [feed.start, feed.segment, feed.gas],
+    "local": [
+        local_flight.start, local_flight.desired, local_flight.advance, local_flight.navigate, local_flight.measure,
+        local_flight.segment_force, feed.pressure_within,
+    ],
+}
+out, compiled = {}, []
 for label, name, runs, changes in json.loads(sys.argv[2]):
     campaign = load_campaign(f"campaigns/{name}.yaml")
     campaign.update(changes, runs=runs)
     rows, _ = fly_chunk(campaign, range(runs))
+    # the step functions' signatures compiled so far in this process (in a cold cache: by the
+    # kernels of this campaign's family and the ones before)
+    steps = {group: [len(function.signatures) for function in functions] for group, functions in STEPS.items()}
+    family = getattr(plan_for(campaign), "family", None)  # the entry has a kernel of its own
+    compiled.append({"label": label, "family": family and list(family), "compiled": steps})
     table = storage.runs_table(rows)
     for column in table.column_names:
         values = table[column].combine_chunks()
@@ -155,14 +178,15 @@ for label, name, runs, changes in json.loads(sys.argv[2]):
             out[f"{label}/{column}"] = values.to_numpy(zero_copy_only=False).view(np.uint64).tolist()
         else:
             out[f"{label}/{column}"] = values.to_pylist()
-json.dump(out, open(sys.argv[1], "w"))
+json.dump({"columns": out, "compiled": compiled}, open(sys.argv[1], "w"))
 """
 # every vehicle family (docs/families.md), a few runs each: (label, campaign, runs, campaign keys changed)
 DETECTED_WHEEL = {"wheel_failures": {"mode": "fixed", "wheels": [2], "detected": True}}
+# (the IRASSI and ReFEx kernels first: test_a_family_compiles_none_of_the_other_families_steps)
 CAMPAIGNS = [
+    ("irassi", "irassi-fine-pointing", 3, {}),  # reaction wheels (001)
     ("smoke", "smoke", 4, {}),  # thrusters, PWPF and the allocation table, planar drag (000)
     ("refex-regulated", "refex-blow-down-mc100", 2, {}),  # the regulated feed
-    ("irassi", "irassi-fine-pointing", 3, {}),  # reaction wheels (001)
     ("irassi-rw2-detected", "irassi-fine-pointing", 2, DETECTED_WHEEL),  # D of three wheels
     ("cold-gas-fig8", "cold-gas-fig8", 2, {}),  # blow-down feed, time-optimal translation (002)
     ("surveyor-hop", "surveyor-hop", 2, {}),  # local trajectory
@@ -182,25 +206,28 @@ CORETYPES = {
 
 def _cpu_variants(tmp_path):
     """{name: environment} of the CPUs emulated here: every OpenBLAS kernel set the CPU can run
-    (numba's kernels from the shared cache: OpenBLAS does not change them), and an old x86-64:
-    numpy at SSE4.2, OpenBLAS's Nehalem kernels, numba compiling for a generic x86-64 (SSE2, no
-    FMA) into a cold cache of its own, the one cold compile."""
+    (numba's kernels from the shared cache: OpenBLAS does not change them), and an old CPU:
+    numba compiling for a generic CPU of the architecture (x86-64: SSE2, no FMA) into a cold cache
+    of its own, the one cold compile, with numpy at SSE4.2 and OpenBLAS's Nehalem kernels on x86-64."""
     variants = {
         f"openblas-{name.lower()}": {"OPENBLAS_CORETYPE": name}
         for name, flags in CORETYPES.items()
         if flags <= CPU_FLAGS
     }
     variants["glibc-without-fma-variants"] = NO_FMA_LIBM  # the flights call no libm (core/elementary.py)
-    variants["sse42-nehalem-generic"] = {
-        **OLD_CPU,
+    variants[GENERIC] = {
+        **(OLD_CPU if platform.machine() in ("x86_64", "AMD64") else {}),
         "NUMBA_CPU_NAME": "generic",
         "NUMBA_CACHE_DIR": str(tmp_path / "numba-generic"),
     }
     return variants
 
 
+GENERIC = "sse42-nehalem-generic"  # the cold-compiling variant
+
+
 def _fly_concurrently(tmp_path, variants, timeout=1200):
-    """{variant name: FLY's table}, every variant's subprocess started at once (a cold compile
+    """{variant name: FLY's output}, every variant's subprocess started at once (a cold compile
     takes one core for minutes; the others load kernels and fly in seconds)."""
     processes = {}
     for name, env in variants.items():
@@ -224,9 +251,26 @@ def _fly_concurrently(tmp_path, variants, timeout=1200):
     return {name: json.loads((tmp_path / f"{name}.json").read_text()) for name in variants}
 
 
+@pytest.fixture(scope="module")
+def emulated_flights(tmp_path_factory):
+    """{variant: {"columns": runs-table values, "compiled": step signatures after each campaign}}
+    of "host" (this CPU, the shared kernel cache) and every :func:`_cpu_variants`. ~3 min on 2
+    cores with a warm kernel cache here: the generic CPU's kernels compile cold."""
+    if _jit.DISABLED:
+        pytest.skip("REFEXMC_DISABLE_JIT=1: nothing is compiled")
+    tmp_path = tmp_path_factory.mktemp("emulated")
+    variants = _cpu_variants(tmp_path)
+    cold = {name: env for name, env in variants.items() if "NUMBA_CACHE_DIR" in env}
+    # the host's flights fill (or load) the shared kernel cache while the generic CPU compiles its
+    # own; then the OpenBLAS variants load the host's kernels
+    flights = _fly_concurrently(tmp_path, {"host": {}, **cold})
+    flights.update(_fly_concurrently(tmp_path, {name: env for name, env in variants.items() if name not in cold}))
+    return flights
+
+
 @pytest.mark.slow
 @x86_64_only
-def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(tmp_path):
+def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(emulated_flights):
     """A few runs of every vehicle family (thrusters, feeds, wheels with and without a detected
     failure, local, orbit with LP, attitude only, entry), flown here and in subprocesses under
     each of :func:`_cpu_variants`: every runs-table value the same bits, glibc's libm without its
@@ -235,14 +279,8 @@ def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(tmp_pat
     and wheel momentum, X-38's entry columns); they now call refexmc.core.elementary.
     Before issue 32 the wheels' distribution matrix came from LAPACK's SVD and OpenBLAS's
     products: the IRASSI columns with a detected failure differed between OpenBLAS's Nehalem and
-    Haswell kernels (and, without a failure, between two AVX-512 machines). ~3 min on 2 cores
-    with a warm kernel cache here: the generic x86-64's kernels compile cold."""
-    variants = _cpu_variants(tmp_path)
-    cold = {name: env for name, env in variants.items() if "NUMBA_CACHE_DIR" in env}
-    # the host's flights fill (or load) the shared kernel cache while the generic CPU compiles its
-    # own; then the OpenBLAS variants load the host's kernels
-    tables = _fly_concurrently(tmp_path, {"host": {}, **cold})
-    tables.update(_fly_concurrently(tmp_path, {name: env for name, env in variants.items() if name not in cold}))
+    Haswell kernels (and, without a failure, between two AVX-512 machines)."""
+    tables = {name: flights["columns"] for name, flights in emulated_flights.items()}
     host = tables.pop("host")
     assert {key.split("/")[0] for key in host} == {label for label, *_ in CAMPAIGNS}
     assert host["irassi-rw2-detected/failed_wheels"] == ["2", "2"]
@@ -252,6 +290,32 @@ def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(tmp_pat
         assert sorted(table) == sorted(host)
         differing[name] = sorted(key for key in host if host[key] != table[key])
     assert not any(differing.values()), f"columns with other bits: {differing}"
+
+
+# --- one compiled kernel per vehicle family (docs/families.md) ---------------------------------
+
+
+@pytest.mark.slow
+def test_a_family_compiles_none_of_the_other_families_steps(emulated_flights):
+    """Compile what is flown (style.md 11): in the generic CPU's process, whose numba cache starts
+    empty, the IRASSI kernel (actuation wheels, no trajectory) flown first compiles no thruster,
+    table, LP, planar, orbit, feed or local step, and the ReFEx kernel next (pwpf_table,
+    planar_drag) none of the LP, wheel, orbit, feed or local steps. A branch left unpruned would
+    type its steps (or fail to compile on a None). Shares the cold compile of
+    :func:`emulated_flights` (before: a process of its own, two minutes of a cold suite)."""
+    irassi, refex, *_ = emulated_flights[GENERIC]["compiled"]
+    assert irassi["label"] == "irassi" and refex["label"] == "smoke"
+    assert irassi["family"] == [L.ACTUATION_WHEELS, L.TRAJECTORY_NONE, 1, L.FEED_CONSTANT]
+    assert refex["family"] == [L.ACTUATION_PWPF_TABLE, L.TRAJECTORY_PLANAR_DRAG, 0, L.FEED_CONSTANT]
+    first = irassi["compiled"]
+    for family in ("thrusters", "pwpf_table", "lp_pwm", "planar_drag", "orbit", "feed", "local"):
+        assert first[family] == [0] * len(first[family]), f"the IRASSI kernel compiled {family} steps: {first}"
+    assert all(n >= 1 for n in first["wheels"]), first
+    second = refex["compiled"]  # after both kernels: the wheel steps are the IRASSI kernel's
+    for family in ("lp_pwm", "orbit", "feed", "local"):
+        assert second[family] == [0] * len(second[family]), f"the ReFEx kernel compiled {family} steps: {second}"
+    assert second["wheels"] == first["wheels"], "the ReFEx kernel compiled wheel steps"
+    assert all(n >= 1 for n in second["thrusters"] + second["pwpf_table"] + second["planar_drag"]), second
 
 
 # --- no BLAS or LAPACK in what feeds a run (issue 32) ----------------------------------------

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from refexmc import _jit
 from refexmc.config.load import load_mission, load_vehicle
 from refexmc.config.pack import mode_names, pack
 from refexmc.core import layout as L
@@ -288,69 +287,3 @@ def test_trajectory_in_the_flight_matches_solve_ivp(nominal, mission, vehicle):
     altitude_ref = np.hypot(ref.y[0], ref.y[1] - centre) - earth["radius_m"]
     assert np.max(np.abs(nominal.column("altitude_m") - altitude_ref)) < 1.0
     assert altitude_ref.max() == pytest.approx(131e3, abs=1e3)  # apogee ~131 km (reference-model sec. 5)
-
-
-# --- one compiled kernel per vehicle family (docs/families.md) ---------------------------------
-
-_FAMILY_CHECK = """
-import json, sys
-from refexmc import simulate
-from refexmc.config.load import load_campaign
-from refexmc.config.pack import pack
-from refexmc.core import allocation, environment, feed, local_flight, lp_allocation, orbit_flight, rcs, switching
-from refexmc.core import wheels
-
-STEPS = {  # each family's own step functions: compiled only by a kernel of that family
-    "thrusters": [rcs.update, rcs.next_breakpoint, rcs.segment_thrust, rcs.open_mask, rcs.torque_arms],
-    "pwpf_table": [switching.enforce, allocation.table_masks],
-    "lp_pwm": [lp_allocation.pulse_width, lp_allocation.allocate, allocation.nominal_arms],
-    "wheels": [wheels.drive, wheels.start, wheels.step, wheels.rk4_step],
-    "planar_drag": [environment.advance_nodes, environment.interpolate],
-    "orbit": [orbit_flight.start, orbit_flight.steer, orbit_flight.engine_period, orbit_flight.translate],
-    "feed": [feed.start, feed.segment, feed.gas],
-    "local": [
-        local_flight.start, local_flight.desired, local_flight.advance, local_flight.navigate, local_flight.measure,
-        local_flight.segment_force, feed.pressure_within,
-    ],
-}
-out = []
-for campaign in sys.argv[1:]:
-    c = load_campaign(campaign)
-    family = simulate.flight_family(pack(c["vehicle"], c["mission"]))
-    simulate.load_kernels([family])  # compiles: the cache directory is empty
-    out.append({"family": family, "compiled": {k: [len(f.signatures) for f in v] for k, v in STEPS.items()}})
-print(json.dumps(out))
-"""
-
-
-@pytest.mark.slow
-@pytest.mark.skipif(_jit.DISABLED, reason="REFEXMC_DISABLE_JIT=1: nothing is compiled")
-def test_a_family_compiles_none_of_the_other_families_steps(tmp_path):
-    """Compile what is flown (style.md 11): in a fresh process with an empty numba cache, the
-    IRASSI kernel (actuation wheels, no trajectory) compiles no thruster, table, LP, planar or
-    orbit step, and the ReFEx kernel compiled next (pwpf_table, planar_drag) none of the LP, wheel
-    or orbit steps. A branch left unpruned would type its steps (or fail to compile on a None)."""
-    import json
-    import os
-    import subprocess
-    import sys
-
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
-    env.pop("REFEXMC_DISABLE_JIT", None)
-    campaigns = [str(ROOT / "campaigns/irassi-fine-pointing.yaml"), str(ROOT / "campaigns/nominal.yaml")]
-    proc = subprocess.run(
-        [sys.executable, "-c", _FAMILY_CHECK, *campaigns], cwd=ROOT, env=env, capture_output=True, text=True
-    )
-    assert proc.returncode == 0, proc.stderr
-    irassi, refex = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert irassi["family"] == [L.ACTUATION_WHEELS, L.TRAJECTORY_NONE, 1, L.FEED_CONSTANT]
-    assert refex["family"] == [L.ACTUATION_PWPF_TABLE, L.TRAJECTORY_PLANAR_DRAG, 0, L.FEED_CONSTANT]
-    first = irassi["compiled"]
-    for family in ("thrusters", "pwpf_table", "lp_pwm", "planar_drag", "orbit", "feed", "local"):
-        assert first[family] == [0] * len(first[family]), f"the IRASSI kernel compiled {family} steps: {first}"
-    assert all(n >= 1 for n in first["wheels"]), first
-    second = refex["compiled"]  # after both kernels: the wheel steps are the IRASSI kernel's
-    for family in ("lp_pwm", "orbit", "feed", "local"):
-        assert second[family] == [0] * len(second[family]), f"the ReFEx kernel compiled {family} steps: {second}"
-    assert second["wheels"] == first["wheels"], "the ReFEx kernel compiled wheel steps"
-    assert all(n >= 1 for n in second["thrusters"] + second["pwpf_table"] + second["planar_drag"]), second
