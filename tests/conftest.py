@@ -18,17 +18,16 @@ CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 # the test files of more than a minute on one core (cold kernel cache), about longest first; the
 # others follow in pytest's order. Measured with `make test` (pytest --durations): add a file that
-# gets long. test_cpu_independence (its cold generic-x86-64 compile: minutes on one core) starts
-# after the files that fly most families: in a cold cache its host flights then load their kernels
-# instead of compiling them again beside the other worker
+# gets long. test_cpu_independence (its cold generic-x86-64 compile into a cache of its own: five
+# minutes on one core) starts at once: beside it the other worker compiles the first families
+# into the shared cache, where a second file flying them would wait for that compile's lock
 LONGEST_FIRST = [
+    "test_cpu_independence.py",
     "test_rare_event.py",
     "test_compare.py",
     "test_subset.py",
     "test_pointing.py",
     "test_knowledge.py",
-    "test_flight.py",
-    "test_cpu_independence.py",
     "test_allocation.py",
     "test_blending.py",
     "test_cold_gas_fig8.py",
