@@ -155,7 +155,7 @@ class Batch:
         for k in range(start, stop):
             prepared = self.prepared[k]
             if isinstance(prepared, Exception):
-                out.append((plan.error_row(self.run_ids[k], f"{type(prepared).__name__}: {prepared}"), None))
+                out.append((plan.error_row(self.run_ids[k], plan.failure_reason(prepared)), None))
                 continue
             j = self.row_of_run[k]
             record = pointing.Record(self.p_table, self.p_samples[j], self.p_counts[j], self.p_work[j])

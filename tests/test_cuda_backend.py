@@ -53,6 +53,43 @@ def test_without_numba_cuda_the_cuda_backend_exits_2_with_one_line_and_writes_no
     assert not out.exists()
 
 
+class _NeedsItsKeyword(Exception):
+    """An exception whose pickle loses its message: ``__init__`` takes what ``args`` does not hold."""
+
+    def __init__(self, message, *, where):
+        super().__init__(f"{message} at {where}")
+
+
+def test_a_run_whose_preparation_raised_in_a_host_worker_keeps_its_reason(monkeypatch):
+    """The GPU backend's host pool draws and packs a chunk per worker process
+    (``chunk.prepare_chunk``); a run whose preparation raised comes back through a pickle with the
+    reason the CPU's error row gives it (``Type: message``), and the others as drawn."""
+    import pickle
+
+    from refexmc.campaign import chunk
+    from refexmc.campaign.run import resolve_campaign
+
+    _, campaign = resolve_campaign(ROOT / "campaigns/smoke.yaml", runs=3)
+    plan = chunk.plan_for(campaign)
+    drawn = plan.prepare_runs([0, 1, 2])
+    prepare_runs = chunk.RunPlan.prepare_runs
+    monkeypatch.setattr(
+        chunk.RunPlan,
+        "prepare_runs",
+        lambda self, ids: [_NeedsItsKeyword("no draw", where="run 1") if k == 1 else p
+                           for k, p in zip(ids, prepare_runs(self, ids), strict=True)],
+    )  # fmt: skip
+    with pytest.raises(TypeError):  # the plain exception: its pickle cannot be loaded
+        pickle.loads(pickle.dumps(_NeedsItsKeyword("no draw", where="run 1")))
+    back = pickle.loads(pickle.dumps(chunk.prepare_chunk(campaign, [0, 1, 2])))
+    assert plan.failure_reason(back[1]) == "_NeedsItsKeyword: no draw at run 1"
+    assert plan.error_row(1, plan.failure_reason(back[1]))["failure_reason"] == "_NeedsItsKeyword: no draw at run 1"
+    for k in (0, 2):
+        seed, failed, params, inputs = back[k]
+        assert seed == drawn[k][0] and params == drawn[k][2]
+        assert all(np.array_equal(a, b) for a, b in zip(inputs, drawn[k][3], strict=True))
+
+
 _USER_WITHOUT_GPU = """
 import sys
 from refexmc import _jit
@@ -128,8 +165,9 @@ for name in sys.argv[2:]:
     path = f"campaigns/{name}.yaml"
     gpu = {}
     for chunk_size in (2, 3):
+        # chunks of 2: drawn and packed by two loky workers; of 3: in this process (one chunk)
         result = run_campaign(path, out=f"{sys.argv[1]}/{name}-{chunk_size}", runs=3, backend="cuda",
-                              chunk_size=chunk_size, notify=lambda message: None)
+                              chunk_size=chunk_size, jobs=2, notify=lambda message: None)
         gpu[chunk_size] = bits(result["runs"])
     _, campaign = resolve_campaign(path, runs=3)
     rows, _ = fly_chunk(campaign, [0, 1, 2])

@@ -77,6 +77,11 @@ class RunPlan:
         drawn = self.sampler.values_or_exceptions(run_ids)
         return [self._prepared(run_id, values) for run_id, values in zip(run_ids, drawn, strict=True)]
 
+    @staticmethod
+    def failure_reason(exc):
+        """The error row's reason of a run whose preparation or flight raised ``exc``."""
+        return exc.reason if isinstance(exc, PreparationFailed) else f"{type(exc).__name__}: {exc}"
+
     def _prepared(self, run_id, values):
         if isinstance(values, Exception):
             return values
@@ -121,7 +126,7 @@ class RunPlan:
             seed, failed, params, inputs = prepared
             result = simulate.fly(inputs, seed, history_rate_hz, mode_names=self.mode_names, requirements=self.pointing)
         except Exception as exc:  # noqa: BLE001 - one bad run must not stop the campaign
-            return self.error_row(run_id, f"{type(exc).__name__}: {exc}"), None
+            return self.error_row(run_id, self.failure_reason(exc)), None
         return self.result_row(run_id, prepared, result)
 
     def result_row(self, run_id, prepared, result):
@@ -143,6 +148,23 @@ class RunPlan:
 
 
 _last_plan = (None, None)  # (the campaign's pickle, its RunPlan): reused by a worker's later chunks
+
+
+class PreparationFailed(Exception):
+    """A run whose preparation raised in a worker process, carrying its error row's reason: an
+    exception does not always come through a pickle with its message (one whose ``__init__``
+    takes other arguments than its ``args``)."""
+
+    def __init__(self, reason):
+        super().__init__(reason)
+        self.reason = reason
+
+
+def prepare_chunk(campaign, run_ids):
+    """:meth:`RunPlan.prepare_runs` of ``run_ids`` in a worker process (the GPU backend's host
+    pool), each failed run a :class:`PreparationFailed`."""
+    prepared = plan_for(campaign).prepare_runs(run_ids)
+    return [PreparationFailed(RunPlan.failure_reason(p)) if isinstance(p, Exception) else p for p in prepared]
 
 
 def plan_for(campaign):

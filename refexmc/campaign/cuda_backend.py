@@ -22,7 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from refexmc import simulate_cuda
-from refexmc.campaign import storage
+from refexmc.campaign import pool, storage
 from refexmc.config.errors import ConfigError
 from refexmc.simulate_cuda import Batch, grid_kernel, launch_runs
 
@@ -49,8 +49,10 @@ def refusal(campaign):
 
 
 def cuda_backend(campaign, chunks, jobs, guard):
-    """Fly ``chunks`` on this machine's GPU (``jobs`` and ``guard`` are the loky backend's and
-    unused: the host prepares and names the runs in this process, the GPU flies them).
+    """Fly ``chunks`` on this machine's GPU (``guard`` is the loky backend's and unused: a GPU
+    thread has no wall-time watchdog). ``jobs`` > 1: that many loky worker processes draw and pack
+    the runs, a chunk each (the host's serial bottleneck otherwise: benchmarks/bench_gpu_host.py);
+    1: this process does.
 
     Yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` per chunk, in chunk
     order; the host prepares the next batch while the GPU flies one, and names and encodes a batch
@@ -64,10 +66,15 @@ def cuda_backend(campaign, chunks, jobs, guard):
     rate = campaign["output"]["history_rate_hz"]
     kernel = grid_kernel(plan.family)
     batches = _batches(chunks, launch_runs(plan, rate))
-    batch = _prepare(plan, batches[0], rate)
+    executor = pool.executor(min(jobs, len(chunks))) if jobs > 1 and len(chunks) > 1 else None
+
+    def prepare(batch_chunks):
+        return _prepare(plan, campaign, batch_chunks, rate, executor)
+
+    batch = prepare(batches[0])
     flying = _start(batch, kernel)
     for index, batch_chunks in enumerate(batches):
-        following = _prepare(plan, batches[index + 1], rate) if index + 1 < len(batches) else None  # while it flies
+        following = prepare(batches[index + 1]) if index + 1 < len(batches) else None  # while it flies
         batch.join(flying)
         if following is not None:
             flying_next = _start(following, kernel)
@@ -96,9 +103,17 @@ def _batches(chunks, runs_per_launch):
     return batches
 
 
-def _prepare(plan, batch_chunks, rate):
+def _prepare(plan, campaign, batch_chunks, rate, executor=None):
+    """The launch of ``batch_chunks``: its runs drawn and packed here, or a chunk per loky worker."""
     run_ids = [run_id for _, ids in batch_chunks for run_id in ids]
-    return Batch(plan, run_ids, plan.prepare_runs(run_ids), rate)
+    if executor is None:
+        prepared = plan.prepare_runs(run_ids)
+    else:
+        from refexmc.campaign.chunk import prepare_chunk
+
+        futures = [executor.submit(prepare_chunk, campaign, list(ids)) for _, ids in batch_chunks]
+        prepared = [entry for future in futures for entry in future.result()]
+    return Batch(plan, run_ids, prepared, rate)
 
 
 def _chunk_parts(plan, batch, batch_chunks):
