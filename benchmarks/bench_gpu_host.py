@@ -42,6 +42,7 @@ import numpy as np  # noqa: E402
 from refexmc import simulate  # noqa: E402
 from refexmc.campaign import cuda_backend, pool, storage  # noqa: E402
 from refexmc.campaign.chunk import RunPlan  # noqa: E402
+from refexmc.campaign.run import plan_chunks  # noqa: E402
 from refexmc.config.load import apply_overrides, load_campaign  # noqa: E402
 from refexmc.core import flight, pointing  # noqa: E402
 from refexmc.core import layout as L  # noqa: E402
@@ -63,16 +64,12 @@ def _fill_on_cpu(batch):
         )  # fmt: skip
 
 
-def _chunks(runs, chunk):
-    return [(k, range(start, min(runs, start + chunk))) for k, start in enumerate(range(0, runs, chunk))]
-
-
 def measure(runs, chunk, repeats):
     campaign = apply_overrides(load_campaign(CAMPAIGN), runs=runs)
     plan = RunPlan(campaign)
     rate = campaign["output"]["history_rate_hz"]
     simulate.load_kernels([plan.family])
-    chunks = _chunks(runs, chunk)
+    chunks = plan_chunks(runs, chunk)
     run_ids = list(range(runs))
     clock = time.perf_counter
     times = {name: [] for name in ("prepare", "stack", "rows", "tables", "encode")}
@@ -101,7 +98,7 @@ def measure(runs, chunk, repeats):
     cpu_flight_s = clock() - t0
     for _ in range(repeats):
         spent = dict.fromkeys(("rows", "tables", "encode"), 0.0)
-        for _, ids in chunks:
+        for _, ids in chunks:  # cuda_backend._chunk_part, stage by stage
             t0 = clock()
             pieces = batch.rows(plan, ids.start, ids.stop)
             t1 = clock()
