@@ -38,7 +38,8 @@ OLD_CPU = {
     "OPENBLAS_CORETYPE": "Nehalem",
 }
 # numpy refuses x86 feature names on other machines
-x86_64_only = pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86-64 SIMD features")
+X86_64 = platform.machine() in ("x86_64", "AMD64")
+x86_64_only = pytest.mark.skipif(not X86_64, reason="x86-64 SIMD features")
 # glibc >= 2.33 names; older glibc ignores unknown tunables (then the check is weaker, not wrong)
 NO_FMA_LIBM = {"GLIBC_TUNABLES": "glibc.cpu.hwcaps=-AVX512F,-AVX512DQ,-AVX2,-FMA,-AVX"}
 
@@ -216,7 +217,7 @@ def _cpu_variants(tmp_path):
     }
     variants["glibc-without-fma-variants"] = NO_FMA_LIBM  # the flights call no libm (core/elementary.py)
     variants[GENERIC] = {
-        **(OLD_CPU if platform.machine() in ("x86_64", "AMD64") else {}),
+        **(OLD_CPU if X86_64 else {}),
         "NUMBA_CPU_NAME": "generic",
         "NUMBA_CACHE_DIR": str(tmp_path / "numba-generic"),
     }
