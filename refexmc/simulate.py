@@ -130,8 +130,8 @@ class FlightResult:
         for name in (*fraction, "fuel_used_kg", "t_end_s"):
             if not np.isfinite(self.value(name)):
                 return f"non-finite {name} in the summary"
-        signals = ("t_s", "omega_m_deg_s", *fraction, "altitude_m")
-        finite = np.column_stack([self.column(n) for n in signals])
+        signals = [L.H_T, L.H_OMEGA_M, *([L.H_FUEL] if fraction else []), L.H_ALTITUDE]
+        finite = self.history[:, signals]
         if not np.isfinite(finite).all():
             row = int(np.argmax(~np.isfinite(finite).all(axis=1)))
             return f"non-finite state at t = {self.column('t_s')[row]:.3f} s"

@@ -69,42 +69,75 @@ def _fly_runs(fly_run):
     return fly_runs
 
 
-class Batch:
-    """The host arrays of one launch: the runs' stacked inputs and their outputs."""
+INPUT_TABLES = RunInputs._fields  # a launch's input arrays: each RunInputs table stacked, then seeds and every
+OUTPUTS = ("summaries", "pulses", "histories", "p_samples", "p_counts", "p_work")
 
-    def __init__(self, plan, run_ids, prepared, history_rate_hz):
-        self.run_ids = run_ids
-        self.prepared = _same_shapes(prepared)
-        prepared = self.prepared
-        self.flown = [k for k, p in enumerate(prepared) if not isinstance(p, Exception)]
-        self.row_of_run = {k: j for j, k in enumerate(self.flown)}  # run k of the batch: row j of the arrays
-        inputs = [prepared[k][3] for k in self.flown]
-        self.inputs = RunInputs(*(_stack([getattr(x, name) for x in inputs]) for name in RunInputs._fields))
-        n = len(inputs)
-        self.seeds = np.array([prepared[k][0] for k in self.flown], dtype=np.int64)
-        self.every = np.array([simulate.history_every(x, history_rate_hz) for x in inputs], dtype=np.int64)
-        rows = max((simulate.history_rows(x, e) for x, e in zip(inputs, self.every, strict=True)), default=1)
-        n_modes, n_thr = self.inputs.modes.shape[1], self.inputs.thrusters.shape[1]
-        self.summaries = np.zeros((n, L.summary_size(n_modes)))
-        self.pulses = np.zeros((n, n_thr), dtype=np.int64)
-        self.histories = np.zeros((n, rows, L.history_size(self.inputs.wheels.shape[1])))
-        requirements = plan.pointing
-        self.p_table, capacity = np.zeros((0, L.POINTING_SIZE)), 1  # the CPU's pointing.empty_record()
-        if requirements.columns:
-            self.p_table = np.ascontiguousarray(requirements.table, dtype=np.float64)
-            capacity = max(simulate.pointing_capacity(x, requirements.table) for x in inputs) if n else 1
-        self.p_samples = np.zeros((n, self.p_table.shape[0], max(capacity, 1), pointing.SAMPLE_SIZE))
-        self.p_counts = np.zeros((n, self.p_table.shape[0]), dtype=np.int64)
-        self.p_work = np.zeros((n, 2, 4))
-        self.family = plan.family
+
+def input_shapes(nominal_inputs, n):
+    """``{name: (shape, dtype)}`` of the input arrays of a launch of ``n`` runs of a campaign whose
+    undispersed inputs are ``nominal_inputs`` (every run of a campaign has their shapes)."""
+    shapes = {name: ((n, *getattr(nominal_inputs, name).shape), np.float64) for name in INPUT_TABLES}
+    return {**shapes, "seeds": ((n,), np.int64), "every": ((n,), np.int64)}
+
+
+def output_shapes(nominal_inputs, n, history_rows, requirements, capacity):
+    """``{name: (shape, dtype)}`` of the output arrays of a launch of ``n`` runs: ``history_rows``
+    and pointing ``capacity`` are the largest of its runs' (:func:`run_sizes`)."""
+    n_modes, n_thrusters = nominal_inputs.modes.shape[0], nominal_inputs.thrusters.shape[0]
+    n_requirements = len(requirements.columns) if requirements is not None else 0
+    return {
+        "summaries": ((n, L.summary_size(n_modes)), np.float64),
+        "pulses": ((n, n_thrusters), np.int64),
+        "histories": ((n, history_rows, L.history_size(nominal_inputs.wheels.shape[0])), np.float64),
+        "p_samples": ((n, n_requirements, max(capacity, 1), pointing.SAMPLE_SIZE), np.float64),
+        "p_counts": ((n, n_requirements), np.int64),
+        "p_work": ((n, 2, 4), np.float64),
+    }
+
+
+def run_sizes(inputs, history_rate_hz, requirements):
+    """(history every, history rows, pointing capacity) of a run of ``inputs``: what its rows of a
+    launch's arrays must hold."""
+    every = simulate.history_every(inputs, history_rate_hz)
+    capacity = 1
+    if requirements is not None and requirements.columns:
+        capacity = simulate.pointing_capacity(inputs, requirements.table)
+    return every, simulate.history_rows(inputs, every), capacity
+
+
+def pointing_table(requirements):
+    """The requirements' table each thread reads (the CPU's ``pointing.empty_record()`` without any)."""
+    if requirements is None or not requirements.columns:
+        return np.zeros((0, L.POINTING_SIZE))
+    return np.ascontiguousarray(requirements.table, dtype=np.float64)
+
+
+class Batch:
+    """One launch's host arrays (``arrays``: :func:`input_shapes` and :func:`output_shapes` by
+    name, in any memory): run k of the launch is row k of each."""
+
+    def __init__(self, arrays, family, requirements):
+        self.inputs = RunInputs(*(arrays[name] for name in INPUT_TABLES))
+        self.seeds, self.every = arrays["seeds"], arrays["every"]
+        self.summaries, self.pulses, self.histories = arrays["summaries"], arrays["pulses"], arrays["histories"]
+        self.p_samples, self.p_counts, self.p_work = arrays["p_samples"], arrays["p_counts"], arrays["p_work"]
+        self.p_table = pointing_table(requirements)
+        self.family = family
         self.error = None
+
+    def __len__(self):
+        return self.seeds.shape[0]
+
+    def run_inputs(self, j):
+        """The inputs of run ``j`` of the launch (views of its rows)."""
+        return RunInputs(*(table[j] for table in self.inputs))
 
     def work_sizes(self):
         """The lengths of one run's flat work buffers (the runs of a batch have the same shapes)."""
-        if not self.flown:
+        if len(self) == 0:
             return (0, 0, 0, 0)
         fly_run = flight.kernel_parts(*self.family).fly_run
-        return tuple(int(v) for v in flight.work_sizes(fly_run, self.prepared[self.flown[0]][3]))
+        return tuple(int(v) for v in flight.work_sizes(fly_run, self.run_inputs(0)))
 
     def arguments(self, buffers):
         """The kernel's arguments on the host, after the four flat work ``buffers``."""
@@ -114,9 +147,8 @@ class Batch:
 
     def typing_arguments(self):
         """:meth:`arguments` with empty work buffers: what types the kernel (``numba.cuda.compile_ptx``)."""
-        n = len(self.flown)
         dtypes = (np.float64, np.int64, np.uint64, np.bool_)
-        return self.arguments(tuple(np.zeros((n, 0), dtype=dtype) for dtype in dtypes))
+        return self.arguments(tuple(np.zeros((len(self), 0), dtype=dtype) for dtype in dtypes))
 
     def launch(self, kernel):
         """:meth:`fly` in a thread of its own: an exception is kept for :meth:`join` to raise."""
@@ -132,7 +164,7 @@ class Batch:
 
     def fly(self, kernel):
         """Fly the batch on the device; its outputs are back in the host arrays when this returns."""
-        n = len(self.flown)
+        n = len(self)
         if n == 0:
             return
         dtypes = (np.float64, np.int64, np.uint64, np.bool_)
@@ -149,48 +181,53 @@ class Batch:
             if id(on_host) in written:
                 on_device.copy_to_host(on_host)
 
-    def rows(self, plan, start, stop):
-        """(runs row, FlightResult or None) of the batch's runs ``start`` to ``stop``, in run order."""
-        out = []
-        for k in range(start, stop):
-            prepared = self.prepared[k]
-            if isinstance(prepared, Exception):
-                out.append((plan.error_row(self.run_ids[k], plan.failure_reason(prepared)), None))
-                continue
-            j = self.row_of_run[k]
-            record = pointing.Record(self.p_table, self.p_samples[j], self.p_counts[j], self.p_work[j])
-            outputs = (self.summaries[j], self.pulses[j], self.histories[j], record)
-            result = simulate.flight_result(prepared[3], *outputs, plan.mode_names, plan.pointing)
-            out.append(plan.result_row(self.run_ids[k], prepared, result))
-        return out
+    def result(self, j, mode_names, requirements):
+        """The :class:`refexmc.simulate.FlightResult` of run ``j`` of the flown launch (views of its rows)."""
+        record = pointing.Record(self.p_table, self.p_samples[j], self.p_counts[j], self.p_work[j])
+        outputs = (self.summaries[j], self.pulses[j], self.histories[j], record)
+        return simulate.flight_result(self.run_inputs(j), *outputs, mode_names, requirements)
 
 
-def _same_shapes(prepared):
-    """``prepared`` with each run whose input tables have other shapes than the first run's replaced
-    by an exception (an error row): a launch stacks its runs' tables (a campaign's runs share them)."""
-    shapes = [tuple(t.shape for t in p[3]) if not isinstance(p, Exception) else None for p in prepared]
-    first = next((shape for shape in shapes if shape is not None), None)
-    return [
-        p if shape is None or shape == first else ValueError("input tables of other shapes than its launch's")
-        for p, shape in zip(prepared, shapes, strict=True)
-    ]
+def batch_of_runs(plan, inputs, seeds, history_rate_hz):
+    """A :class:`Batch` of runs of ``plan`` (a campaign's RunPlan) in private memory: ``inputs``
+    (each run's RunInputs, of the campaign's shapes) and their nav ``seeds``."""
+    n = len(inputs)
+    sizes = [run_sizes(x, history_rate_hz, plan.pointing) for x in inputs]
+    rows = max((s[1] for s in sizes), default=1)
+    capacity = max((s[2] for s in sizes), default=1)
+    shapes = {
+        **input_shapes(plan.nominal_inputs, n),
+        **output_shapes(plan.nominal_inputs, n, rows, plan.pointing, capacity),
+    }
+    arrays = {name: np.zeros(shape, dtype=dtype) for name, (shape, dtype) in shapes.items()}
+    for k, x in enumerate(inputs):
+        for name in INPUT_TABLES:
+            arrays[name][k] = getattr(x, name)
+    arrays["seeds"][:] = seeds
+    arrays["every"][:] = [s[0] for s in sizes]
+    return Batch(arrays, plan.family, plan.pointing)
 
 
-def _stack(tables):
-    """Run k's table as row k of one array; tables of different shapes (not a campaign's) are refused."""
-    shapes = {table.shape for table in tables}
-    if len(shapes) > 1:
-        raise ValueError(f"the runs of a GPU launch have input tables of different shapes: {sorted(shapes)}")
-    return np.ascontiguousarray(np.stack(tables)) if tables else np.zeros((0, 1))
+def host_bytes_per_run(plan, history_rate_hz):
+    """The host arrays' bytes of one run of a launch (inputs and outputs; measured on the nominal
+    inputs, doubled for the dispersed ones' margins)."""
+    probe = batch_of_runs(plan, [plan.nominal_inputs], [0], history_rate_hz)
+    return 2 * sum(a.nbytes for a in probe.arguments(()))
 
 
-def launch_runs(plan, history_rate_hz):
+def launch_runs(plan, history_rate_hz, host_free_bytes=None):
     """Runs per launch: what half the free device memory holds (one run's arrays measured on the
-    nominal inputs, doubled for the dispersed ones' margins), at most MAX_LAUNCH_RUNS."""
+    nominal inputs, doubled for the dispersed ones' margins), at most MAX_LAUNCH_RUNS; with
+    ``host_free_bytes`` (the shared memory the host's arrays live in), also what a quarter of it
+    holds: two launches' host arrays live at once (one named while the next flies)."""
     if _jit.CUDA_SIMULATOR:
         return SIMULATOR_LAUNCH_RUNS
-    probe = Batch(plan, [0], [(0, None, {}, plan.nominal_inputs)], history_rate_hz)
+    probe = batch_of_runs(plan, [plan.nominal_inputs], [0], history_rate_hz)
     nf, ni, nu, nb = probe.work_sizes()
-    per_run = 2 * (sum(a.nbytes for a in probe.arguments(())) + 8 * (nf + ni + nu) + nb)
+    host = host_bytes_per_run(plan, history_rate_hz)
+    per_run = host + 2 * (8 * (nf + ni + nu) + nb)
     free, _ = cuda.current_context().get_memory_info()
-    return max(THREADS_PER_BLOCK, min(MAX_LAUNCH_RUNS, int(MEMORY_FRACTION * free / max(per_run, 1))))
+    runs = int(MEMORY_FRACTION * free / max(per_run, 1))
+    if host_free_bytes is not None:
+        runs = min(runs, int(host_free_bytes / 4 / max(host, 1)))
+    return max(THREADS_PER_BLOCK, min(MAX_LAUNCH_RUNS, runs))

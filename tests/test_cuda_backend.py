@@ -61,14 +61,33 @@ class _NeedsItsKeyword(Exception):
         super().__init__(f"{message} at {where}")
 
 
-def test_a_run_whose_preparation_raised_in_a_host_worker_keeps_its_reason(monkeypatch):
-    """The GPU backend's host pool draws and packs a chunk per worker process
-    (``chunk.prepare_chunk``); a run whose preparation raised comes back through a pickle with the
-    reason the CPU's error row gives it (``Type: message``), and the others as drawn."""
+def _prepared_into_shared_memory(campaign, run_ids):
+    """``cuda_backend.prepare_into`` of ``run_ids`` into a shared block, as a host worker does it:
+    (the PreparedChunk back through a pickle, a copy of the block's arrays)."""
     import pickle
 
+    from refexmc.campaign import cuda_backend, shared_arrays
+    from refexmc.campaign.chunk import plan_for
+    from refexmc.simulate_cuda import input_shapes
+
+    block = shared_arrays.Arrays(input_shapes(plan_for(campaign).nominal_inputs, len(run_ids) + 1), shared=True)
+    try:
+        back = pickle.loads(pickle.dumps(cuda_backend.prepare_into(campaign, run_ids, block.handle(), 1)))
+        return back, {name: array.copy() for name, array in block.arrays.items()}
+    finally:
+        block.release()
+
+
+def test_a_host_worker_packs_each_run_into_its_rows_and_keeps_a_failed_runs_reason(monkeypatch):
+    """The GPU backend's host workers draw and pack a chunk each into the launch's rows in shared
+    memory (``cuda_backend.prepare_into``): each run's tables, seed and ``p.`` values are those of
+    ``RunPlan.prepare_runs``; a run whose preparation raised keeps the reason the CPU's error row
+    gives it (``Type: message``, also for an exception that does not pickle) and flies the nominal
+    inputs, unread."""
+    pytest.importorskip("numba_cuda")
     from refexmc.campaign import chunk
     from refexmc.campaign.run import resolve_campaign
+    from refexmc.simulate_cuda import INPUT_TABLES
 
     _, campaign = resolve_campaign(ROOT / "campaigns/smoke.yaml", runs=3)
     plan = chunk.plan_for(campaign)
@@ -80,13 +99,17 @@ def test_a_run_whose_preparation_raised_in_a_host_worker_keeps_its_reason(monkey
         lambda self, ids: [_NeedsItsKeyword("no draw", where="run 1") if k == 1 else p
                            for k, p in zip(ids, prepare_runs(self, ids), strict=True)],
     )  # fmt: skip
-    back = pickle.loads(pickle.dumps(chunk.prepare_chunk(campaign, [0, 1, 2])))
-    assert plan.failure_reason(back[1]) == "_NeedsItsKeyword: no draw at run 1"
-    assert plan.error_row(1, plan.failure_reason(back[1]))["failure_reason"] == "_NeedsItsKeyword: no draw at run 1"
+    back, arrays = _prepared_into_shared_memory(campaign, [0, 1, 2])
+    assert back.reasons == [None, "_NeedsItsKeyword: no draw at run 1", None]
+    assert plan.error_row(1, back.reasons[1])["failure_reason"] == "_NeedsItsKeyword: no draw at run 1"
+    columns = plan.param_columns()
     for k in (0, 2):
-        seed, failed, params, inputs = back[k]
-        assert seed == drawn[k][0] and params == drawn[k][2]
-        assert all(np.array_equal(a, b) for a, b in zip(inputs, drawn[k][3], strict=True))
+        seed, failed, params, inputs = drawn[k]
+        assert back.seeds[k] == seed == arrays["seeds"][1 + k] and back.failures[k] == failed
+        assert dict(zip(columns, back.params[k].tolist(), strict=True)) == params
+        assert all(np.array_equal(arrays[name][1 + k], getattr(inputs, name)) for name in INPUT_TABLES)
+    assert all(np.array_equal(arrays[name][2], getattr(plan.nominal_inputs, name)) for name in INPUT_TABLES)
+    assert not arrays["mission"][0].any()  # row 0 is not the chunk's: untouched
 
 
 _USER_WITHOUT_GPU = """
@@ -225,7 +248,8 @@ def _compile_ptx(campaign_name):
 
     _, campaign = resolve_campaign(ROOT / f"campaigns/{campaign_name}.yaml", runs=2)
     plan = RunPlan(campaign)
-    batch = simulate_cuda.Batch(plan, [0, 1], plan.prepare_runs([0, 1]), campaign["output"]["history_rate_hz"])
+    inputs = [prepared[3] for prepared in plan.prepare_runs([0, 1])]
+    batch = simulate_cuda.batch_of_runs(plan, inputs, [0, 1], campaign["output"]["history_rate_hz"])
     signature = tuple(numba.typeof(argument) for argument in batch.typing_arguments())
     kernel = simulate_cuda._fly_runs(flight.kernel_parts(*plan.family).fly_run)
     stand_in = types.SimpleNamespace(compute_capability=(9, 0))
@@ -315,20 +339,26 @@ def test_the_ptx_test_covers_every_family_of_the_shipped_campaigns():
     assert set(compiled) == shipped and len(compiled) == len(shipped)  # each family once
 
 
-def test_a_run_whose_tables_have_other_shapes_becomes_an_error_not_a_failed_launch():
+def test_a_run_whose_tables_have_other_shapes_becomes_an_error_not_a_failed_launch(monkeypatch):
+    """A launch stacks its runs' tables: a run whose tables have other shapes than its campaign's
+    (none does today: dispersions keep them) is an error row, the others fly."""
     pytest.importorskip("numba_cuda")
-    from refexmc.core.inputs import RunInputs
-    from refexmc.simulate_cuda import _same_shapes
+    from refexmc.campaign import chunk
+    from refexmc.campaign.run import resolve_campaign
 
-    def run(n_thrusters):
-        tables = {name: np.zeros((1, 1)) for name in RunInputs._fields}
-        tables["thrusters"] = np.zeros((n_thrusters, 17))
-        return (0, None, {}, RunInputs(**tables))
+    _, campaign = resolve_campaign(ROOT / "campaigns/smoke.yaml", runs=2)
+    prepare_runs = chunk.RunPlan.prepare_runs
 
-    broken = RuntimeError("draw failed")
-    checked = _same_shapes([broken, run(8), run(8), run(7)])
-    assert checked[0] is broken and checked[1][3].thrusters.shape == (8, 17) and checked[2] is not None
-    assert isinstance(checked[3], ValueError)
+    def one_thruster_less(self, ids):
+        runs = prepare_runs(self, ids)
+        seed, failed, params, inputs = runs[1]
+        runs[1] = (seed, failed, params, inputs._replace(thrusters=inputs.thrusters[:-1]))
+        return runs
+
+    monkeypatch.setattr(chunk.RunPlan, "prepare_runs", one_thruster_less)
+    back, _ = _prepared_into_shared_memory(campaign, [0, 1])
+    assert back.reasons[0] is None
+    assert back.reasons[1].startswith("ValueError: input tables of other shapes")
 
 
 def test_importing_refexmc_does_not_import_numba_cuda():

@@ -80,7 +80,7 @@ class RunPlan:
     @staticmethod
     def failure_reason(exc):
         """The error row's reason of a run whose preparation or flight raised ``exc``."""
-        return exc.reason if isinstance(exc, PreparationFailed) else f"{type(exc).__name__}: {exc}"
+        return f"{type(exc).__name__}: {exc}"
 
     def _prepared(self, run_id, values):
         if isinstance(values, Exception):
@@ -148,23 +148,6 @@ class RunPlan:
 
 
 _last_plan = (None, None)  # (the campaign's pickle, its RunPlan): reused by a worker's later chunks
-
-
-class PreparationFailed(Exception):
-    """A run whose preparation raised in a worker process, carrying its error row's reason: an
-    exception does not always come through a pickle with its message (one whose ``__init__``
-    takes other arguments than its ``args``)."""
-
-    def __init__(self, reason):
-        super().__init__(reason)
-        self.reason = reason
-
-
-def prepare_chunk(campaign, run_ids):
-    """:meth:`RunPlan.prepare_runs` of ``run_ids`` in a worker process (the GPU backend's host
-    pool), each failed run a :class:`PreparationFailed`."""
-    prepared = plan_for(campaign).prepare_runs(run_ids)
-    return [PreparationFailed(RunPlan.failure_reason(p)) if isinstance(p, Exception) else p for p in prepared]
 
 
 def plan_for(campaign):

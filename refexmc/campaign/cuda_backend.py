@@ -8,23 +8,28 @@ layer never imports the core). The host then names each run's outputs as the CPU
 parts to the writer (refexmc.campaign.run), so progress, resume, signals and the lock are the
 loky backend's.
 
-A batch holds as many runs as half the free device memory takes (``launch_runs``); while the
-GPU flies one batch, the host prepares the next. A run whose preparation raised or whose state is
-not finite becomes an error row, as on the CPU; a run that meets its mission's time limit is a
-failure, as on the CPU. Unlike loky there is no wall-time watchdog per run (a thread cannot be
-stopped alone): the flight's own time limit ends every run.
+The host's work is a chunk per task (:func:`prepare_into`, :func:`name_chunk`) for loky workers,
+the launch's arrays in shared memory (refexmc.campaign.shared_arrays), or for threads of this
+process (``-j 1``). A launch holds as many runs as half the free device memory takes
+(``launch_runs``); while the GPU flies one launch, the workers pack the next, then name and
+encode the flown one. A run whose preparation raised or whose state is not finite becomes an
+error row, as on the CPU; a run that meets its mission's time limit is a failure, as on the CPU.
+Unlike loky there is no wall-time watchdog per run (a thread cannot be stopped alone): the
+flight's own time limit ends every run.
 """
 
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from refexmc import simulate_cuda
-from refexmc.campaign import pool, storage
+from refexmc.campaign import pool, shared_arrays, storage
 from refexmc.config.errors import ConfigError
-from refexmc.simulate_cuda import Batch, grid_kernel, launch_runs
+from refexmc.simulate_cuda import INPUT_TABLES, Batch, grid_kernel, input_shapes, launch_runs, output_shapes, run_sizes
 
 # the entry flight (core.entry_flight) has no GPU kernel at all; other families that cannot fly
 # on the GPU yet: simulate_cuda.REFUSED_FAMILIES
@@ -49,14 +54,15 @@ def refusal(campaign):
 
 
 def cuda_backend(campaign, chunks, jobs, guard):
-    """Fly ``chunks`` on this machine's GPU (``guard`` is the loky backend's and unused: a GPU
+    """Fly ``chunks`` on this machine's GPU (of ``guard``, only its work directory is used: a GPU
     thread has no wall-time watchdog). ``jobs`` > 1: that many loky worker processes draw and pack
-    the runs, a chunk each (the host's serial bottleneck otherwise: benchmarks/bench_gpu_host.py);
-    1: this process does.
+    the runs into the launch's arrays and name and encode its parts, a chunk a task, the arrays in
+    shared memory (the host's work is what bounds a GPU campaign: benchmarks/bench_gpu_host.py);
+    1: threads of this process do, on private arrays.
 
     Yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` per chunk, in chunk
-    order; the host prepares the next batch while the GPU flies one, and names and encodes a batch
-    while the GPU flies the next.
+    order; the host prepares the next launch while the GPU flies one, and names and encodes a
+    launch while the GPU flies the next.
     """
     from refexmc.campaign.chunk import plan_for
 
@@ -64,29 +70,53 @@ def cuda_backend(campaign, chunks, jobs, guard):
         return
     plan = plan_for(campaign)
     rate = campaign["output"]["history_rate_hz"]
+    shared = jobs > 1 and len(chunks) > 1 and _shared_memory_holds(plan, rate)
+    host_free = shared_arrays.shared_free_bytes() if shared else None
     kernel = grid_kernel(plan.family)
-    batches = _batches(chunks, launch_runs(plan, rate))
-    executor = pool.executor(min(jobs, len(chunks))) if jobs > 1 and len(chunks) > 1 else None
+    batches = _batches(chunks, launch_runs(plan, rate, host_free))
+    workers = pool.executor(min(jobs, len(chunks))) if shared else _threads()
+    # a worker writes its chunk's parts into the work directory, the parent renames them into place
+    # (through the pipe, a ReFEx chunk's ~1.6 MB of parts cost the parent 0.02 ms per run)
+    work_dir = guard.state_dir if shared else None
+    launches = []  # those whose arrays are allocated: at most two at a time (one named while the next flies)
+    try:
+        launch = Launch.submit(plan, campaign, batches[0], workers, shared)
+        launches.append(launch)
+        launch.allocate_outputs(plan)
+        launch.start(kernel)
+        for index in range(len(batches)):
+            following = None
+            if index + 1 < len(batches):  # its tasks queue before the naming of this one
+                following = Launch.submit(plan, campaign, batches[index + 1], workers, shared)
+                launches.append(following)
+            launch.join()
+            named = launch.submit_naming(campaign, workers, work_dir)
+            if following is not None:
+                following.allocate_outputs(plan)
+                following.start(kernel)
+            for part in named:
+                yield part.result()
+            launch.release()
+            launches.remove(launch)
+            launch = following
+    finally:
+        for launch in launches:  # a signal, a full disk, a failed launch: free the host's memory
+            launch.release()
+        if not shared:
+            workers.shutdown(wait=False, cancel_futures=True)
 
-    def prepare(batch_chunks):
-        return _prepare(plan, campaign, batch_chunks, rate, executor)
 
-    batch = prepare(batches[0])
-    flying = _start(batch, kernel)
-    for index, batch_chunks in enumerate(batches):
-        following = prepare(batches[index + 1]) if index + 1 < len(batches) else None  # while it flies
-        batch.join(flying)
-        if following is not None:
-            flying_next = _start(following, kernel)
-        yield from _chunk_parts(plan, batch, batch_chunks)  # while the following batch flies
-        if following is not None:
-            batch, flying = following, flying_next
+def _shared_memory_holds(plan, rate):
+    """Whether this machine's shared memory holds two launches of THREADS_PER_BLOCK runs (a
+    container's /dev/shm may be 64 MB): otherwise the host's work stays in this process."""
+    if not shared_arrays.shareable():
+        return False
+    needed = 4 * simulate_cuda.THREADS_PER_BLOCK * simulate_cuda.host_bytes_per_run(plan, rate)
+    return shared_arrays.shared_free_bytes() >= needed
 
 
-def _start(batch, kernel):
-    flying = threading.Thread(target=batch.launch, args=(kernel,), name="refexmc-cuda-launch", daemon=True)
-    flying.start()
-    return flying
+def _threads():
+    return ThreadPoolExecutor(max_workers=os.cpu_count() or 1, thread_name_prefix="refexmc-host")
 
 
 def _batches(chunks, runs_per_launch):
@@ -103,39 +133,160 @@ def _batches(chunks, runs_per_launch):
     return batches
 
 
-def _prepare(plan, campaign, batch_chunks, rate, executor=None):
-    """The launch of ``batch_chunks``: its runs drawn and packed here, or a chunk per loky worker."""
-    run_ids = [run_id for _, ids in batch_chunks for run_id in ids]
-    if executor is None:
-        prepared = plan.prepare_runs(run_ids)
-    else:
-        from refexmc.campaign.chunk import prepare_chunk
+class Launch:
+    """One launch of a campaign: its chunks, their runs' arrays (shared or private memory), the
+    prepared chunks' metadata and the flight's thread."""
 
-        futures = [executor.submit(prepare_chunk, campaign, list(ids)) for _, ids in batch_chunks]
-        prepared = [entry for future in futures for entry in future.result()]
-    return Batch(plan, run_ids, prepared, rate)
+    def __init__(self, plan, batch_chunks, shared):
+        self.chunks = batch_chunks
+        self.first = [int(v) for v in np.cumsum([0] + [len(ids) for _, ids in batch_chunks])]
+        self.n = self.first[-1]
+        self.inputs = shared_arrays.Arrays(input_shapes(plan.nominal_inputs, self.n), shared)
+        self.outputs = None
+        self.shared = shared
+        self.pending = []  # the chunks' preparation futures
+        self.prepared = None  # their PreparedChunk, in order
+        self.batch = None
+        self.flying = None
+        self.naming = []
 
-
-def _chunk_parts(plan, batch, batch_chunks):
-    """Each chunk's (chunk, rows, runs bytes, history bytes), in order, named and encoded by a
-    thread per core (Arrow's encoding and the nogil reductions run in parallel)."""
-    starts = np.cumsum([0] + [len(run_ids) for _, run_ids in batch_chunks])
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1, thread_name_prefix="refexmc-encode") as pool:
-        parts = [
-            pool.submit(_chunk_part, plan, batch, chunk, int(start), int(stop))
-            for (chunk, _), start, stop in zip(batch_chunks, starts[:-1], starts[1:], strict=True)
+    @classmethod
+    def submit(cls, plan, campaign, batch_chunks, workers, shared):
+        """A launch whose chunks' preparation is submitted to ``workers``."""
+        launch = cls(plan, batch_chunks, shared)
+        target = launch.inputs.handle() if shared else launch.inputs
+        launch.pending = [
+            workers.submit(prepare_into, campaign, list(ids), target, first)
+            for (_, ids), first in zip(batch_chunks, launch.first, strict=False)
         ]
-        for part in parts:
-            yield part.result()
+        return launch
+
+    def allocate_outputs(self, plan):
+        """Wait for the chunks' preparation; allocate the outputs their runs need."""
+        self.prepared = [future.result() for future in self.pending]
+        self.pending = []
+        rows = max(chunk.history_rows for chunk in self.prepared)
+        capacity = max(chunk.capacity for chunk in self.prepared)
+        self.outputs = shared_arrays.Arrays(
+            output_shapes(plan.nominal_inputs, self.n, rows, plan.pointing, capacity), self.shared
+        )
+        self.batch = Batch({**self.inputs.arrays, **self.outputs.arrays}, plan.family, plan.pointing)
+
+    def start(self, kernel):
+        self.flying = threading.Thread(
+            target=self.batch.launch, args=(kernel,), name="refexmc-cuda-launch", daemon=True
+        )
+        self.flying.start()
+
+    def join(self):
+        self.batch.join(self.flying)
+        self.flying = None
+
+    def submit_naming(self, campaign, workers, work_dir=None):
+        """Each chunk's naming and encoding submitted to ``workers``: futures of its part, in order
+        (``work_dir``: its parts written there, :func:`name_chunk`)."""
+        handles = (self.inputs.handle(), self.outputs.handle()) if self.shared else (self.inputs, self.outputs)
+        self.naming = [
+            workers.submit(name_chunk, campaign, chunk, prepared, handles, first, work_dir)
+            for (chunk, _), prepared, first in zip(self.chunks, self.prepared, self.first, strict=False)
+        ]
+        return self.naming
+
+    def release(self):
+        """Cancel the launch's tasks not started and free its arrays. A worker or the flight's thread
+        still using them keeps its mapping until it is done (``shared_arrays.Arrays.release``)."""
+        for future in (*self.pending, *self.naming):
+            future.cancel()
+        self.batch = None
+        for arrays in (self.inputs, self.outputs):
+            if arrays is not None:
+                arrays.release()
 
 
-def _chunk_part(plan, batch, chunk, start, stop):
-    pieces = batch.rows(plan, start, stop)
-    rows = [row for row, _ in pieces]
-    flown = [(row["run_id"], result) for row, result in pieces if result is not None]
+class PreparedChunk(NamedTuple):
+    """What the host keeps of a chunk's runs once they are packed into their launch's rows."""
+
+    run_ids: list
+    seeds: np.ndarray  # int64: each run's nav seed
+    failures: list  # each run's storage.Failures (None: its preparation raised)
+    params: np.ndarray  # (runs, plan.param_columns()): the p. columns
+    reasons: list  # None, or the error row's reason of a run whose preparation raised
+    history_rows: int  # the most history rows a run of the chunk writes
+    capacity: int  # the most pointing samples a run of the chunk keeps
+
+
+def prepare_into(campaign, run_ids, target, first):
+    """Draw and pack ``run_ids`` (``RunPlan.prepare_runs``) into rows ``first``... of the launch
+    arrays ``target`` (a shared block's handle, or the arrays): a :class:`PreparedChunk`. A run whose
+    preparation raised, or whose tables have other shapes than its campaign's, gets the nominal
+    inputs in its rows (its thread flies them; the run is an error row and its outputs are not read)."""
+    from refexmc.campaign.chunk import plan_for
+
+    plan = plan_for(campaign)
+    rate = campaign["output"]["history_rate_hz"]
+    shapes = tuple(table.shape for table in plan.nominal_inputs)
+    columns = plan.param_columns()
+    n = len(run_ids)
+    seeds, params = np.zeros(n, dtype=np.int64), np.full((n, len(columns)), np.nan)
+    failures, reasons = [None] * n, [None] * n
+    history_rows = capacity = 1
+    with shared_arrays.attached(target) as arrays:
+        for k, prepared in enumerate(plan.prepare_runs(run_ids)):
+            if not isinstance(prepared, Exception) and tuple(t.shape for t in prepared[3]) != shapes:
+                prepared = ValueError("input tables of other shapes than its campaign's (a GPU launch stacks them)")
+            if isinstance(prepared, Exception):
+                reasons[k] = plan.failure_reason(prepared)
+                inputs = plan.nominal_inputs
+            else:
+                seeds[k], failures[k], values, inputs = prepared
+                params[k] = [values[column] for column in columns]
+            every, rows, samples = run_sizes(inputs, rate, plan.pointing)
+            history_rows, capacity = max(history_rows, rows), max(capacity, samples)
+            for name in INPUT_TABLES:
+                arrays[name][first + k] = getattr(inputs, name)
+            arrays["seeds"][first + k], arrays["every"][first + k] = seeds[k], every
+    return PreparedChunk(list(run_ids), seeds, failures, params, reasons, history_rows, capacity)
+
+
+def name_chunk(campaign, chunk, prepared, targets, first, work_dir=None):
+    """The chunk's ``(chunk, rows, runs bytes, history bytes)`` from its runs' rows ``first``... of
+    the flown launch's arrays ``targets`` (inputs, outputs): each run named as the CPU path names it
+    (``simulate.flight_result``, ``RunPlan.result_row``). With ``work_dir``, each part's bytes are
+    written to a file there and its Path returned instead (``storage.place_part`` renames it)."""
+    from refexmc.campaign.chunk import plan_for
+
+    plan = plan_for(campaign)
+    inputs, outputs = targets
+    with shared_arrays.attached(inputs) as input_arrays, shared_arrays.attached(outputs) as output_arrays:
+        batch = Batch({**input_arrays, **output_arrays}, plan.family, plan.pointing)
+        rows, runs, history = _named(plan, batch, prepared, first)
+        del batch  # its views of the arrays, before they are detached
+    if work_dir is None:
+        return chunk, rows, runs, history
+    files = []
+    for part, data in (("runs", runs), ("histories", history)):
+        path = Path(work_dir) / f"gpu-{part}-{storage.part_name(chunk)}"
+        storage.write_bytes_atomic(data, path)
+        files.append(path)
+    return chunk, rows, *files
+
+
+def _named(plan, batch, prepared, first):
+    columns = plan.param_columns()
+    rows, flown = [], []
+    for k, run_id in enumerate(prepared.run_ids):
+        if prepared.reasons[k] is not None:
+            rows.append(plan.error_row(run_id, prepared.reasons[k]))
+            continue
+        params = dict(zip(columns, prepared.params[k].tolist(), strict=True))
+        result = batch.result(first + k, plan.mode_names, plan.pointing)
+        row, result = plan.result_row(run_id, (int(prepared.seeds[k]), prepared.failures[k], params, None), result)
+        rows.append(row)
+        if result is not None:
+            flown.append((run_id, result))
     runs = storage.encode_table(storage.runs_table(rows))
     if flown:
         history = storage.histories_table([r for r, _ in flown], [result for _, result in flown])
     else:
         history = storage.empty_history_table()
-    return chunk, rows, runs, storage.encode_table(history)
+    return rows, runs, storage.encode_table(history)

@@ -415,8 +415,8 @@ def _fly(campaign, todo, out, execution, options, meter):
         with closing(backend) as flown:  # an exception here (a signal, a full disk) stops the workers at once
             for chunk, rows, runs, history in flown:
                 name = storage.part_name(chunk)
-                storage.write_bytes_atomic(history, out / "histories" / name)
-                storage.write_bytes_atomic(runs, out / "runs" / name)
+                storage.place_part(history, out / "histories" / name)
+                storage.place_part(runs, out / "runs" / name)
                 meter.update(len(rows))
     finally:
         meter.close()
