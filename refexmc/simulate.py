@@ -4,6 +4,7 @@ The one place outside ``refexmc.config`` that knows the core's array layouts: th
 the report see named values only (runs-table values, history columns), named from the files.
 """
 
+import copy
 import math
 
 import numpy as np
@@ -122,6 +123,15 @@ class FlightResult:
         for i, count in enumerate(self.pulse_counts):
             row[f"pulses_{i + 1}"] = int(count)
         return row
+
+    @staticmethod
+    def joined(results):
+        """(one result whose history is the rows of ``results``' one after the other, each
+        one's number of rows): their history columns converted at once
+        (``campaign.storage.histories_table``); the runs are of one campaign, so of one family."""
+        together = copy.copy(results[0])
+        together.history = np.concatenate([result.history for result in results])
+        return together, [len(result.history) for result in results]
 
     def non_finite_reason(self):
         """Why the result is not usable (a non-finite state), or None."""

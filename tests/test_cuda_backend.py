@@ -422,3 +422,51 @@ def test_a_gpu_kernel_is_cached_under_its_family_the_same_in_every_process():
     assert first["smoke"]["keyed"] != first["irassi-fine-pointing"]["keyed"]
     assert first["smoke"]["numba_cuda"] != second["smoke"]["numba_cuda"]  # why refexmc keys it itself
     assert all(first[name]["in_cache_dir"] for name in first)
+
+
+def _cli(campaign, out, *args, env):
+    command = [sys.executable, "-m", "refexmc.cli", "run", campaign, "-o", out, "--no-progress", *args]
+    return subprocess.Popen(
+        list(map(str, command)), env={**os.environ, **env}, start_new_session=True, stderr=subprocess.PIPE, text=True
+    )
+
+
+@needs_numba_cuda
+@needs_jit
+@pytest.mark.slow
+@pytest.mark.cuda
+def test_a_signal_stops_a_gpu_campaign_frees_its_shared_memory_and_resume_completes(tmp_path):
+    """SIGINT in the middle of a GPU campaign whose host workers share the launch's arrays (-j 2,
+    under the simulator): exit 130, the parts written so far kept, no block of the campaign's
+    process left in /dev/shm, and --resume completes it with the CPU's runs table."""
+    import signal
+    import time
+
+    from stored import campaign_copy, read_runs
+
+    from refexmc.campaign import run as run_module
+    from refexmc.campaign import shared_arrays
+
+    if not shared_arrays.shareable():
+        pytest.skip("no /dev/shm (not Linux)")
+    campaign, out, runs = campaign_copy("smoke.yaml", tmp_path), tmp_path / "out", 96
+    env = {"NUMBA_ENABLE_CUDASIM": "1", run_module.CHUNK_SIZE_ENV: "2"}
+    process = _cli(campaign, out, "--runs", runs, "--backend", "cuda", "-j", 2, env=env)
+    deadline = time.monotonic() + 300  # a cold kernel cache compiles first
+    while not ((out / "runs").is_dir() and any((out / "runs").glob("part-*.parquet"))):
+        assert process.poll() is None, process.stderr.read()
+        assert time.monotonic() < deadline, "no part file"
+        time.sleep(0.01)
+    process.send_signal(signal.SIGINT)
+    stderr = process.communicate(timeout=120)[1]
+    assert process.returncode == 128 + signal.SIGINT, stderr
+    assert "interrupted by SIGINT" in stderr and "Traceback" not in stderr, stderr
+    kept = sorted((out / "runs").glob("part-*.parquet"))
+    assert 0 < len(kept) < runs // 2, "the signal came after the end"
+    left = list(Path(shared_arrays.SHARED_FOLDER).glob(f"{shared_arrays.NAME_PREFIX}{process.pid}-*"))
+    assert left == [], left  # the launches' arrays, unlinked
+    resumed = _cli(campaign, out, "--resume", "--runs", runs, "--backend", "cuda", "-j", 2, env=env)
+    assert resumed.wait(timeout=600) == 0, resumed.stderr.read()
+    cpu = _cli(campaign, tmp_path / "cpu", "--runs", runs, "-j", 2, env={run_module.CHUNK_SIZE_ENV: "2"})
+    assert cpu.wait(timeout=600) == 0, cpu.stderr.read()
+    assert read_runs(out).equals(read_runs(tmp_path / "cpu"))

@@ -193,10 +193,16 @@ class Launch:
         return self.naming
 
     def release(self):
-        """Cancel the launch's tasks not started and free its arrays. A worker or the flight's thread
-        still using them keeps its mapping until it is done (``shared_arrays.Arrays.release``)."""
+        """Cancel the launch's tasks not started, wait for its flight to land, and free its arrays
+        (a worker still reading them keeps its mapping until it is done).
+
+        A kernel cannot be stopped, and the flight's thread writes the launch's outputs without the
+        GIL: freed under it (a signal's exit unmaps shared memory), it would crash the process."""
         for future in (*self.pending, *self.naming):
             future.cancel()
+        if self.flying is not None:
+            self.flying.join()
+            self.flying = None
         self.batch = None
         for arrays in (self.inputs, self.outputs):
             if arrays is not None:

@@ -89,6 +89,7 @@ class Sampler:
         self.specs = dispersions.check(campaign["dispersions"], self.vehicle, self.mission, None, {})
         self.nominal = {path: dispersions.nominal(path, self.vehicle, self.mission) for path in self.specs}
         self.column_names = {path: dispersions.columns(path, self.vehicle) for path in self.specs}
+        self._joined_names = {}  # (paths of a run's values, in order): their columns' names
         self.n_wheels = wheel_count(self.vehicle)
         self.wheel_failures = campaign.get(WHEEL_FAILURES.key, NO_FAILURES)
         self.failure_sets = self._enumerated(campaign["failures"], self.n_thrusters)
@@ -238,9 +239,12 @@ class Sampler:
         return inputs
 
     def columns(self, values):
-        """The ``p.<path>`` columns of one run."""
-        row = {}
-        for path, value in values.items():
-            numbers = np.atleast_1d(np.asarray(value, dtype=float)).tolist()
-            row.update(zip(self.column_names[path], numbers, strict=True))
-        return row
+        """The ``p.<path>`` columns of one run (its values joined and named at once: a dispersed
+        ReFEx run has 26 paths)."""
+        if not values:
+            return {}
+        paths = tuple(values)
+        if paths not in self._joined_names:
+            self._joined_names[paths] = [name for path in paths for name in self.column_names[path]]
+        numbers = np.concatenate([np.asarray(value, dtype=float).ravel() for value in values.values()]).tolist()
+        return dict(zip(self._joined_names[paths], numbers, strict=True))

@@ -15,6 +15,7 @@ import contextlib
 import math
 import mmap
 import os
+import secrets
 import shutil
 from multiprocessing import shared_memory
 from typing import NamedTuple
@@ -23,6 +24,7 @@ import numpy as np
 
 _ALIGN = 64  # bytes: every array starts on a cache line
 SHARED_FOLDER = "/dev/shm"  # where Linux keeps POSIX shared memory (its free space bounds a block)
+NAME_PREFIX = "refexmc-"  # a block's name: refexmc-<pid of its owner>-<random>
 
 
 class Handle(NamedTuple):
@@ -70,7 +72,8 @@ class Arrays:
         self.specs, size = _layout(shapes)
         self._memory = None
         if shared:  # starts zeroed, its pages given as they are first written
-            self._memory = shared_memory.SharedMemory(create=True, size=size)
+            name = f"{NAME_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"  # whose it is, in /dev/shm
+            self._memory = shared_memory.SharedMemory(name=name, create=True, size=size)
             self.arrays = _views(self._memory.buf, self.specs)
         else:  # numpy's zeros: calloc's pages, as lazy
             self.arrays = {name: np.zeros(shape, dtype=dtype) for name, (shape, dtype) in shapes.items()}

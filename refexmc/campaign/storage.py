@@ -1,6 +1,5 @@
 """Output directory: Parquet part files (written atomically), manifest and resolved campaign."""
 
-import copy
 import functools
 import hashlib
 import itertools
@@ -233,13 +232,19 @@ def histories_table(run_ids, results):
 
     Building a chunk's histories at once pays Arrow's per-column cost once, not once per run:
     flown a chunk at a time, history and encoding cost 0.27 ms per run against 0.64 run by run;
-    the runs' raw rows are joined first and converted to the output columns once (the same
-    values: each conversion is per element).
+    a FlightResult's raw rows are joined first and converted to the output columns once
+    (``FlightResult.joined``; the same values: each conversion is per element).
     """
-    together = copy.copy(results[0])  # the runs' rows one after the other, converted at once
-    together.history = np.concatenate([result.history for result in results])
-    ids = np.repeat(np.asarray(run_ids, dtype=np.int64), [len(result.history) for result in results])
-    return _history_arrow(ids, together.history_columns(), results[0].mode_names)
+    joined = getattr(type(results[0]), "joined", None)
+    if joined is not None:  # the runs' raw rows one after the other, converted at once
+        together, lengths = joined(results)
+        signals = together.history_columns()
+    else:  # an entry run's (campaign.entry_plan.EntryRun)
+        runs = [result.history_columns() for result in results]
+        signals = {name: np.concatenate([run[name] for run in runs]) for name in runs[0]}
+        lengths = [len(run["t_s"]) for run in runs]
+    ids = np.repeat(np.asarray(run_ids, dtype=np.int64), lengths)
+    return _history_arrow(ids, signals, results[0].mode_names)
 
 
 def _history_arrow(run_ids, signals, mode_names):
