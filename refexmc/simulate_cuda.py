@@ -84,7 +84,7 @@ def output_shapes(nominal_inputs, n, history_rows, requirements, capacity):
     """``{name: (shape, dtype)}`` of the output arrays of a launch of ``n`` runs: ``history_rows``
     and pointing ``capacity`` are the largest of its runs' (:func:`run_sizes`)."""
     n_modes, n_thrusters = nominal_inputs.modes.shape[0], nominal_inputs.thrusters.shape[0]
-    n_requirements = len(requirements.columns) if requirements is not None else 0
+    n_requirements = pointing_table(requirements).shape[0]
     return {
         "summaries": ((n, L.summary_size(n_modes)), np.float64),
         "pulses": ((n, n_thrusters), np.int64),

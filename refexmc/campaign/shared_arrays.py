@@ -45,11 +45,6 @@ def _layout(shapes):
     return tuple(specs), max(offset, 1)
 
 
-def block_bytes(shapes):
-    """The bytes a block of arrays ``{name: (shape, dtype)}`` takes."""
-    return _layout(shapes)[1]
-
-
 def shareable():
     """Whether worker processes can attach to a block here (Linux: POSIX shared memory is a file
     in /dev/shm; elsewhere a GPU campaign's host work stays in its own process)."""
