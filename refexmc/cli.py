@@ -144,7 +144,7 @@ def run(
         _bad_input("--resume and --overwrite exclude each other")
     from refexmc.campaign import pool  # joblib's executor alone: before the campaign machinery is imported
 
-    if backend == "loky" and (jobs is None or jobs >= 1):
+    if (backend == "loky" and (jobs is None or jobs >= 1)) or (backend == "cuda" and (jobs is None or jobs > 1)):
         pool.start_early(jobs or pool.usable_cores())  # they warm up while this process validates (~1 s)
     dask_local = _local_workers(scheduler, jobs) if backend == "dask" else None
     if dask_local:

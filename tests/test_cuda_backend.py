@@ -61,6 +61,18 @@ class _NeedsItsKeyword(Exception):
         super().__init__(f"{message} at {where}")
 
 
+def test_the_gpu_backends_host_workers_start_ahead_of_the_flight_only_above_j_1(monkeypatch):
+    """With -j > 1 the GPU backend's host workers start as loky's do, before the campaign flies
+    (they warm up meanwhile); with -j 1 its host work stays in this process: none start."""
+    from refexmc.campaign import backends, pool
+
+    started = []
+    monkeypatch.setattr(pool, "start", started.append)
+    monkeypatch.setattr(pool, "started_early", lambda: 0)
+    assert backends.start_workers("cuda", 1) == {} and started == []
+    assert backends.start_workers("cuda", 4) == {"workers": 4} and started == [4]
+
+
 def _prepared_into_shared_memory(campaign, run_ids):
     """``cuda_backend.prepare_into`` of ``run_ids`` into a shared block, as a host worker does it:
     (the PreparedChunk back through a pickle, a copy of the block's arrays)."""

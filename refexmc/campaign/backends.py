@@ -147,11 +147,12 @@ def dask_backend(campaign, chunks, jobs, guard, scheduler=None):
     return dask.dask_backend(campaign, chunks, jobs, guard, scheduler=scheduler)
 
 
-def cuda_backend(campaign, chunks, jobs, guard):
-    """Fly ``chunks`` on this machine's GPU (:mod:`refexmc.campaign.cuda_backend`; needs the cuda extra)."""
+def cuda_backend(campaign, chunks, jobs, guard, workers=None):
+    """Fly ``chunks`` on this machine's GPU (:mod:`refexmc.campaign.cuda_backend`; needs the cuda
+    extra); ``workers``: the host workers :func:`start_workers` started."""
     from refexmc.campaign import cuda_backend as cuda  # importing refexmc never imports numba-cuda
 
-    return cuda.cuda_backend(campaign, chunks, jobs, guard)
+    return cuda.cuda_backend(campaign, chunks, jobs, guard, workers=workers)
 
 
 def _loky_options(scheduler=None):
@@ -193,7 +194,12 @@ def _start_loky(workers):
     return {"workers": workers}
 
 
-_STARTERS = {"loky": _start_loky}  # dask: its cluster starts when the campaign flies
+def _start_cuda_host(workers):
+    """The GPU backend's host workers (``-j`` > 1: they pack and name the runs), started as loky's."""
+    return _start_loky(workers) if workers > 1 else {}
+
+
+_STARTERS = {"loky": _start_loky, "cuda": _start_cuda_host}  # dask: its cluster starts when the campaign flies
 
 
 def start_workers(name, workers):

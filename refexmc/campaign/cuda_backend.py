@@ -53,12 +53,13 @@ def refusal(campaign):
     return simulate_cuda.family_refusal(campaign["vehicle"], campaign["mission"])
 
 
-def cuda_backend(campaign, chunks, jobs, guard):
+def cuda_backend(campaign, chunks, jobs, guard, workers=None):
     """Fly ``chunks`` on this machine's GPU (of ``guard``, only its work directory is used: a GPU
     thread has no wall-time watchdog). ``jobs`` > 1: that many loky worker processes draw and pack
     the runs into the launch's arrays and name and encode its parts, a chunk a task, the arrays in
     shared memory (the host's work is what bounds a GPU campaign: benchmarks/bench_gpu_host.py);
-    1: threads of this process do, on private arrays.
+    1: threads of this process do, on private arrays. ``workers``: how many loky workers
+    ``backends.start_workers`` started for it (default: ``jobs``, at most one per chunk).
 
     Yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` per chunk, in chunk
     order; the host prepares the next launch while the GPU flies one, and names and encodes a
@@ -74,7 +75,7 @@ def cuda_backend(campaign, chunks, jobs, guard):
     host_free = shared_arrays.shared_free_bytes() if shared else None
     kernel = grid_kernel(plan.family)
     batches = _batches(chunks, launch_runs(plan, rate, host_free))
-    workers = pool.executor(min(jobs, len(chunks))) if shared else _threads()
+    workers = pool.executor(workers or min(jobs, len(chunks))) if shared else _threads()
     # a worker writes its chunk's parts into the work directory, the parent renames them into place
     # (through the pipe, a ReFEx chunk's ~1.6 MB of parts cost the parent 0.02 ms per run)
     work_dir = guard.state_dir if shared else None
