@@ -15,5 +15,8 @@ print("numpy", numpy.__version__, "numba", numba.__version__, "cuda available", 
 cuda.detect()
 PY
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
+# the GPU backend's host workers share each launch's arrays in /dev/shm: too small, and the host's
+# work stays in one process (docs/gpu.md)
+df -h /dev/shm || true
 # the campaigns (~17 GB at 10^6 runs with histories) stay on the machine; only the JSON comes back
 python3 benchmarks/bench_gpu.py --work /tmp/bench_gpu --json "${OUT:-.}/bench_gpu.json" "$@"
