@@ -211,7 +211,10 @@ def batch_of_runs(plan, inputs, seeds, history_rate_hz):
 def host_bytes_per_run(plan, history_rate_hz):
     """The host arrays' bytes of one run of a launch (inputs and outputs; measured on the nominal
     inputs, doubled for the dispersed ones' margins)."""
-    probe = batch_of_runs(plan, [plan.nominal_inputs], [0], history_rate_hz)
+    return _host_bytes(batch_of_runs(plan, [plan.nominal_inputs], [0], history_rate_hz))
+
+
+def _host_bytes(probe):
     return 2 * sum(a.nbytes for a in probe.arguments(()))
 
 
@@ -224,7 +227,7 @@ def launch_runs(plan, history_rate_hz, host_free_bytes=None):
         return SIMULATOR_LAUNCH_RUNS
     probe = batch_of_runs(plan, [plan.nominal_inputs], [0], history_rate_hz)
     nf, ni, nu, nb = probe.work_sizes()
-    host = host_bytes_per_run(plan, history_rate_hz)
+    host = _host_bytes(probe)
     per_run = host + 2 * (8 * (nf + ni + nu) + nb)
     free, _ = cuda.current_context().get_memory_info()
     runs = int(MEMORY_FRACTION * free / max(per_run, 1))

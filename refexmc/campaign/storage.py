@@ -96,14 +96,10 @@ def place_part(part, path):
     """Put a chunk's part at ``path`` atomically: its Parquet bytes written under a temporary name
     and renamed, or the file a worker wrote them to (a Path in the campaign's work directory, on
     OUT's file system: refexmc.campaign.cuda_backend) renamed."""
-    if not isinstance(part, Path):
+    if isinstance(part, Path):
+        _write_atomic(path, lambda tmp: os.replace(part, tmp))
+    else:
         write_bytes_atomic(part, path)
-        return
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        os.replace(part, path)
-    except OSError as exc:
-        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
 
 
 def write_table_atomic(table, path):
