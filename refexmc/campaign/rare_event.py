@@ -74,22 +74,12 @@ def level0_normals(campaign, blocks, run_ids):
         if spec is not None and spec["dist"] == "inertia":
             u = u.copy()
             tensors = distributions.inertia_tensors(distributions.transform_rows(spec, u, sampler.nominal[name]))
-            for i in np.flatnonzero(unphysical_inertias(tensors)):
-                u[i] = _flown_attempt(sampler, name, spec, count, int(run_ids[i]))
+            unphysical = np.flatnonzero(unphysical_inertias(tensors))
+            redrawn = sampler.inertia_redraws(name, spec, [int(run_ids[i]) for i in unphysical], count)
+            for i in unphysical:  # the attempt flown (Sampler._draw); none: an error row, its margin -inf anyway
+                u[i] = redrawn[int(run_ids[i])][0] if int(run_ids[i]) in redrawn else u[i]
         columns.append(u)
     return special.ndtri(np.concatenate(columns, axis=1))
-
-
-def _flown_attempt(sampler, path, spec, count, run_id):
-    """The uniforms of the first physical redraw of run ``run_id``'s inertia (``Sampler._redrawn_inertia``)."""
-    from refexmc.campaign.sampling import INERTIA_MAX_ATTEMPTS
-    from refexmc.config.derived import inertia_problem
-
-    for attempt in range(1, INERTIA_MAX_ATTEMPTS + 1):
-        u = sampler.uniforms(path, run_id, count, attempt)
-        if not inertia_problem(distributions.inertia_matrix(distributions.transform(spec, u, sampler.nominal[path]))):
-            return u
-    return sampler.uniforms(path, run_id, count, 0)  # an error row: its margin is -inf anyway
 
 
 def uniforms_of(z):

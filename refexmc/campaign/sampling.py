@@ -20,7 +20,7 @@ import numpy as np
 from refexmc import distributions
 from refexmc.campaign import saltelli
 from refexmc.config import dispersions, renames
-from refexmc.config.derived import inertia_problem, level_names, thruster_count, unphysical_inertias, wheel_count
+from refexmc.config.derived import level_names, thruster_count, unphysical_inertias, wheel_count
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
 from refexmc.distributions import transform, transform_rows
 
@@ -170,17 +170,27 @@ class Sampler:
         drawn = dict(zip(run_ids, rows, strict=True))
         if spec["dist"] == "inertia":
             unphysical = unphysical_inertias(distributions.inertia_tensors(rows))
+            redrawn = self.inertia_redraws(path, spec, list(itertools.compress(run_ids, unphysical)), n)
             for run_id in itertools.compress(run_ids, unphysical):
-                drawn[run_id] = self._redrawn_inertia(path, spec, run_id, n)
+                drawn[run_id] = redrawn[run_id][1] if run_id in redrawn else ValueError(
+                    f"{path}: no physical inertia in {INERTIA_MAX_ATTEMPTS} draws; reduce the sigmas"
+                )
         return drawn
 
-    def _redrawn_inertia(self, path, spec, run_id, n):
-        """The first physical inertia of attempts 1, 2, ... of run ``run_id`` (its first draw was not)."""
+    def inertia_redraws(self, path, spec, run_ids, n):
+        """{run id: (uniforms, values)} of the first physical inertia of attempts 1, 2, ... of each
+        of ``run_ids`` (their first draw was not); a run without one in INERTIA_MAX_ATTEMPTS is left
+        out. Each attempt draws the runs still without one at once (the same numbers as alone)."""
+        found, pending = {}, list(run_ids)
         for attempt in range(1, INERTIA_MAX_ATTEMPTS + 1):
-            value = transform(spec, self.uniforms(path, run_id, n, attempt), self.nominal[path])
-            if not inertia_problem(distributions.inertia_matrix(value)):
-                return value
-        return ValueError(f"{path}: no physical inertia in {INERTIA_MAX_ATTEMPTS} draws; reduce the sigmas")
+            if not pending:
+                break
+            u = np.clip(keyed_uniforms_for_runs(self.seed, pending, path, n, attempt), _TINY, 1.0 - _TINY)
+            rows = transform_rows(spec, u, self.nominal[path])
+            physical = ~np.asarray(unphysical_inertias(distributions.inertia_tensors(rows)), dtype=bool)
+            found.update((pending[i], (u[i], rows[i])) for i in np.flatnonzero(physical))
+            pending = [run_id for run_id, ok in zip(pending, physical, strict=True) if not ok]
+        return found
 
     def _failed_units(self, failures, kind, n_units, sets, run_id):
         """Failed unit ids (1-based, ascending) of run ``run_id`` under ``failures`` (thrusters or
