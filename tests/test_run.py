@@ -244,16 +244,28 @@ def test_progress_bar_shows_runs_rate_and_eta():
     assert "50/100" in text and "run/s" in text and "<" in text  # tqdm: n/total [elapsed<ETA, rate]
 
 
-@pytest.mark.parametrize("runs", [1, 9, 20, 100, 319, 320, 321, 1000, 3200, 3201, 10_000, 100_000])
-def test_default_chunk_size_gives_about_target_chunks_within_bounds(runs):
-    size = run_module.default_chunk_size(runs)
-    assert run_module.MIN_CHUNK_SIZE <= size <= run_module.MAX_CHUNK_SIZE
+@pytest.mark.parametrize("backend", ["loky", "cuda"])
+@pytest.mark.parametrize("runs", [1, 9, 20, 100, 319, 320, 321, 1000, 3200, 3201, 10_000, 100_000, 1_000_000])
+def test_default_chunk_size_gives_about_target_chunks_within_bounds(runs, backend):
+    """About TARGET_CHUNKS chunks, 10 to 100 runs each; on the GPU (host work only) up to 1,000."""
+    largest = run_module.MAX_GPU_CHUNK_SIZE if backend == "cuda" else run_module.MAX_CHUNK_SIZE
+    size = run_module.default_chunk_size(runs, backend)
+    assert run_module.MIN_CHUNK_SIZE <= size <= largest
     chunks = len(run_module.plan_chunks(runs, size))
-    if size < run_module.MAX_CHUNK_SIZE:  # at most the target count of chunks ...
+    if size < largest:  # at most the target count of chunks ...
         assert chunks <= run_module.TARGET_CHUNKS
-    if run_module.MIN_CHUNK_SIZE < size < run_module.MAX_CHUNK_SIZE:  # ... and the smallest size that does it
+    if run_module.MIN_CHUNK_SIZE < size < largest:  # ... and the smallest size that does it
         assert (size - 1) * run_module.TARGET_CHUNKS < runs
-    assert run_module.default_chunk_size(runs + 1) >= size  # more runs never give smaller chunks
+    assert run_module.default_chunk_size(runs + 1, backend) >= size  # more runs never give smaller chunks
+    assert size >= run_module.default_chunk_size(runs)  # never smaller than loky's
+
+
+def test_a_new_outs_chunk_size_follows_its_backend_unless_the_environment_sets_it(monkeypatch):
+    monkeypatch.delenv(run_module.CHUNK_SIZE_ENV, raising=False)
+    assert run_module._chunk_size(None, 100_000, "cuda") == run_module.MAX_GPU_CHUNK_SIZE
+    assert run_module._chunk_size(None, 100_000, "loky") == run_module._chunk_size(None, 100_000, "dask") == 100
+    monkeypatch.setenv(run_module.CHUNK_SIZE_ENV, "7")
+    assert run_module._chunk_size(None, 100_000, "cuda") == 7
 
 
 def test_progress_says_compiling_and_leaves_the_first_runs_out_of_the_eta(monkeypatch):

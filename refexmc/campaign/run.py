@@ -33,6 +33,10 @@ from refexmc.config.schema import DEFAULT_RUN_TIME_LIMIT_S
 
 MAX_CHUNK_SIZE = 100  # runs per chunk: ~0.5 s of flying, a 3 MB history part
 MIN_CHUNK_SIZE = 10  # each chunk costs ~15 ms (two part files of ~150 columns), ~3 runs' flying
+# the GPU backend's: its host workers pay per chunk (two loky tasks, the launch's rows sent back,
+# two parts of ~130 columns each) ~3 ms of the refexmc run process's CPU and ~10 ms of theirs;
+# 1,000 runs is ~1 s of a worker's host work and a 15 MB ReFEx history part (benchmarks/RESULTS.md)
+MAX_GPU_CHUNK_SIZE = 1000
 TARGET_CHUNKS = 32  # enough chunks that the last one to finish leaves the other workers idle briefly
 CHUNK_SIZE_ENV = "REFEXMC_CHUNK_SIZE"  # runs per chunk for a new OUT (tests use small chunks)
 DEFAULT_CAMPAIGN = Path(refexmc.__file__).resolve().parents[1] / "campaigns" / "refex-mc100.yaml"
@@ -62,22 +66,26 @@ def resolve_campaign(campaign_file=None, runs=None, seed=None, warnings=None):
     return campaign_file, campaign
 
 
-def default_chunk_size(runs):
-    """Runs per chunk: about TARGET_CHUNKS chunks, within [MIN_CHUNK_SIZE, MAX_CHUNK_SIZE].
+def default_chunk_size(runs, backend="loky"):
+    """Runs per chunk: about TARGET_CHUNKS chunks, within [MIN_CHUNK_SIZE, MAX_CHUNK_SIZE] (the
+    ``cuda`` backend: MAX_GPU_CHUNK_SIZE).
 
-    It depends on the number of runs only, not on the workers: the same campaign gives the same
-    part files at any ``-j``. With 100-run chunks a 1,000-run campaign at ``-j 2`` can end with
+    It depends on the number of runs and the backend only, not on the workers: the same campaign
+    gives the same part files at any ``-j``. With 100-run chunks a 1,000-run campaign at ``-j 2`` can end with
     one worker flying the last chunk alone for ~0.5 s; with 32-run chunks for ~0.2 s. Smaller
     chunks cost more than they save (1,000 runs, ``-j 2``: 20-run chunks ~10 % slower than 32).
+    On the GPU a chunk is host work only (drawing, naming, encoding), whose cost per chunk
+    bounds a million-run campaign: larger chunks.
     """
-    return min(MAX_CHUNK_SIZE, max(MIN_CHUNK_SIZE, math.ceil(runs / TARGET_CHUNKS)))
+    largest = MAX_GPU_CHUNK_SIZE if backend == "cuda" else MAX_CHUNK_SIZE
+    return min(largest, max(MIN_CHUNK_SIZE, math.ceil(runs / TARGET_CHUNKS)))
 
 
-def _chunk_size(chunk_size, runs):
+def _chunk_size(chunk_size, runs, backend="loky"):
     if chunk_size is None:
         text = os.environ.get(CHUNK_SIZE_ENV, "").strip()
         if not text:
-            return default_chunk_size(runs)
+            return default_chunk_size(runs, backend)
         try:
             chunk_size = int(text)
         except ValueError:
@@ -284,7 +292,7 @@ def run_campaign(
         "campaign_file": campaign_file,
         "campaign": campaign,
         "out": out,
-        "chunk_size": _chunk_size(chunk_size, campaign["runs"]),
+        "chunk_size": _chunk_size(chunk_size, campaign["runs"], backend),
         "execution": {
             "jobs": jobs,
             "backend": backend,
