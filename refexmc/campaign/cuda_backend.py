@@ -62,7 +62,7 @@ def cuda_backend(campaign, chunks, jobs, guard, workers=None):
     ``backends.start_workers`` started for it (default: ``jobs``, at most one per chunk).
 
     Yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` per chunk, in chunk
-    order; the host prepares the next launch while the GPU flies one, and names and encodes a
+    order (with workers: its run ids for its rows, and its parts' files for their bytes: :func:`name_chunk`); the host prepares the next launch while the GPU flies one, and names and encodes a
     launch while the GPU flies the next.
     """
     from refexmc.campaign.chunk import plan_for
@@ -258,8 +258,9 @@ def prepare_into(campaign, run_ids, target, first):
 def name_chunk(campaign, chunk, prepared, targets, first, work_dir=None):
     """The chunk's ``(chunk, rows, runs bytes, history bytes)`` from its runs' rows ``first``... of
     the flown launch's arrays ``targets`` (inputs, outputs): each run named as the CPU path names it
-    (``simulate.flight_result``, ``RunPlan.result_row``). With ``work_dir``, each part's bytes are
-    written to a file there and its Path returned instead (``storage.place_part`` renames it)."""
+    (``simulate.flight_result``, ``RunPlan.result_row``). With ``work_dir`` (a loky worker), each
+    part's bytes are written to a file there and its Path returned instead (``storage.place_part``
+    renames it), and the chunk's run ids instead of its rows (only counted: ``backends``)."""
     from refexmc.campaign.chunk import plan_for
 
     plan = plan_for(campaign)
@@ -275,7 +276,7 @@ def name_chunk(campaign, chunk, prepared, targets, first, work_dir=None):
         path = Path(work_dir) / f"gpu-{part}-{storage.part_name(chunk)}"
         storage.write_bytes_atomic(data, path)
         files.append(path)
-    return chunk, rows, *files
+    return chunk, list(prepared.run_ids), *files
 
 
 def _named(plan, batch, prepared, first):
