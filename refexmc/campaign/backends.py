@@ -1,20 +1,20 @@
 """Execution backends: fly chunks of runs in worker processes, yield each chunk when it is complete.
 
-A backend is a generator function ``backend(campaign, chunks, jobs, guard, **options)``:
-``chunks`` is a list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`,
+A backend is a generator function ``backend(campaign, chunks, jobs, guard, **options)``: ``chunks``
+is a list of ``(chunk index, run ids)``, ``guard`` a :class:`refexmc.campaign.worker.Guard`,
 ``options`` what :func:`check_backend` and :func:`start_workers` returned for it (e.g. ``scheduler``
-for dask, ``workers`` for loky); it
-yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` in completion order (cuda:
-in chunk order, each part's bytes possibly in a file of the work directory, ``storage.place_part``,
-and then its run ids in place of its rows: the writing process only counts them, and sending a
-chunk's rows costs it ~18 us a run), rows sorted by run id, and keeps only a bounded number of chunks in flight so that memory does
-not grow with the campaign. ``check_backend(name, **options)`` runs before anything is written: ConfigError for an
-unknown backend, an option it does not take, or one it cannot start with (dask: the extra missing,
-a malformed or unreachable scheduler). ``loky`` (below: joblib's loky executor) runs on this machine; ``dask``
-(:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster; ``cuda``
+for dask, ``workers`` for loky); it yields ``(chunk index, rows, runs Parquet bytes, history Parquet
+bytes)`` in completion order (cuda: in chunk order, each part's bytes possibly in a file of the work
+directory, ``storage.place_part``, and then its run ids in place of its rows: the writing process
+only counts them, and sending a chunk's rows costs it ~18 us a run), rows sorted by run id, and
+keeps only a bounded number of chunks in flight so that memory does not grow with the campaign.
+``check_backend(name, **options)`` runs before anything is written: ConfigError for an unknown
+backend, an option it does not take, or one it cannot start with (dask: the extra missing, a
+malformed or unreachable scheduler). ``loky`` (below: joblib's loky executor) runs on this machine;
+``dask`` (:mod:`refexmc.campaign.dask_backend`, imported only when used) on a Dask cluster; ``cuda``
 (:mod:`refexmc.campaign.cuda_backend`, imported only when used) on this machine's GPU.
-``start_workers(name, workers)`` starts a backend's workers before the campaign is prepared, so
-that they warm up meanwhile (loky: :mod:`refexmc.campaign.pool`).
+``start_workers(name, workers)`` starts a backend's workers before the campaign is prepared, so that
+they warm up meanwhile (loky: :mod:`refexmc.campaign.pool`).
 
 Workers return both parts already encoded (:class:`refexmc.campaign.worker.Flown`); only a
 chunk that came back in pieces (after a crash) is assembled and encoded again

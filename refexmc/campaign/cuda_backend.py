@@ -62,8 +62,9 @@ def cuda_backend(campaign, chunks, jobs, guard, workers=None):
     ``backends.start_workers`` started for it (default: ``jobs``, at most one per chunk).
 
     Yields ``(chunk index, rows, runs Parquet bytes, history Parquet bytes)`` per chunk, in chunk
-    order (with workers: its run ids for its rows, and its parts' files for their bytes: :func:`name_chunk`); the host prepares the next launch while the GPU flies one, and names and encodes a
-    launch while the GPU flies the next.
+    order (with workers: its run ids for its rows, and its parts' files for their bytes:
+    :func:`name_chunk`); the host prepares the next launch while the GPU flies one, and names and
+    encodes a launch while the GPU flies the next.
     """
     from refexmc.campaign.chunk import plan_for
 

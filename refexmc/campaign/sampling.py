@@ -22,7 +22,7 @@ from refexmc.campaign import saltelli
 from refexmc.config import dispersions, renames
 from refexmc.config.derived import level_names, thruster_count, unphysical_inertias, wheel_count
 from refexmc.config.failures import NO_FAILURES, THRUSTER_FAILURES, WHEEL_FAILURES, failure_sets
-from refexmc.distributions import transform, transform_rows
+from refexmc.distributions import transform_rows
 
 _TINY = distributions.UNIFORM_EPS  # uniforms inside (0, 1): inverse CDFs stay finite
 _DESIGN_TAG = {"lhs": 1, "sobol": 2}
@@ -171,10 +171,9 @@ class Sampler:
         if spec["dist"] == "inertia":
             unphysical = unphysical_inertias(distributions.inertia_tensors(rows))
             redrawn = self.inertia_redraws(path, spec, list(itertools.compress(run_ids, unphysical)), n)
+            none = ValueError(f"{path}: no physical inertia in {INERTIA_MAX_ATTEMPTS} draws; reduce the sigmas")
             for run_id in itertools.compress(run_ids, unphysical):
-                drawn[run_id] = redrawn[run_id][1] if run_id in redrawn else ValueError(
-                    f"{path}: no physical inertia in {INERTIA_MAX_ATTEMPTS} draws; reduce the sigmas"
-                )
+                drawn[run_id] = redrawn[run_id][1] if run_id in redrawn else none
         return drawn
 
     def inertia_redraws(self, path, spec, run_ids, n):
