@@ -1087,3 +1087,67 @@ def gauss_markov_path(sigma, dt, tau, steps, noise):
         x = a * x + drive * sigma * noise.normal()
         path.append(x)
     return np.array(path)
+
+
+# --------------------------------------------------------------------------------------------
+# A drawn dispersion written into one run's inputs (config.dispersions.apply_rows does a chunk's
+# runs at once): run by run, field by field, from the layout's offsets
+# --------------------------------------------------------------------------------------------
+
+
+def apply_dispersion(inputs, path, values, nominal_atmosphere, levels):
+    """Write ``values`` (user units) of ``path`` into one run's own input tables, as the packer
+    puts a nominal value: a field of its table, times the path's unit scale (a thruster or wheel
+    table: that column of every row), or by name for the special paths. The per-run functions it
+    calls (the nozzle constants, the misalignment's rotation) are those of the config: what is
+    twinned is writing a chunk's values at once."""
+    from refexmc.config import derived
+    from refexmc.config import feed as config_feed
+    from refexmc.config.parameters import NOZZLE_CONSTANTS, TABLES, parameter
+    from refexmc.core import layout as L
+
+    def field(table, fields, name, new):
+        offset, count = fields.slices[name]
+        new = [float(v) for v in np.ravel(new)]
+        assert len(new) == count
+        for i, v in enumerate(new):
+            table[offset + i] = v
+
+    values = [float(v) for v in np.ravel(values)]
+    param = parameter(path)
+    if param.table is not None:
+        table = getattr(inputs, param.table)
+        offset, count = TABLES[param.table].slices[param.field]
+        scaled = [v * param.scale for v in values]
+        if table.ndim == 2:
+            for row in range(table.shape[0]):
+                table[row, offset] = scaled[row] if len(scaled) > 1 else scaled[0]
+        else:
+            field(table, TABLES[param.table], param.field, scaled)
+        if param.special == NOZZLE_CONSTANTS:
+            vehicle = inputs.vehicle
+            vehicle[L.V_FEED_THRUST_COEFFICIENT], vehicle[L.V_FEED_FLOW_FACTOR] = config_feed.nozzle_constants(
+                float(vehicle[L.V_FEED_HEAT_CAPACITY_RATIO]), float(vehicle[L.V_FEED_EXPANSION_RATIO])
+            )
+    elif path.startswith("rcs.thrust_n."):
+        row = inputs.levels[list(levels).index(path.split(".")[2])]
+        row[L.LV_REGULATOR_PRESSURE] = row[L.LV_REGULATOR_PRESSURE] * (values[0] / row[L.LV_THRUST])
+        row[L.LV_THRUST] = values[0]
+    elif path == "main_engine.misalignment_deg":
+        axis = inputs.fsw[L.F_ENGINE_AXIS : L.F_ENGINE_AXIS + 3]
+        field(inputs.vehicle, L.VEHICLE, "engine_direction", derived.rotate_by_rotation_vector(axis, values))
+    elif path == "inertia_kg_m2":
+        xx, yy, zz, xy, xz, yz = values
+        field(inputs.vehicle, L.VEHICLE, "inertia_kg_m2", [xx, xy, xz, xy, yy, yz, xz, yz, zz])
+    elif path == "rcs.derating":
+        field(inputs.vehicle, L.VEHICLE, "derating", values + [values[-1]] * (L.DERATING_MAX_VALVES - len(values)))
+    elif path.startswith("rcs.valve_time_constants_ms."):
+        _, _, level, name = path.split(".")
+        column = L.time_constant_column(list(levels).index(level), L.TIME_CONSTANT_NAMES.index(name))
+        for row in range(inputs.thrusters.shape[0]):
+            inputs.thrusters[row, column] = values[row] / 1e3
+    elif path == "atmosphere.density_scale":
+        for row in range(inputs.atmosphere.shape[0]):
+            inputs.atmosphere[row, 1] = nominal_atmosphere[row, 1] * values[0]
+    else:
+        raise KeyError(path)

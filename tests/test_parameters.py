@@ -14,6 +14,7 @@ from refexmc.config import dispersions, pack, parameters, schema
 from refexmc.config.errors import ConfigError
 from refexmc.config.load import load_mission, load_vehicle
 from refexmc.config.parameters import PARAMETERS, TABLES
+from tests import naive
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -125,6 +126,48 @@ def test_the_nominal_applied_through_apply_is_the_packed_nominal_bit_for_bit(flo
         assert not differ, f"{path}: the nominal through apply differs from the packed nominal in {differ}"
         checked.append(path)
     assert checked
+
+
+def _flown_paths(vehicle, mission):
+    """Every dispersible path the vehicle and mission fly, the per-level ones for each of its levels."""
+    levels = pack.level_names(vehicle)
+    paths = []
+    for path in PARAMETERS:
+        for level in levels if path.startswith(("rcs.thrust_n.low", "rcs.valve_time_constants_ms.low.")) else [None]:
+            paths.append(path if level is None else path.replace(".low", f".{level}", 1))
+    return [path for path in dict.fromkeys(paths) if dispersions.undeclared(path, vehicle, mission) is None]
+
+
+def test_a_chunks_dispersions_written_at_once_are_each_runs_alone_bit_for_bit(flown):
+    """``dispersions.apply_rows`` writes a chunk's values path by path into tables stacked one per
+    run; tests/naive.py's twin writes them run by run, element by element. Every path the vehicle
+    and mission fly (the special ones too: nozzle constants, thrust levels and their regulators,
+    misalignment, inertia, derating, valve time constants, density), 5 runs of values spread
+    around the nominal, in one order: the same bits, table by table."""
+    vehicle, mission, inputs = flown
+    if inputs is None:
+        pytest.skip("an entry mission: campaign.entry_plan builds its vehicle (tests/test_x38_campaign.py)")
+    levels = pack.level_names(vehicle)
+    paths = _flown_paths(vehicle, mission)
+    rng = np.random.default_rng(11)
+    runs = []
+    for _ in range(5):
+        values = {}
+        for path in paths:
+            nominal = np.asarray(dispersions.nominal(path, vehicle, mission), dtype=float)
+            values[path] = nominal + 0.01 * (np.abs(nominal) + 1.0) * rng.standard_normal(nominal.shape)
+        runs.append(values)
+    stack = dispersions.stacked(inputs, 5)  # as Sampler.inputs_for_runs: a copy per run of what is written
+    for path in paths:
+        dispersions.apply_rows(stack, path, np.array([values[path] for values in runs]), inputs.atmosphere, levels)
+    for k, values in enumerate(runs):
+        alone = _copy(inputs)
+        for path in paths:
+            naive.apply_dispersion(alone, path, values[path], inputs.atmosphere, levels)
+        run = inputs._replace(**{name: array[k] for name, array in stack._asdict().items()})
+        differ = [name for name, bits in _bits(run).items() if bits != _bits(alone)[name]]
+        assert not differ, f"run {k}: {differ} differ"
+    assert _bits(run) != _bits(inputs)  # the values were written
 
 
 def test_omitted_optional_keys_pack_their_schema_default(monkeypatch):

@@ -72,26 +72,62 @@ class RunPlan:
         return prepared
 
     def prepare_runs(self, run_ids):
-        """:meth:`prepare` of each of ``run_ids``, their parameters drawn together (the same numbers);
-        a run whose preparation raised gets the exception instead."""
+        """:meth:`prepare` of each of ``run_ids``, their parameters drawn together and their inputs
+        dispersed together, a group per set of failed wheels (the same numbers as alone); a run
+        whose preparation raised gets the exception instead."""
         drawn = self.sampler.values_or_exceptions(run_ids)
-        return [self._prepared(run_id, values) for run_id, values in zip(run_ids, drawn, strict=True)]
+        prepared = [self._failures(run_id, values) for run_id, values in zip(run_ids, drawn, strict=True)]
+        groups = {}  # failed wheels -> the indices of the runs without an exception so far
+        for k, entry in enumerate(prepared):
+            if not isinstance(entry, Exception):
+                groups.setdefault(entry.wheels, []).append(k)
+        for failed_wheels, members in groups.items():
+            thrusters = [prepared[k].thrusters for k in members]
+            dispersed = self._inputs(failed_wheels, [drawn[k] for k in members], thrusters)
+            for k, inputs in zip(members, dispersed, strict=True):
+                if isinstance(inputs, Exception):
+                    prepared[k] = inputs
+                else:
+                    seed = run_seed(self.campaign["seed"], run_ids[k])
+                    prepared[k] = (seed, prepared[k], self.sampler.columns(drawn[k]), inputs)
+        return prepared
+
+    def _failures(self, run_id, values):
+        """The run's ``storage.Failures``, or the exception of its draw or of drawing them."""
+        if isinstance(values, Exception):
+            return values
+        try:
+            failed_wheels = self.sampler.failed_wheels(run_id)
+            return storage.Failures(self.sampler.failed(run_id), failed_wheels)
+        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
+            return exc
+
+    def _inputs(self, failed_wheels, runs_values, runs_thrusters):
+        """The dispersed inputs of runs with the same failed wheels and ``runs_thrusters`` failed
+        (``Sampler.inputs_for_runs``); where that raises, each run's alone, a run that raises
+        getting its exception."""
+        try:
+            nominal = self.inputs_with_failed_wheels(failed_wheels)
+        except Exception as exc:  # noqa: BLE001 - those runs become error rows
+            return [exc] * len(runs_values)
+        try:
+            return self.sampler.inputs_for_runs(nominal, runs_values, runs_thrusters)
+        except Exception:  # noqa: BLE001 - let each run raise it alone
+            return [
+                self._inputs_or_exception(nominal, values, failed)
+                for values, failed in zip(runs_values, runs_thrusters, strict=True)
+            ]
+
+    def _inputs_or_exception(self, nominal, values, failed):
+        try:
+            return self.sampler.inputs(nominal, values, failed)
+        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
+            return exc
 
     @staticmethod
     def failure_reason(exc):
         """The error row's reason of a run whose preparation or flight raised ``exc``."""
         return f"{type(exc).__name__}: {exc}"
-
-    def _prepared(self, run_id, values):
-        if isinstance(values, Exception):
-            return values
-        try:
-            failed_wheels = self.sampler.failed_wheels(run_id)
-            failed = storage.Failures(self.sampler.failed(run_id), failed_wheels)
-            inputs = self.sampler.inputs(self.inputs_with_failed_wheels(failed_wheels), values, failed.thrusters)
-        except Exception as exc:  # noqa: BLE001 - that run becomes an error row
-            return exc
-        return run_seed(self.campaign["seed"], run_id), failed, self.sampler.columns(values), inputs
 
     def error_row(self, run_id, reason):
         """The runs row of a run without a result of its own (it raised, hung, or crashed its worker).

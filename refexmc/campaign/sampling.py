@@ -225,27 +225,30 @@ class Sampler:
         return bool(self.wheel_failures.get("detected", False))
 
     def inputs(self, nominal_inputs, values, failed):
-        """The run's own copy of the packed inputs with ``values`` and ``failed`` applied. Failed
-        wheels are packed (``nominal_inputs`` is the pack of the run's wheel failures, which also
-        sets the levels and the distribution matrix of detected ones); only the wheel table is
-        dispersed, so that is the one wheel table copied. Failed thrusters are set here, known to
-        the flight software with ``failures.detected`` (the run's own allocation table then)."""
-        inputs = nominal_inputs._replace(
-            vehicle=nominal_inputs.vehicle.copy(),
-            thrusters=nominal_inputs.thrusters.copy(),
-            levels=nominal_inputs.levels.copy(),
-            mission=nominal_inputs.mission.copy(),
-            nav=nominal_inputs.nav.copy(),
-            atmosphere=nominal_inputs.atmosphere.copy(),
-            wheels=nominal_inputs.wheels.copy(),
-        )
+        """The run's own copy of the packed inputs with ``values`` and ``failed`` applied:
+        :meth:`inputs_for_runs` of one run."""
+        return self.inputs_for_runs(nominal_inputs, [values], [failed])[0]
+
+    def inputs_for_runs(self, nominal_inputs, runs_values, runs_failed):
+        """Each run's own copy of the packed inputs with its values (``runs_values[k]``: {path:
+        values}, the same paths for every run) and failed thrusters (``runs_failed[k]``) applied.
+        The runs' copies are rows of one stack per table, each path applied to them all at once
+        (``dispersions.apply_rows``: the same bits as run by run). Failed wheels are packed
+        (``nominal_inputs`` is the pack of the runs' wheel failures, which also sets the levels and
+        the distribution matrix of detected ones); only the wheel table is dispersed, so that is
+        the one wheel table copied. Failed thrusters are set here, known to the flight software with
+        ``failures.detected`` (each run's own allocation table then)."""
         detected = self.failures_detected()
-        if detected:
-            inputs = inputs._replace(allocation=nominal_inputs.allocation.copy())
-        for path, value in values.items():
-            dispersions.apply(inputs, path, value, nominal_inputs.atmosphere, self.levels)
-        dispersions.set_failed(inputs, failed, detected)
-        return inputs
+        copied = (*dispersions.DISPERSED_TABLES, *(("allocation",) if detected else ()))
+        n = len(runs_values)
+        stack = dispersions.stacked(nominal_inputs, n, copied)
+        for path in runs_values[0] if n else ():
+            rows = np.array([values[path] for values in runs_values], dtype=float)
+            dispersions.apply_rows(stack, path, rows, nominal_inputs.atmosphere, self.levels)
+        runs = [nominal_inputs._replace(**{name: getattr(stack, name)[k] for name in copied}) for k in range(n)]
+        for inputs, failed in zip(runs, runs_failed, strict=True):
+            dispersions.set_failed(inputs, failed, detected)
+        return runs
 
     def columns(self, values):
         """The ``p.<path>`` columns of one run (its values joined and named at once: a dispersed

@@ -31,6 +31,7 @@ from refexmc.config.parameters import (  # noqa: F401 - the table, also read thr
     file_of,
     parameter,
     put,
+    put_rows,
     schema_default,
 )
 from refexmc.core import layout as L
@@ -210,46 +211,75 @@ def undeclared(path, vehicle, mission):
     return None
 
 
-def _put(array, fields, name, values):
+def _put_rows(stack, fields, name, rows):
     offset, count = fields.slices[name]
-    values = np.asarray(values, dtype=float).ravel()
-    assert values.size == count, (name, values.size, count)
-    array[offset : offset + count] = values
+    rows = np.asarray(rows, dtype=float).reshape(len(stack), -1)
+    assert rows.shape[1] == count, (name, rows.shape[1], count)
+    stack[:, offset : offset + count] = rows
+
+
+# the RunInputs tables a dispersion writes (and set_failed: "allocation" too, with detected failures)
+DISPERSED_TABLES = ("vehicle", "thrusters", "levels", "mission", "nav", "atmosphere", "wheels")
+
+
+def stacked(inputs, runs, copied=DISPERSED_TABLES):
+    """``inputs``' tables stacked for ``runs`` runs (what :func:`apply_rows` writes into): those
+    named in ``copied`` a copy per run, the others read-only views of the one table."""
+    return inputs._replace(
+        **{
+            name: np.repeat(table[np.newaxis], runs, axis=0)
+            if name in copied
+            else np.broadcast_to(table, (runs, *table.shape))
+            for name, table in inputs._asdict().items()
+        }
+    )
 
 
 def apply(inputs, path, values, nominal_atmosphere, levels=schema.REFEX_LEVEL_NAMES):
-    """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays;
-    ``levels``: the vehicle's thrust-level names, in order (``derived.level_names``). A path
-    that lands in one field (``parameters``) goes there as the packer puts its nominal; the
-    special ones, by name, with the reason ``parameters.PARAMETERS`` gives."""
-    values = np.asarray(values, dtype=float)
+    """Write ``values`` (user units) of ``path`` into the run's own copies of the input arrays:
+    :func:`apply_rows` of one run."""
+    stack = inputs._replace(**{name: table[np.newaxis] for name, table in inputs._asdict().items()})
+    apply_rows(stack, path, np.asarray(values, dtype=float)[np.newaxis], nominal_atmosphere, levels)
+
+
+def apply_rows(stack, path, rows, nominal_atmosphere, levels=schema.REFEX_LEVEL_NAMES):
+    """Write each run's values ``rows[k]`` (user units) of ``path`` into ``stack``'s tables' row k
+    (a RunInputs of tables stacked one per run, the runs' own copies): the operations of each run
+    alone, elementwise, so the same bits (tests/naive.py twins it run by run). ``levels``: the
+    vehicle's thrust-level names, in order (``derived.level_names``). A path that lands in one
+    field (``parameters``) goes there as the packer puts its nominal; the special ones, by name,
+    with the reason ``parameters.PARAMETERS`` gives."""
+    rows = np.asarray(rows, dtype=float).reshape(len(stack.vehicle), -1)
     param = parameter(path)
     if param.table is not None:
-        put(getattr(inputs, param.table), param, values)
+        put_rows(getattr(stack, param.table), param, rows)
         if param.special == NOZZLE_CONSTANTS:  # the packed C_F and Gamma of the drawn gamma and epsilon
-            vehicle = inputs.vehicle
-            vehicle[L.V_FEED_THRUST_COEFFICIENT], vehicle[L.V_FEED_FLOW_FACTOR] = config_feed.nozzle_constants(
-                float(vehicle[L.V_FEED_HEAT_CAPACITY_RATIO]), float(vehicle[L.V_FEED_EXPANSION_RATIO])
-            )
+            for vehicle in stack.vehicle:
+                vehicle[L.V_FEED_THRUST_COEFFICIENT], vehicle[L.V_FEED_FLOW_FACTOR] = config_feed.nozzle_constants(
+                    float(vehicle[L.V_FEED_HEAT_CAPACITY_RATIO]), float(vehicle[L.V_FEED_EXPANSION_RATIO])
+                )
     elif path.startswith("rcs.thrust_n."):
-        row = inputs.levels[list(levels).index(path.split(".")[2])]
+        level = stack.levels[:, list(levels).index(path.split(".")[2])]
         # a regulated feed delivers the level's thrust through its set pressure (config.feed.set_pressure)
-        row[L.LV_REGULATOR_PRESSURE] *= values[0] / row[L.LV_THRUST]
-        row[L.LV_THRUST] = values[0]
+        level[:, L.LV_REGULATOR_PRESSURE] *= rows[:, 0] / level[:, L.LV_THRUST]
+        level[:, L.LV_THRUST] = rows[:, 0]
     elif path == "main_engine.misalignment_deg":
-        nominal_axis = inputs.fsw[L.F_ENGINE_AXIS : L.F_ENGINE_AXIS + 3]
-        _put(inputs.vehicle, L.VEHICLE, "engine_direction", derived.rotate_by_rotation_vector(nominal_axis, values))
+        nominal_axes = stack.fsw[:, L.F_ENGINE_AXIS : L.F_ENGINE_AXIS + 3]
+        directions = [
+            derived.rotate_by_rotation_vector(axis, row) for axis, row in zip(nominal_axes, rows, strict=True)
+        ]
+        _put_rows(stack.vehicle, L.VEHICLE, "engine_direction", directions)
     elif path == "inertia_kg_m2":
-        _put(inputs.vehicle, L.VEHICLE, "inertia_kg_m2", inertia_matrix(values))
+        _put_rows(stack.vehicle, L.VEHICLE, "inertia_kg_m2", inertia_tensors(rows))
     elif path == "rcs.derating":
-        padded = list(values) + [values[-1]] * (L.DERATING_MAX_VALVES - len(values))
-        _put(inputs.vehicle, L.VEHICLE, "derating", padded)
+        padding = np.repeat(rows[:, -1:], L.DERATING_MAX_VALVES - rows.shape[1], axis=1)
+        _put_rows(stack.vehicle, L.VEHICLE, "derating", np.concatenate([rows, padding], axis=1))
     elif path.startswith("rcs.valve_time_constants_ms."):
         _, _, level, name = path.split(".")
         column = L.time_constant_column(list(levels).index(level), L.TIME_CONSTANT_NAMES.index(name))
-        inputs.thrusters[:, column] = values / 1e3
+        stack.thrusters[:, :, column] = rows / 1e3
     elif path == "atmosphere.density_scale":
-        inputs.atmosphere[:, 1] = nominal_atmosphere[:, 1] * values[0]
+        stack.atmosphere[:, :, 1] = nominal_atmosphere[np.newaxis, :, 1] * rows[:, :1]
     else:  # pragma: no cover - the entry paths: campaign.entry_plan builds the entry vehicle from them
         raise KeyError(path)
 

@@ -362,16 +362,21 @@ def landing_in(table):
 def put(array, param, values):
     """Write ``values`` (user units, one per component) of ``param`` into its field of ``array``
     (the table it lands in; a thruster or wheel table: every row, per-row values by column)."""
+    put_rows(array[np.newaxis], param, np.asarray(values, dtype=float)[np.newaxis])
+
+
+def put_rows(stack, param, rows):
+    """:func:`put` of each run: ``rows[k]`` (user units) into the table ``stack[k]`` (a stack of
+    the table ``param`` lands in, one per run; the same operations on each as alone)."""
     fields = TABLES[param.table]
     offset, count = fields.slices[param.field]
-    values = np.asarray(values, dtype=float) * param.scale
-    if array.ndim == 2:  # one row per thruster or wheel: a single field, one value per row (or all the same)
+    values = (np.asarray(rows, dtype=float) * param.scale).reshape(len(stack), -1)
+    if stack.ndim == 3:  # one row per thruster or wheel: a single field, one value per row (or all the same)
         assert count == 1, (param.field, count)
-        array[:, offset] = values
+        stack[:, :, offset] = values
         return
-    values = values.ravel()
-    assert values.size == count, (param.field, values.size, count)
-    array[offset : offset + count] = values
+    assert values.shape[1] == count, (param.field, values.shape[1], count)
+    stack[:, offset : offset + count] = values
 
 
 def file_of(param, vehicle, mission):
