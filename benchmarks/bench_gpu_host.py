@@ -16,7 +16,7 @@ backend with ``-j`` > 1), where ``parent_cpu`` is what the ``refexmc run`` proce
 The projection to 10^6 runs: the host work in one process; the ``refexmc run`` process's CPU with
 the pool; and the host work spread over 16 workers without overhead (a 16-core machine).
 
-Usage: .venv/bin/python benchmarks/bench_gpu_host.py [--runs 2000] [--chunk 100] [--json PATH]
+Usage: .venv/bin/python benchmarks/bench_gpu_host.py [--runs 2000] [--chunk 1000] [--json PATH]
 """
 
 import argparse
@@ -42,7 +42,7 @@ import numpy as np  # noqa: E402
 from refexmc import simulate, simulate_cuda  # noqa: E402
 from refexmc.campaign import cuda_backend, pool, storage  # noqa: E402
 from refexmc.campaign.chunk import plan_for  # noqa: E402
-from refexmc.campaign.run import plan_chunks  # noqa: E402
+from refexmc.campaign.run import MAX_GPU_CHUNK_SIZE, plan_chunks  # noqa: E402
 from refexmc.config.load import apply_overrides, load_campaign  # noqa: E402
 from refexmc.core import flight, pointing  # noqa: E402
 from refexmc.core import layout as L  # noqa: E402
@@ -135,7 +135,9 @@ def measure(runs, chunk, repeats):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=2000)
-    parser.add_argument("--chunk", type=int, default=100, help="runs per chunk (a 10^6-run campaign's: 100)")
+    parser.add_argument(
+        "--chunk", type=int, default=MAX_GPU_CHUNK_SIZE, help="runs per chunk (a 10^6-run GPU campaign's: 1000)"
+    )
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
