@@ -29,10 +29,13 @@ def now():
 
 
 PARQUET_COMPRESSION = "zstd"
+# zstd's fast level -1 (Arrow's default is 1): a 1,000-run ReFEx history part encodes 17 % faster
+# and is no larger (15.19 against 15.23 MB), a runs part 2 % larger; any zstd reader decodes it
+PARQUET_COMPRESSION_LEVEL = -1
 
 
 def write_options(schema):
-    """``pq.write_table`` options of a table: zstd; dictionary encoding but for floating-point
+    """``pq.write_table`` options of a table: zstd (level -1); dictionary encoding but for floating-point
     columns, which are stored byte-stream split.
 
     Float values hardly repeat: a dictionary only costs hashing each value, and makes larger files
@@ -47,6 +50,7 @@ def write_options(schema):
     dictionary = [field.name for field in schema if field.name not in floating]
     return {
         "compression": PARQUET_COMPRESSION,
+        "compression_level": PARQUET_COMPRESSION_LEVEL,
         "use_dictionary": dictionary,
         "column_encoding": dict.fromkeys(floating, "BYTE_STREAM_SPLIT"),
     }
