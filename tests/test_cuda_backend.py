@@ -167,6 +167,31 @@ def test_the_entry_flight_and_studies_are_refused_on_the_gpu_by_name(monkeypatch
     assert cuda_backend.refusal({**smoke, "sweep": {}}) is not None
 
 
+def test_host_workers_share_memory_only_where_a_quarter_of_it_holds_the_largest_chunk(monkeypatch):
+    """A launch holds whole chunks (up to 1,000 runs on the GPU) and two live at once: the host's
+    arrays go to /dev/shm only where a quarter of its free space holds the largest chunk's (and a
+    block's), else the host works on private memory in the refexmc run process."""
+    pytest.importorskip("numba_cuda")
+    from refexmc import simulate_cuda
+    from refexmc.campaign import cuda_backend, shared_arrays
+    from refexmc.campaign.chunk import plan_for
+    from refexmc.campaign.run import resolve_campaign
+
+    _, campaign = resolve_campaign(ROOT / "campaigns/smoke.yaml")
+    plan, rate = plan_for(campaign), campaign["output"]["history_rate_hz"]
+    per_run = simulate_cuda.host_bytes_per_run(plan, rate)
+    block = simulate_cuda.THREADS_PER_BLOCK
+    monkeypatch.setattr(shared_arrays, "shareable", lambda: True)
+    for free, largest, holds in [
+        (4 * 1000 * per_run, 1000, True),
+        (4 * 1000 * per_run - 1, 1000, False),
+        (4 * block * per_run, 10, True),
+        (4 * block * per_run - 1, 10, False),
+    ]:
+        monkeypatch.setattr(shared_arrays, "shared_free_bytes", lambda free=free: free)
+        assert cuda_backend._shared_memory_holds(plan, rate, largest) is holds, (free, largest)
+
+
 def test_launches_group_whole_chunks_in_order():
     pytest.importorskip("numba_cuda")
     from refexmc.campaign.cuda_backend import _batches

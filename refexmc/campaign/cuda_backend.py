@@ -72,7 +72,8 @@ def cuda_backend(campaign, chunks, jobs, guard, workers=None):
         return
     plan = plan_for(campaign)
     rate = campaign["output"]["history_rate_hz"]
-    shared = jobs > 1 and len(chunks) > 1 and _shared_memory_holds(plan, rate)
+    largest = max(len(run_ids) for _, run_ids in chunks)
+    shared = jobs > 1 and len(chunks) > 1 and _shared_memory_holds(plan, rate, largest)
     host_free = shared_arrays.shared_free_bytes() if shared else None
     kernel = grid_kernel(plan.family)
     batches = _batches(chunks, launch_runs(plan, rate, host_free))
@@ -108,12 +109,15 @@ def cuda_backend(campaign, chunks, jobs, guard, workers=None):
             workers.shutdown(wait=False, cancel_futures=True)
 
 
-def _shared_memory_holds(plan, rate):
-    """Whether this machine's shared memory holds two launches of THREADS_PER_BLOCK runs (a
-    container's /dev/shm may be 64 MB): otherwise the host's work stays in this process."""
+def _shared_memory_holds(plan, rate, largest_chunk):
+    """Whether this machine's shared memory holds, in a quarter of it, a launch of the campaign's
+    largest chunk (a launch holds whole chunks, two live at once) and of THREADS_PER_BLOCK runs;
+    a container's /dev/shm may be 64 MB, and a ReFEx run's host arrays ~0.4 MB. Otherwise the
+    host's work stays in this process, on private memory."""
     if not shared_arrays.shareable():
         return False
-    needed = 4 * simulate_cuda.THREADS_PER_BLOCK * simulate_cuda.host_bytes_per_run(plan, rate)
+    runs = max(simulate_cuda.THREADS_PER_BLOCK, largest_chunk)
+    needed = 4 * runs * simulate_cuda.host_bytes_per_run(plan, rate)
     return shared_arrays.shared_free_bytes() >= needed
 
 
