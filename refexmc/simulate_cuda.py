@@ -221,8 +221,8 @@ def _host_bytes(probe):
 def launch_runs(plan, history_rate_hz, host_free_bytes=None):
     """Runs per launch: what half the free device memory holds (one run's arrays measured on the
     nominal inputs, doubled for the dispersed ones' margins), at most MAX_LAUNCH_RUNS; with
-    ``host_free_bytes`` (the shared memory the host's arrays live in), also what a quarter of it
-    holds: two launches' host arrays live at once (one named while the next flies)."""
+    ``host_free_bytes`` (the host memory still available), also what a quarter of it holds: two
+    launches' host arrays live at once (one named while the next flies), beside the workers'."""
     if _jit.CUDA_SIMULATOR:
         return SIMULATOR_LAUNCH_RUNS
     probe = batch_of_runs(plan, [plan.nominal_inputs], [0], history_rate_hz)

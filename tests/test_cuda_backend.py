@@ -167,31 +167,6 @@ def test_the_entry_flight_and_studies_are_refused_on_the_gpu_by_name(monkeypatch
     assert cuda_backend.refusal({**smoke, "sweep": {}}) is not None
 
 
-def test_host_workers_share_memory_only_where_a_quarter_of_it_holds_the_largest_chunk(monkeypatch):
-    """A launch holds whole chunks (up to 1,000 runs on the GPU) and two live at once: the host's
-    arrays go to /dev/shm only where a quarter of its free space holds the largest chunk's (and a
-    block's), else the host works on private memory in the refexmc run process."""
-    pytest.importorskip("numba_cuda")
-    from refexmc import simulate_cuda
-    from refexmc.campaign import cuda_backend, shared_arrays
-    from refexmc.campaign.chunk import plan_for
-    from refexmc.campaign.run import resolve_campaign
-
-    _, campaign = resolve_campaign(ROOT / "campaigns/smoke.yaml")
-    plan, rate = plan_for(campaign), campaign["output"]["history_rate_hz"]
-    per_run = simulate_cuda.host_bytes_per_run(plan, rate)
-    block = simulate_cuda.THREADS_PER_BLOCK
-    monkeypatch.setattr(shared_arrays, "shareable", lambda: True)
-    for free, largest, holds in [
-        (4 * 1000 * per_run, 1000, True),
-        (4 * 1000 * per_run - 1, 1000, False),
-        (4 * block * per_run, 10, True),
-        (4 * block * per_run - 1, 10, False),
-    ]:
-        monkeypatch.setattr(shared_arrays, "shared_free_bytes", lambda free=free: free)
-        assert cuda_backend._shared_memory_holds(plan, rate, largest) is holds, (free, largest)
-
-
 def test_launches_group_whole_chunks_in_order():
     pytest.importorskip("numba_cuda")
     from refexmc.campaign.cuda_backend import _batches
@@ -472,10 +447,12 @@ def _cli(campaign, out, *args, env):
 @needs_jit
 @pytest.mark.slow
 @pytest.mark.cuda
-def test_a_signal_stops_a_gpu_campaign_frees_its_shared_memory_and_resume_completes(tmp_path):
+def test_a_signal_stops_a_gpu_campaign_and_resume_completes(tmp_path):
     """SIGINT in the middle of a GPU campaign whose host workers share the launch's arrays (-j 2,
-    under the simulator): exit 130, the parts written so far kept, no block of the campaign's
-    process left in /dev/shm, and --resume completes it with the CPU's runs table."""
+    under the simulator): exit 130 without a traceback (the flight's thread, which writes the
+    shared arrays, joined before they are freed), the parts written so far kept, and --resume
+    completes it with the CPU's runs table. (The arrays are memory files of the process: nothing
+    of them outlives it, shared_arrays.)"""
     import signal
     import time
 
@@ -485,7 +462,7 @@ def test_a_signal_stops_a_gpu_campaign_frees_its_shared_memory_and_resume_comple
     from refexmc.campaign import shared_arrays
 
     if not shared_arrays.shareable():
-        pytest.skip("no /dev/shm (not Linux)")
+        pytest.skip("no memory files to share (not Linux)")
     campaign, out, runs = campaign_copy("smoke.yaml", tmp_path), tmp_path / "out", 96
     env = {"NUMBA_ENABLE_CUDASIM": "1", run_module.CHUNK_SIZE_ENV: "2"}
     process = _cli(campaign, out, "--runs", runs, "--backend", "cuda", "-j", 2, env=env)
@@ -500,8 +477,6 @@ def test_a_signal_stops_a_gpu_campaign_frees_its_shared_memory_and_resume_comple
     assert "interrupted by SIGINT" in stderr and "Traceback" not in stderr, stderr
     kept = sorted((out / "runs").glob("part-*.parquet"))
     assert 0 < len(kept) < runs // 2, "the signal came after the end"
-    left = list(Path(shared_arrays.SHARED_FOLDER).glob(f"{shared_arrays.NAME_PREFIX}{process.pid}-*"))
-    assert left == [], left  # the launches' arrays, unlinked
     resumed = _cli(campaign, out, "--resume", "--runs", runs, "--backend", "cuda", "-j", 2, env=env)
     assert resumed.wait(timeout=600) == 0, resumed.stderr.read()
     cpu = _cli(campaign, tmp_path / "cpu", "--runs", runs, "-j", 2, env={run_module.CHUNK_SIZE_ENV: "2"})

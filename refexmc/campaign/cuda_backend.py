@@ -72,9 +72,8 @@ def cuda_backend(campaign, chunks, jobs, guard, workers=None):
         return
     plan = plan_for(campaign)
     rate = campaign["output"]["history_rate_hz"]
-    largest = max(len(run_ids) for _, run_ids in chunks)
-    shared = jobs > 1 and len(chunks) > 1 and _shared_memory_holds(plan, rate, largest)
-    host_free = shared_arrays.shared_free_bytes() if shared else None
+    host_free = shared_arrays.available_bytes()
+    shared = jobs > 1 and len(chunks) > 1 and shared_arrays.shareable()
     kernel = grid_kernel(plan.family)
     batches = _batches(chunks, launch_runs(plan, rate, host_free))
     workers = pool.executor(workers or min(jobs, len(chunks))) if shared else _threads()
@@ -107,18 +106,6 @@ def cuda_backend(campaign, chunks, jobs, guard, workers=None):
             launch.release()
         if not shared:
             workers.shutdown(wait=False, cancel_futures=True)
-
-
-def _shared_memory_holds(plan, rate, largest_chunk):
-    """Whether this machine's shared memory holds, in a quarter of it, a launch of the campaign's
-    largest chunk (a launch holds whole chunks, two live at once) and of THREADS_PER_BLOCK runs;
-    a container's /dev/shm may be 64 MB, and a ReFEx run's host arrays ~0.4 MB. Otherwise the
-    host's work stays in this process, on private memory."""
-    if not shared_arrays.shareable():
-        return False
-    runs = max(simulate_cuda.THREADS_PER_BLOCK, largest_chunk)
-    needed = 4 * runs * simulate_cuda.host_bytes_per_run(plan, rate)
-    return shared_arrays.shared_free_bytes() >= needed
 
 
 def _threads():

@@ -1,37 +1,37 @@
-"""Named numpy arrays in one block of memory, which worker processes can attach to by name.
+"""Named numpy arrays in one block of memory, which worker processes can attach to.
 
 The GPU backend (refexmc.campaign.cuda_backend) keeps a launch's host arrays here: its workers
 write the runs' packed inputs into them and read the launch's outputs from them, so that no run's
-tables or ~190 kB of history go through a pickle. A block is POSIX shared memory
-(``multiprocessing.shared_memory``, /dev/shm on Linux) when workers use it, private memory when
-only this process does (``refexmc run -j 1``): the same :class:`Arrays` either way.
+tables or ~190 kB of history go through a pickle. A block is an anonymous memory file
+(``os.memfd_create``, Linux) when workers use it, private memory when only this process does
+(``refexmc run -j 1``): the same :class:`Arrays` either way.
 
-The process that allocates a block owns it: :meth:`Arrays.release` unlinks it, and Python's
-resource tracker unlinks it if that process dies first. A worker that attaches maps the block's
-file and owns nothing (:func:`attached`).
+A memory file lives in RAM, not in /dev/shm: a container's /dev/shm (64 MB by default) does not
+bound it, and it has no name to leave behind. The process that allocates a block holds it open;
+a worker attaches by opening ``/proc/<owner pid>/fd/<fd>`` and maps it (:func:`attached`). The
+block is freed when the owner closes it (:meth:`Arrays.release`, or its exit, however it ends)
+and the last mapping is gone.
 """
 
 import contextlib
 import math
 import mmap
 import os
-import secrets
-import shutil
-from multiprocessing import shared_memory
 from typing import NamedTuple
 
 import numpy as np
 
 _ALIGN = 64  # bytes: every array starts on a cache line
-SHARED_FOLDER = "/dev/shm"  # where Linux keeps POSIX shared memory (its free space bounds a block)
-NAME_PREFIX = "refexmc-"  # a block's name: refexmc-<pid of its owner>-<random>
+_FD_FOLDER = "/proc/self/fd"  # a worker opens the owner's /proc/<pid>/fd/<fd>
 
 
 class Handle(NamedTuple):
-    """What a worker needs to attach to a block: its name and each array's (name, shape, dtype, offset)."""
+    """What a worker needs to attach to a block: the path it opens and each array's (name, shape,
+    dtype, offset)."""
 
-    name: str | None  # None: private memory (nothing to attach to)
+    path: str | None  # None: private memory (nothing to attach to)
     specs: tuple
+    identity: tuple = ()  # (device, inode) of the memory file: a descriptor number can be reused
 
 
 def _layout(shapes):
@@ -46,17 +46,21 @@ def _layout(shapes):
 
 
 def shareable():
-    """Whether worker processes can attach to a block here (Linux: POSIX shared memory is a file
-    in /dev/shm; elsewhere a GPU campaign's host work stays in its own process)."""
-    return os.path.isdir(SHARED_FOLDER) and os.access(SHARED_FOLDER, os.W_OK)
+    """Whether worker processes can attach to a block here (Linux: memory files and /proc; elsewhere a
+    GPU campaign's host work stays in its own process)."""
+    return hasattr(os, "memfd_create") and os.path.isdir(_FD_FOLDER)
 
 
-def shared_free_bytes():
-    """Free bytes for shared memory on this machine (0 where there is no /dev/shm)."""
-    try:
-        return shutil.disk_usage(SHARED_FOLDER).free
-    except OSError:
-        return 0
+def available_bytes():
+    """The memory this machine can still give without swapping (Linux's MemAvailable; elsewhere its
+    free pages), or None where it cannot say."""
+    with contextlib.suppress(OSError, ValueError), open("/proc/meminfo") as meminfo:
+        for line in meminfo:
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    with contextlib.suppress(AttributeError, OSError, ValueError):
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    return None
 
 
 class Arrays:
@@ -65,11 +69,16 @@ class Arrays:
 
     def __init__(self, shapes, shared):
         self.specs, size = _layout(shapes)
-        self._memory = None
+        self._memory = self._fd = None
         if shared:  # starts zeroed, its pages given as they are first written
-            name = f"{NAME_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"  # whose it is, in /dev/shm
-            self._memory = shared_memory.SharedMemory(name=name, create=True, size=size)
-            self.arrays = _views(self._memory.buf, self.specs)
+            self._fd = os.memfd_create("refexmc-launch", os.MFD_CLOEXEC)
+            try:
+                os.ftruncate(self._fd, size)
+                self._memory = mmap.mmap(self._fd, size)
+            except BaseException:
+                os.close(self._fd)
+                raise
+            self.arrays = _views(self._memory, self.specs)
         else:  # numpy's zeros: calloc's pages, as lazy
             self.arrays = {name: np.zeros(shape, dtype=dtype) for name, (shape, dtype) in shapes.items()}
 
@@ -78,15 +87,19 @@ class Arrays:
 
     def handle(self):
         """The :class:`Handle` a worker attaches with (:func:`attached`)."""
-        return Handle(self._memory.name if self._memory is not None else None, self.specs)
+        if self._fd is None:
+            return Handle(None, self.specs)
+        stat = os.fstat(self._fd)
+        return Handle(f"/proc/{os.getpid()}/fd/{self._fd}", self.specs, (stat.st_dev, stat.st_ino))
 
     def release(self):
-        """Free the block (shared: unlink its name). Views of it that live on (a worker's, a thread's
-        still copying) keep their mapping until they are gone: nothing is unmapped under them."""
+        """Free the block (shared: close it, so that no worker can attach any more). Views of it
+        that live on (a worker's, a thread's still copying) keep their mapping until they are gone:
+        nothing is unmapped under them."""
         self.arrays = {}
-        if self._memory is not None:
-            memory, self._memory = self._memory, None
-            memory.unlink()
+        if self._fd is not None:
+            fd, memory, self._fd, self._memory = self._fd, self._memory, None, None
+            os.close(fd)
             with contextlib.suppress(BufferError):  # views still exported: unmapped when they go
                 memory.close()
 
@@ -109,11 +122,17 @@ def attached(target):
     if isinstance(target, Arrays):
         yield target.arrays
         return
-    # mapped as the file Linux keeps it in, not through SharedMemory: Python < 3.13 registers every
-    # attach with the resource tracker, which then unlinks the block when this process exits or
-    # warns of a block unlinked twice (a loky worker may share its parent's tracker, or not)
-    with open(os.path.join(SHARED_FOLDER, target.name.lstrip("/")), "r+b") as file:
-        memory = mmap.mmap(file.fileno(), 0)
+    try:  # the owner's memory file, by its descriptor (not open(): it may be a pipe now, see below)
+        fd = os.open(target.path, os.O_RDWR | os.O_CLOEXEC)
+    except OSError as exc:  # released: no such descriptor, or one given to a socket
+        raise FileNotFoundError(f"{target.path}: the block was released ({exc.strerror})") from None
+    try:
+        stat = os.fstat(fd)
+        if (stat.st_dev, stat.st_ino) != target.identity:  # released, its number given to another file
+            raise FileNotFoundError(f"{target.path}: the block was released")
+        memory = mmap.mmap(fd, 0)
+    finally:
+        os.close(fd)
     arrays = _views(memory, target.specs)
     try:
         yield arrays
