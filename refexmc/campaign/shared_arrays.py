@@ -124,6 +124,11 @@ def attached(target):
         return
     try:  # the owner's memory file, by its descriptor (not open(): it may be a pipe now, see below)
         fd = os.open(target.path, os.O_RDWR | os.O_CLOEXEC)
+    except PermissionError as exc:  # a /proc this process may not read: say so, it is not a release
+        raise PermissionError(
+            f"{target.path}: cannot open the GPU launch's memory of that process ({exc.strerror}); "
+            "fly with -j 1 (the host's work in one process)"
+        ) from None
     except OSError as exc:  # released: no such descriptor, or one given to a socket
         raise FileNotFoundError(f"{target.path}: the block was released ({exc.strerror})") from None
     try:
