@@ -84,12 +84,12 @@ class RunPlan:
         for failed_wheels, members in groups.items():
             thrusters = [prepared[k].thrusters for k in members]
             dispersed = self._inputs(failed_wheels, [drawn[k] for k in members], thrusters)
-            for k, inputs in zip(members, dispersed, strict=True):
+            columns = self.sampler.columns_for_runs([drawn[k] for k in members])
+            for k, inputs, params in zip(members, dispersed, columns, strict=True):
                 if isinstance(inputs, Exception):
                     prepared[k] = inputs
                 else:
-                    seed = run_seed(self.campaign["seed"], run_ids[k])
-                    prepared[k] = (seed, prepared[k], self.sampler.columns(drawn[k]), inputs)
+                    prepared[k] = (run_seed(self.campaign["seed"], run_ids[k]), prepared[k], params, inputs)
         return prepared
 
     def _failures(self, run_id, values):

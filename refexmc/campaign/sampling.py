@@ -251,12 +251,19 @@ class Sampler:
         return runs
 
     def columns(self, values):
-        """The ``p.<path>`` columns of one run (its values joined and named at once: a dispersed
-        ReFEx run has 26 paths)."""
-        if not values:
-            return {}
-        paths = tuple(values)
+        """The ``p.<path>`` columns of one run: :meth:`columns_for_runs` of one."""
+        return self.columns_for_runs([values])[0]
+
+    def columns_for_runs(self, runs_values):
+        """The ``p.<path>`` columns of each run's values (the same paths for every run), joined
+        path by path for them all at once and named (a dispersed ReFEx run has 26 paths)."""
+        if not runs_values or not runs_values[0]:
+            return [{} for _ in runs_values]
+        paths = tuple(runs_values[0])
         if paths not in self._joined_names:
             self._joined_names[paths] = [name for path in paths for name in self.column_names[path]]
-        numbers = np.concatenate([np.asarray(value, dtype=float).ravel() for value in values.values()]).tolist()
-        return dict(zip(self._joined_names[paths], numbers, strict=True))
+        names, n = self._joined_names[paths], len(runs_values)
+        table = np.concatenate(
+            [np.array([values[path] for values in runs_values], dtype=float).reshape(n, -1) for path in paths], axis=1
+        )
+        return [dict(zip(names, row, strict=True)) for row in table.tolist()]
