@@ -208,12 +208,6 @@ def batch_of_runs(plan, inputs, seeds, history_rate_hz):
     return Batch(arrays, plan.family, plan.pointing)
 
 
-def host_bytes_per_run(plan, history_rate_hz):
-    """The host arrays' bytes of one run of a launch (inputs and outputs; measured on the nominal
-    inputs, doubled for the dispersed ones' margins)."""
-    return _host_bytes(batch_of_runs(plan, [plan.nominal_inputs], [0], history_rate_hz))
-
-
 def _host_bytes(probe):
     return 2 * sum(a.nbytes for a in probe.arguments(()))
 

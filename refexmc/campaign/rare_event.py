@@ -77,7 +77,8 @@ def level0_normals(campaign, blocks, run_ids):
             unphysical = np.flatnonzero(unphysical_inertias(tensors))
             redrawn = sampler.inertia_redraws(name, spec, [int(run_ids[i]) for i in unphysical], count)
             for i in unphysical:  # the attempt flown (Sampler._draw); none: an error row, its margin -inf anyway
-                u[i] = redrawn[int(run_ids[i])][0] if int(run_ids[i]) in redrawn else u[i]
+                if int(run_ids[i]) in redrawn:
+                    u[i] = redrawn[int(run_ids[i])][0]
         columns.append(u)
     return special.ndtri(np.concatenate(columns, axis=1))
 

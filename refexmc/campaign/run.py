@@ -33,8 +33,8 @@ from refexmc.config.schema import DEFAULT_RUN_TIME_LIMIT_S
 
 MAX_CHUNK_SIZE = 100  # runs per chunk: ~0.5 s of flying, a 3 MB history part
 MIN_CHUNK_SIZE = 10  # each chunk costs ~15 ms (two part files of ~150 columns), ~3 runs' flying
-# the GPU backend's: its host workers pay per chunk (two loky tasks, the launch's rows sent back,
-# two parts of ~130 columns each) ~3 ms of the refexmc run process's CPU and ~10 ms of theirs;
+# the GPU backend's: its host workers pay per chunk (two loky tasks, the prepared chunk's metadata
+# sent back, two parts of ~130 columns each) ~3 ms of the refexmc run process's CPU and ~10 ms of theirs;
 # 1,000 runs is ~1 s of a worker's host work and a 15 MB ReFEx history part (benchmarks/RESULTS.md)
 MAX_GPU_CHUNK_SIZE = 1000
 TARGET_CHUNKS = 32  # enough chunks that the last one to finish leaves the other workers idle briefly
@@ -71,9 +71,9 @@ def default_chunk_size(runs, backend="loky"):
     ``cuda`` backend: MAX_GPU_CHUNK_SIZE).
 
     It depends on the number of runs and the backend only, not on the workers: the same campaign
-    gives the same part files at any ``-j``. With 100-run chunks a 1,000-run campaign at ``-j 2`` can end with
-    one worker flying the last chunk alone for ~0.5 s; with 32-run chunks for ~0.2 s. Smaller
-    chunks cost more than they save (1,000 runs, ``-j 2``: 20-run chunks ~10 % slower than 32).
+    gives the same part files at any ``-j``. With 100-run chunks a 1,000-run campaign at ``-j 2``
+    can end with one worker flying the last chunk alone for ~0.5 s; with 32-run chunks for ~0.2 s.
+    Smaller chunks cost more than they save (1,000 runs, ``-j 2``: 20-run chunks ~10 % slower).
     On the GPU a chunk is host work only (drawing, naming, encoding), whose cost per chunk
     bounds a million-run campaign: larger chunks.
     """
