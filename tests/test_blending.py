@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from lp_reference import highs_minima
 from scipy.optimize import linprog
 
 from refexmc.core import blending
@@ -87,16 +88,28 @@ def highs(b, offset, torque, lower, upper, weights):
     return result.fun
 
 
+def highs_rates(conditions):
+    """:func:`highs`'s minimum of each condition, the LPs solved at once (tests/lp_reference.py)."""
+    b, offset, torque, lower, upper, weights = (np.array(values) for values in zip(*conditions, strict=True))
+    count = len(conditions)
+    a_eq = np.concatenate([b, np.broadcast_to(np.eye(3), (count, 3, 3)), np.broadcast_to(-np.eye(3), (count, 3, 3))], 2)
+    cost = np.hstack([np.zeros((count, 3)), weights, weights])
+    thrusters_low, thrusters_high = np.zeros((count, 6)), np.full((count, 6), np.inf)
+    return highs_minima(
+        cost, a_eq, torque - offset, np.hstack([lower, thrusters_low]), np.hstack([upper, thrusters_high])
+    )
+
+
 def assert_equal_to_highs(count, seed):
     rng = np.random.default_rng(seed)
     solve = Blender()
-    for k in range(count):
-        condition = random_condition(rng, rudders=k % 2 == 1, blocked=k % 3 != 0)
+    conditions = [random_condition(rng, rudders=k % 2 == 1, blocked=k % 3 != 0) for k in range(count)]
+    for condition, minimum in zip(conditions, highs_rates(conditions), strict=True):
         b, offset, torque, lower, upper, weights = condition
         rate, d, t = solve(*condition)
         # where the surfaces give it all (optimum 0) the rate is the rounding of the moments
         rounding = weights.sum() * MOMENT_N_M * max(1.0, np.abs(torque).max())
-        assert rate == pytest.approx(highs(*condition), rel=OBJECTIVE_REL, abs=rounding)
+        assert rate == pytest.approx(minimum, rel=OBJECTIVE_REL, abs=rounding)
         assert np.all(d >= lower) and np.all(d <= upper)
         assert np.abs(b @ d + offset + t - torque).max() <= MOMENT_N_M * max(1.0, np.abs(torque).max())
 
@@ -110,6 +123,16 @@ def test_ten_thousand_conditions_equal_highs():
 
 def test_equal_to_highs_on_a_few_hundred_conditions():
     assert_equal_to_highs(300, seed=3)
+
+
+def test_the_stacked_reference_is_each_lp_solved_alone():
+    """HiGHS on the stacked LP gives each condition the minimum of its own LP (to HiGHS's
+    rounding: 1e-12 relative, or the moments' rounding where the minimum is 0)."""
+    rng = np.random.default_rng(6)
+    conditions = [random_condition(rng, rudders=k % 2 == 1, blocked=k % 3 != 0) for k in range(60)]
+    for condition, minimum in zip(conditions, highs_rates(conditions), strict=True):
+        rounding = condition[5].sum() * MOMENT_N_M * max(1.0, np.abs(condition[2]).max())
+        assert minimum == pytest.approx(highs(*condition), rel=1e-12, abs=rounding)
 
 
 def test_equal_to_the_vertex_enumeration():

@@ -12,6 +12,7 @@ from pathlib import Path
 import naive
 import numpy as np
 import pytest
+from lp_reference import highs_minima
 from scipy.optimize import linprog
 
 from refexmc.config import derived
@@ -70,11 +71,13 @@ def attainable_torques(arms, u_max, count, seed):
 def assert_equal_to_highs(arms, u_max, count, seed):
     """The kernel's total equals HiGHS's on ``count`` attainable torques; H u = tau; bounds held."""
     solve = Solver(arms, u_max)
-    for torque in attainable_torques(arms, u_max, count, seed=seed):
+    torques = attainable_torques(arms, u_max, count, seed=seed)
+    n = arms.shape[1]
+    minima = highs_minima(np.ones((count, n)), np.broadcast_to(arms, (count, *arms.shape)), torques, 0.0, u_max)
+    for torque, minimum in zip(torques, minima, strict=True):
         scale, u = solve(torque)
-        reference = linprog(np.ones(len(u)), A_eq=arms, b_eq=torque, bounds=bounds(u_max), method="highs")
-        assert reference.status == 0 and scale == 1.0
-        assert u.sum() == pytest.approx(reference.fun, rel=OBJECTIVE_REL, abs=1e-15)
+        assert scale == 1.0
+        assert u.sum() == pytest.approx(minimum, rel=OBJECTIVE_REL, abs=1e-15)
         assert np.abs(arms @ u - torque).max() <= RESIDUAL_N_M
         assert np.all(u >= 0.0) and np.all(u <= u_max)
 
@@ -89,6 +92,16 @@ def test_ten_thousand_torques_equal_highs(name):
 @pytest.mark.parametrize("name", GEOMETRIES)
 def test_equal_to_highs_on_a_few_hundred_torques(name):
     assert_equal_to_highs(*GEOMETRIES[name](), count=300, seed=2)
+
+
+def test_the_stacked_reference_is_each_lp_solved_alone():
+    """HiGHS on the stacked LP gives each torque the minimum of its own LP (to HiGHS's rounding)."""
+    arms, u_max = random_geometry(8)
+    torques = attainable_torques(arms, u_max, 60, seed=3)
+    minima = highs_minima(np.ones((60, 12)), np.broadcast_to(arms, (60, 3, 12)), torques, 0.0, u_max)
+    for torque, minimum in zip(torques, minima, strict=True):
+        alone = linprog(np.ones(12), A_eq=arms, b_eq=torque, bounds=bounds(u_max), method="highs")
+        assert alone.status == 0 and minimum == pytest.approx(alone.fun, rel=1e-12, abs=1e-15)
 
 
 def test_equal_to_the_vertex_enumeration():
