@@ -152,6 +152,28 @@ def test_without_a_gpu_and_without_the_simulator_the_cuda_backend_exits_2(tmp_pa
     assert done.stdout == "" and not out.exists()
 
 
+@pytest.mark.parametrize("campaign", ["refex-propellant-sweep", "refex-rare-exhaustion", "x38-blocked-flap-sweep"])
+@pytest.mark.parametrize("gpu", ["none", "simulated"])
+def test_a_study_on_the_gpu_backend_exits_2_before_anything_is_written(monkeypatch, tmp_path, campaign, gpu):
+    """A sweep or a rare-event study is refused as a whole (without a GPU: for that; with one: by
+    name), before its OUT is created: before, a sweep flew every point on the GPU (its points are
+    campaigns of their own), a refused sweep left a manifest "running" behind that blocked the next
+    run, and a rare-event study flew its level 0 and then failed with a traceback."""
+    if gpu == "simulated" and not HAS_NUMBA_CUDA:
+        pytest.skip("numba-cuda not installed (the cuda extra)")
+    monkeypatch.setattr(_jit, "cuda_unavailable", lambda: None if gpu == "simulated" else "no CUDA GPU here")
+    out = tmp_path / "out"
+    args = ["run", str(ROOT / f"campaigns/{campaign}.yaml"), "-o", str(out), "--backend", "cuda", "--no-progress"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "cannot fly on a GPU" in lines[0], result.output
+    if gpu == "simulated":  # the reason by name: the entry's family first, else the study
+        why = "entry flight" if campaign.startswith("x38") else "sweep" if "sweep" in campaign else "rare-event"
+        assert why in lines[0], lines[0]
+    assert not out.exists()
+
+
 def test_the_entry_flight_and_studies_are_refused_on_the_gpu_by_name(monkeypatch):
     monkeypatch.setattr(_jit, "cuda_unavailable", lambda: None)
     if not HAS_NUMBA_CUDA:

@@ -292,7 +292,7 @@ def run_rare_event(
     jobs = run_module.default_jobs() if jobs is None else jobs
     if jobs < 1:
         raise ConfigError(f"expected jobs >= 1, got {jobs}", path=("--jobs",))
-    options = check_backend(backend, scheduler=scheduler)
+    options = check_backend(backend, campaign=campaign, scheduler=scheduler)  # cuda: refused, before any write
     out = Path(out) if out is not None else run_module.default_output(campaign)
     design = design_of(campaign)
     execution = {

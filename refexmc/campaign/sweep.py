@@ -13,6 +13,7 @@ import shutil
 from pathlib import Path
 
 from refexmc.campaign import lock, storage
+from refexmc.campaign.backends import check_backend
 from refexmc.campaign.run import (
     CampaignInterrupted,
     check_resumable,
@@ -71,6 +72,8 @@ def run_sweep(campaign_file, campaign, out, overwrite=False, resume=False, notif
     (jobs, backend, ...). ConfigError on bad input, with nothing written."""
     out = Path(out)
     record = sweep_record(campaign)
+    # the backend as a whole study (cuda refuses a sweep; a Dask scheduler must answer), before any write
+    check_backend(options.get("backend", "loky"), campaign=campaign, scheduler=options.get("scheduler"))
     lock.check_free(out)
     storage.check_output(out, overwrite=overwrite, resume=resume, protect=[campaign_file])
     previous = check_resumable(out, campaign) if resume and not storage.is_empty(out) else None
