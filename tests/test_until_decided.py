@@ -9,7 +9,7 @@ import pytest
 import yaml
 from stored import campaign_copy, invoke_run, read_runs, snapshot
 
-from refexmc.campaign import decided
+from refexmc.campaign import decided, progress
 from refexmc.campaign import run as run_module
 from refexmc.campaign.run import run_campaign
 from refexmc.config.errors import ConfigError
@@ -33,13 +33,18 @@ def fly(campaign, out, **options):
     return decided.run_until_decided(campaign, out, jobs=1, batch=10, notify=lambda message: None, **options)
 
 
-def test_a_passing_campaign_stops_early_with_the_first_runs_of_the_full_one(campaign, tmp_path):
-    result = fly(campaign, tmp_path / "stopped", runs=100)
+def test_a_passing_campaign_stops_early_with_the_first_runs_of_the_full_one(campaign, tmp_path, capsys):
+    result = fly(campaign, tmp_path / "stopped", runs=100, progress="lines")
     record = result["until_decided"]
     flown = record["runs_flown"]
     assert record["stopped"] == "decided" and flown < 100
     assert [r["state"] for r in record["requirements"]] == ["PASS", "PASS"]
     assert record["looks"] == list(range(10, flown + 1, 10))
+    # one progress over the budget, not one per look (each "compiling", out of the look's runs)
+    lines = capsys.readouterr().err.splitlines()
+    assert sum(progress.COMPILING in line for line in lines) == 1, lines
+    assert lines and all("/100 runs" in line for line in lines), lines
+    assert lines[-1].startswith(f"{flown}/100 runs, "), lines
     # OUT is the campaign `--runs flown`: same resolved runs, same table bit for bit
     resolved = yaml.safe_load((tmp_path / "stopped" / "campaign.resolved.yaml").read_text())
     assert resolved["runs"] == flown
@@ -117,6 +122,15 @@ def test_stopping_record_reads_as_one_line_per_requirement():
     passed = {**stopped, "verdict": "PASS", "requirements": record["requirements"][1:]}
     passed["requirements"] = [{**passed["requirements"][0], "state": "PASS"}]
     assert decided.format_stopping(passed).splitlines()[0].endswith("alpha 0.05): PASS")
+
+
+def test_a_batch_beyond_the_budget_is_one_look_at_the_budget(tmp_path, monkeypatch):
+    failing = [("  - fuel_remaining.min >= 0.20", "  - fuel_remaining.min >= 0.95")]
+    campaign = campaign_copy("refex-mc100.yaml", tmp_path, "failing.yaml", failing)
+    result = decided.run_until_decided(campaign, tmp_path / "out", runs=6, batch=500, jobs=1, notify=lambda m: None)
+    record = result["until_decided"]
+    assert record["looks"] == [6] and record["batch_runs"] == 6
+    assert "(looks every 6 runs," in decided.format_stopping(record)
 
 
 def test_chunks_end_on_the_looks():

@@ -16,6 +16,7 @@ import os
 from pathlib import Path
 
 from refexmc.campaign import sequential, storage
+from refexmc.campaign.progress import Progress
 from refexmc.campaign.run import CHUNK_SIZE_ENV, MAX_CHUNK_SIZE, resolve_campaign, run_campaign
 from refexmc.config.errors import ConfigError
 from refexmc.config.requirements import check_requirements
@@ -60,6 +61,7 @@ def run_until_decided(
     batch = default_batch(budget) if batch is None else batch
     if batch < 1:
         raise ConfigError(f"expected a batch of at least 1 run, got {batch}", path=("--batch",))
+    batch = min(batch, budget)  # one look, at the budget
     columns = storage.output_names(campaign)["columns"]["runs"]
     parsed = check_requirements(campaign["requirements"], columns, file=campaign_file)
     decision = sequential.Decision(
@@ -68,6 +70,8 @@ def run_until_decided(
     out = Path(out) if out is not None else Path("runs") / campaign["name"]
     stored = storage.read_manifest(out)["runs"] if resume and storage.is_output(out) else 0
     common = {"campaign_file": campaign_file, "out": out, "seed": seed, "chunk_size": batch_chunk_size(batch)}
+    if isinstance(options.get("progress"), str):  # one meter over the budget, not one per look
+        options = {**options, "progress": Progress(budget, min(stored, budget), options["progress"])}
     if notify is not None:
         common["notify"] = notify
     result = None
@@ -87,6 +91,8 @@ def run_until_decided(
         table = result["runs"]
         if decision.look(k, table[table["run_id"] < n].reset_index(drop=True)):
             break
+    if isinstance(options.get("progress"), Progress):
+        options["progress"].close()
     record = decision.record(alpha, batch, int(len(result["runs"])))
     manifest = storage.read_manifest(out)
     storage.write_manifest(out, {**manifest, MANIFEST_KEY: record})

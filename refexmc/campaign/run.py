@@ -250,7 +250,8 @@ def run_campaign(
 ):
     """Validate and run a campaign file (default: DEFAULT_CAMPAIGN); return output path, counts, runs table.
 
-    ``jobs``: worker processes (default all usable cores). ``progress``: 'bar', 'lines' or None.
+    ``jobs``: worker processes (default all usable cores). ``progress``: 'bar', 'lines' or None, or a
+    caller's :class:`Progress` over more runs than this call flies (left open for its next call).
     ``chunk_size``: runs per chunk of a new OUT (default ``$REFEXMC_CHUNK_SIZE`` or :func:`default_chunk_size`);
     a resumed OUT keeps the chunk size in its manifest. ``scheduler``: the Dask cluster of
     ``backend='dask'`` (an address, a scheduler file, or ``local:N``). ``notify(message)``: what
@@ -373,16 +374,23 @@ def _run_locked(flight, previous, options, progress, notify):
     if todo:
         storage.remove_report(out)  # it would describe other contents
     write_manifest("running")
-    meter = Progress(campaign["runs"], campaign["runs"] - sum(len(r) for _, r in todo), progress)
+    if isinstance(progress, Progress):  # the caller's meter over all its runs (run --until-decided's budget)
+        meter, closes = progress, False
+    else:
+        meter, closes = Progress(campaign["runs"], campaign["runs"] - sum(len(r) for _, r in todo), progress), True
     pandas = _import_meanwhile("pandas")
     try:
         _fly(campaign, todo, out, execution, options, meter)
-    except CampaignInterrupted:
-        with suppress(OSError):
-            write_manifest("interrupted")
+    except BaseException as exc:
+        meter.close()  # a caller's too: nothing more flies
+        if isinstance(exc, CampaignInterrupted):
+            with suppress(OSError):
+                write_manifest("interrupted")
         raise
     finally:
         pandas.join()
+    if closes:
+        meter.close()
 
     table = read_runs(out, chunks)
     counts = {
@@ -427,5 +435,4 @@ def _fly(campaign, todo, out, execution, options, meter):
                 storage.place_part(runs, out / "runs" / name)
                 meter.update(len(rows))
     finally:
-        meter.close()
         shutil.rmtree(work, ignore_errors=True)
