@@ -3,7 +3,8 @@
 import base64
 import html
 
-from refexmc.report.requirements import requirement_label, split_metric
+from refexmc.report import outputs
+from refexmc.report.requirements import requirement_label
 from refexmc.report.text import TABLE_STATS, TAIL_TITLES, constant_line, number, percent, pulse_table, row_digits
 
 STYLE = """
@@ -87,7 +88,7 @@ def _column_verdicts(summary):
     """{column: passed} over the requirements on each runs column (all of them met)."""
     result = {}
     for column in (summary.get("outputs") or {}).get("requirement_columns", ()):
-        judged = [r for r in summary["requirements"] if split_metric(r["metric"])[0] == column]
+        judged = outputs.requirements_of(column, summary["requirements"])  # pointing records included
         result[column] = all(r["passed"] for r in judged)
     return result
 
@@ -204,12 +205,17 @@ def wheel_failure_sets_section(wheel_sets):
             ]
         )
         classes.append("pass" if s.get("passed", s["successes"] == s["runs"]) else "failing-row")
-    headers = [
-        "failed wheels",
-        "runs",
-        "success",
-        *(f"{n} (required {required[n].split(n, 1)[1].strip()})" if n in required else n for n in names),
-    ]
+    meanings = wheel_sets.get("meanings", {})
+
+    def header(name):
+        if name in meanings:  # a pointing record: the share of the set's runs within its bound
+            return f"{name}: {meanings[name]}; {required[name]}"
+        if name in required:
+            text = required[name]
+            return f"{name} (required {text.split(name, 1)[1].strip() if text.startswith(name) else text})"
+        return name
+
+    headers = ["failed wheels", "runs", "success", *(header(n) for n in names)]
     legend = (
         '<p>Rows: <span class="pass">&nbsp;green&nbsp;</span> the set meets every requirement, '
         '<span class="failing-row">&nbsp;pale red&nbsp;</span> it fails one; a cell in '

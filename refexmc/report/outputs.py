@@ -2,8 +2,9 @@
 
 The report is built from the campaign, not from one reference mission:
 
-- **requirement metrics** first: the runs columns the requirements judge (``<column>.<stat>``),
-  in the order of the requirements, each labelled by its requirement(s);
+- **requirement metrics** first: the runs columns the requirements judge (``<column>.<stat>``, and
+  the runs column of each pointing record, docs/pointing.md), in the order of the requirements,
+  each labelled by its requirement(s);
 - then the **other outputs** the runs table has (numeric, not an input ``p.``, not a per-thruster
   pulse count), in table order;
 - columns with the same value in every successful flight are **constant** and summarised in one
@@ -86,22 +87,35 @@ def is_pulse_column(column):
     return column.startswith("pulses_") and column[7:].isdigit()
 
 
+def judged_column(verdict):
+    """The runs column a verdict judges, or None (a campaign metric, an input ``p.``): the column of
+    ``<column>.<stat>``, or the runs column of a pointing record (``kind: pointing``, docs/pointing.md:
+    its ``metric`` is the column itself, e.g. ``ape_total_temporal_arcsec``, bounded from above)."""
+    metric = verdict["metric"]
+    if verdict.get("kind") == "pointing":
+        return metric
+    if metric in CAMPAIGN_METRICS:
+        return None
+    column, _ = split_metric(metric)
+    if column is None or column.startswith(INPUT_PREFIX):
+        return None
+    return column
+
+
 def requirement_columns(verdicts):
-    """Runs columns judged by the requirements (not campaign metrics, not inputs), in requirement order."""
+    """Runs columns judged by the requirements (not campaign metrics, not inputs), in requirement
+    order; a pointing record's column counts like any other."""
     columns = []
     for verdict in verdicts:
-        metric = verdict["metric"]
-        if metric in CAMPAIGN_METRICS:
-            continue
-        column, _ = split_metric(metric)
-        if not column.startswith(INPUT_PREFIX) and column not in columns:
+        column = judged_column(verdict)
+        if column is not None and column not in columns:
             columns.append(column)
     return columns
 
 
 def requirements_of(column, verdicts):
-    """The verdicts that judge ``column``."""
-    return [v for v in verdicts if v["metric"] not in CAMPAIGN_METRICS and split_metric(v["metric"])[0] == column]
+    """The verdicts that judge ``column`` (pointing records included)."""
+    return [v for v in verdicts if judged_column(v) == column]
 
 
 def column_tail(column, verdicts=()):
@@ -197,15 +211,32 @@ def plan(campaign, verdicts):
     }
 
 
+def _pointing_margin(v):
+    """A pointing record's margin: its verdict's bound (the Clopper-Pearson lower bound on the runs
+    within, or the t bound on the mean fraction above) against its threshold, relative to the threshold."""
+    actual, threshold = v.get("actual"), v.get("threshold")
+    if actual is None or threshold is None or not math.isfinite(actual):
+        return -math.inf
+    scale = max(abs(threshold), abs(actual), 1e-300)
+    if v.get("interpretation") == "mixed":  # an upper bound on the fraction above must stay below
+        return (threshold - actual) / scale
+    return (actual - threshold) / scale
+
+
 def margins(verdicts):
     """Requirement columns ordered from failing to closest-to-failing: [(column, margin)], margin the
-    requirement's actual value's distance to its bound relative to the bound's size (negative: failing)."""
+    requirement's actual value's distance to its bound relative to the bound's size (negative: failing);
+    a pointing record's from its verdict's bound against its threshold."""
     best = {}
     for v in verdicts:
-        if v["metric"] in CAMPAIGN_METRICS:
+        column = judged_column(v)
+        if column is None:
             continue
-        column, _ = split_metric(v["metric"])
-        if column.startswith(INPUT_PREFIX):
+        if v.get("kind") == "pointing":
+            margin = _pointing_margin(v)
+            if not v["passed"]:
+                margin = min(margin, -0.0)
+            best[column] = min(best.get(column, math.inf), margin)
             continue
         actual, bound = v["actual"], v["value"]
         if actual is None or not math.isfinite(actual):

@@ -199,7 +199,7 @@ def failure_sets(campaign):
     return rows
 
 
-WHEEL_SET_COLUMNS = (  # (runs column, statistic) per failed-wheel set, after the requirements'; those the table has
+WHEEL_SET_COLUMNS = (  # (runs column, statistic) per failed-wheel set when no requirement judges a runs column
     ("pointing_rms_x_arcsec", "median"),
     ("wheel_momentum_peak_n_m_s", "max"),
     ("wheel_saturated_s", "median"),
@@ -207,24 +207,59 @@ WHEEL_SET_COLUMNS = (  # (runs column, statistic) per failed-wheel set, after th
 MAX_SET_STATISTICS = 8  # columns of the failed-wheel table beyond runs and success: it must fit the page
 
 
+def _pointing_set_statistic(v, group, success):
+    """A pointing record judged over one failed-wheel set's runs, as a point estimate beside the
+    campaign's verdict: (name, value, passed, meaning). Temporal and ensemble: the share of the
+    set's runs within the bound (a failed flight or a run without a value is outside) against the
+    record's threshold; mixed: the mean fraction of window time above the bound (1 for such a run)
+    against 1 - P_C."""
+    column = v["metric"]
+    values = group[column].to_numpy(dtype=float) if column in group else np.full(len(group), math.nan)
+    usable = success & np.isfinite(values)
+    n = len(group)
+    if v.get("interpretation") == "mixed":
+        value = float(np.where(usable, np.where(usable, values, 0.0), 1.0).mean()) if n else math.nan
+        return (
+            f"{column}.mean",
+            value,
+            math.isfinite(value) and value <= v["threshold"],
+            (f"mean fraction of window time above the bound over the set's runs (required <= {v['threshold']:.4g})"),
+        )
+    within = int((usable & (np.where(usable, values, math.inf) <= v["value"])).sum())
+    value = within / n if n else math.nan
+    return (
+        f"{column}.within",
+        value,
+        math.isfinite(value) and value >= v["threshold"],
+        (f"share of the set's runs within {v['value']:g} {v.get('unit', '')} (required >= {v['threshold']:g})"),
+    )
+
+
 def wheel_failure_sets(campaign, verdicts=()):
     """Per failed-wheel set (``failed_wheels``; "" = none): runs, successes and, for each requirement
     on a runs column, its statistic over the set's runs (failed flights counting as failing, as the
-    requirement does over the campaign) with its verdict; then a few wheel statistics. So the
-    penalty of a failure reads against the runs without one. None when the sets do not vary."""
+    requirement does over the campaign) with its verdict; a pointing record as the share of the set's
+    runs within its bound (``_pointing_set_statistic``), whatever runs the record itself judges, so
+    a failure's penalty reads against the runs without one. Only when no requirement judges a runs
+    column, a few wheel statistics (``WHEEL_SET_COLUMNS``) without a verdict. None when the sets
+    do not vary."""
     ok = campaign.ok
     if "failed_wheels" not in ok or ok["failed_wheels"].nunique() < 2:
         return None
-    judged = []
+    judged, names = [], []
     for v in verdicts:
+        if v.get("kind") == "pointing":
+            if v["metric"] not in names:
+                judged.append(v)
+                names.append(v["metric"])
+            continue
         column, stat = requirements_module.split_metric(v["metric"])
-        if stat is not None and column in ok and not column.startswith("p.") and v["metric"] not in judged:
+        if stat is not None and column in ok and not column.startswith("p.") and v["metric"] not in names:
             judged.append(v)
+            names.append(v["metric"])
     judged = judged[:MAX_SET_STATISTICS]
-    shown = {v["metric"] for v in judged}
-    extra = [(c, s) for c, s in WHEEL_SET_COLUMNS if c in ok and f"{c}.{s}" not in shown]
-    extra = extra[: max(0, MAX_SET_STATISTICS - len(judged))]
-    rows = []
+    extra = [] if judged else [(c, s) for c, s in WHEEL_SET_COLUMNS if c in ok]
+    rows, statistics, requirements, meanings = [], [], {}, {}
     for key, group in ok.groupby("failed_wheels", sort=True):
         n = len(group)
         success = group["success"].astype(bool).to_numpy()
@@ -237,13 +272,20 @@ def wheel_failure_sets(campaign, verdicts=()):
             "verdicts": {},
         }
         for v in judged:
-            column, stat = requirements_module.split_metric(v["metric"])
-            side = requirements_module.FAILING_SIDE[v["op"]]
-            value = stats.column_stat_with_failing(group[column].to_numpy(dtype=float)[success], n - k, stat, side)
-            row[v["metric"]] = value
-            row["verdicts"][v["metric"]] = bool(
-                math.isfinite(value) and requirements_module.OPERATORS[v["op"]](value, v["value"])
-            )
+            if v.get("kind") == "pointing":
+                name, value, passed, meaning = _pointing_set_statistic(v, group, success)
+                meanings[name] = meaning
+            else:
+                name = v["metric"]
+                column, stat = requirements_module.split_metric(name)
+                side = requirements_module.FAILING_SIDE[v["op"]]
+                value = stats.column_stat_with_failing(group[column].to_numpy(dtype=float)[success], n - k, stat, side)
+                passed = math.isfinite(value) and requirements_module.OPERATORS[v["op"]](value, v["value"])
+            row[name] = value
+            row["verdicts"][name] = bool(passed)
+            requirements[name] = v["requirement"]
+            if name not in statistics:
+                statistics.append(name)
         for column, stat in extra:
             row[f"{column}.{stat}"] = stats.column_stat(group[column].to_numpy(dtype=float), stat)
         row["passed"] = k == n and all(row["verdicts"].values())
@@ -251,8 +293,9 @@ def wheel_failure_sets(campaign, verdicts=()):
     detected = bool((campaign.resolved.get("wheel_failures") or {}).get("detected", False))
     return {
         "detected": detected,
-        "statistics": [v["metric"] for v in judged] + [f"{c}.{s}" for c, s in extra],
-        "requirements": {v["metric"]: v["requirement"] for v in judged},
+        "statistics": statistics + [f"{c}.{s}" for c, s in extra],
+        "requirements": requirements,
+        "meanings": meanings,
         "sets": rows,
     }
 
@@ -635,9 +678,34 @@ def inputs_section(campaign):
     }
 
 
+def with_pointing(campaign, verdicts):
+    """The verdicts the report is built around: ``verdicts`` and the campaign's pointing records
+    (``report.pointing``, docs/pointing.md), in the campaign file's order, then ``--require``'s.
+    A pointing record judges a runs column like ``<column>.<stat>`` does; without it here its
+    column would be a mere output (two-sided, no sensitivity, no per-failure-set verdict)."""
+    verdicts = list(verdicts)
+    if any(v.get("kind") == "pointing" for v in verdicts):
+        return verdicts
+    from refexmc.report import pointing  # pointing imports this module's rerun_command
+
+    pointed = [pointing.evaluate(r, campaign) for r in pointing.requirements_of(campaign)]
+    if not pointed:
+        return verdicts
+    from_file = [v for v in verdicts if v.get("source") == "campaign"]
+    ordered = []
+    for item in campaign.resolved.get("requirements") or []:
+        queue = pointed if isinstance(item, dict) else from_file
+        if queue:
+            ordered.append(queue.pop(0))
+    ordered += from_file + pointed
+    return ordered + [v for v in verdicts if not any(v is o for o in ordered)]
+
+
 def build(campaign, verdicts=()):
     """Every number of the report except the overall verdict; ``verdicts``: the requirement
-    verdicts (``requirements.evaluate``), which decide the metrics the report is built around."""
+    verdicts (``requirements.evaluate``), which decide the metrics the report is built around,
+    with the campaign's pointing records (``with_pointing``)."""
+    verdicts = with_pointing(campaign, verdicts)
     level = campaign_metrics(campaign)
     n_ok = int(level["ok_count"])
     notes = []
