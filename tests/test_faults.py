@@ -148,6 +148,39 @@ def test_overwrite_of_an_output_holding_other_files_is_refused_untouched(finishe
     assert snapshot(out) == before
 
 
+@pytest.mark.parametrize(
+    ("mine", "named"),  # a folder of the user's is named, not each file in it
+    [
+        ("report/my-analysis.ipynb", "report/my-analysis.ipynb"),
+        ("runs/extra.txt", "runs/extra.txt"),
+        ("histories/mine/a.csv", "histories/mine"),
+        ("report/figures/plot.pdf", "report/figures/plot.pdf"),
+    ],
+)
+def test_overwrite_of_an_output_with_a_users_file_in_its_folders_is_refused_untouched(finished, mine, named):
+    """Inside the folders refexmc writes too (before: only OUT's top level was looked at, and
+    --overwrite deleted a user's notebook in report/ with the rest)."""
+    campaign, out = finished
+    assert CliRunner().invoke(main, ["report", str(out)]).exit_code == 0
+    (out / mine).parent.mkdir(parents=True, exist_ok=True)
+    (out / mine).write_text("my own work")
+    before = snapshot(out)
+    result = invoke_run(campaign, "-o", out, "--overwrite", "--runs", 6)
+    one_line_error(result, f"files refexmc did not write: {named};")
+    assert snapshot(out) == before
+
+
+def test_a_resume_removes_the_stale_report_but_not_a_users_file_in_it(finished):
+    campaign, out = finished
+    assert CliRunner().invoke(main, ["report", str(out)]).exit_code == 0
+    (out / "report" / "notes.md").write_text("run 3 looks odd")
+    next((out / "runs").iterdir()).unlink()  # a chunk to fly again: the report no longer describes OUT
+    result = invoke_run(campaign, "-o", out, "--resume", "--runs", 6, "--no-progress")
+    assert result.exit_code == 0, result.output
+    assert sorted(p.relative_to(out).as_posix() for p in (out / "report").rglob("*")) == ["report/notes.md"]
+    assert (out / "report" / "notes.md").read_text() == "run 3 looks odd"
+
+
 def test_overwrite_never_deletes_the_campaign_file(finished):
     campaign, out = finished
     inside = out / "reruns" / "campaign.yaml"  # a name refexmc writes, holding the campaign file

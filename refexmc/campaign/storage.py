@@ -396,10 +396,49 @@ def is_output(out):
     return isinstance(info, dict) and {"refexmc", "resolved_sha256", "chunk_size"} <= info.keys()
 
 
+# what refexmc writes in OUT's folders (paths relative to the folder); anything else there is the user's
+_PART = re.compile(r"part-\d{5,}\.parquet")
+WRITTEN_IN = {
+    "runs": _PART,
+    "histories": _PART,
+    "reruns": re.compile(r"run-\d+\.parquet"),  # refexmc rerun
+    REPORT_DIR: re.compile(r"index\.html|summary\.json|sweep\.png|figures|figures/[\w.-]+\.png"),  # refexmc report
+}
+_POINT = re.compile(r"\d{3,}")  # a sweep's points/NNN (an OUT of its own) and points/NNN.yaml
+
+
+def _written(folder, relative):
+    pattern = WRITTEN_IN.get(folder)
+    name = relative.rsplit("/", 1)[-1]
+    return pattern is None or pattern.fullmatch(relative) is not None or _TEMPORARY.fullmatch(name) is not None
+
+
 def foreign_entries(out):
-    """Names at the top of OUT that refexmc does not write."""
-    names = (path.name for path in Path(out).iterdir())
-    return sorted(name for name in names if name not in OUTPUT_ENTRIES and not _TEMPORARY.fullmatch(name))
+    """Paths in OUT (relative, '/'-separated) that refexmc does not write: at the top, and in the
+    folders of :data:`WRITTEN_IN` and a sweep's points at any depth (a user's notebook in report/)."""
+    out = Path(out)
+    foreign = []
+    for path in sorted(out.iterdir()):
+        name = path.name
+        if name not in OUTPUT_ENTRIES and not _TEMPORARY.fullmatch(name):
+            foreign.append(name)
+        elif name == "points" and path.is_dir() and not path.is_symlink():
+            for point in sorted(path.iterdir()):
+                stem = point.name.removesuffix(".yaml")
+                if not _POINT.fullmatch(stem) or (point.is_dir() != (stem == point.name)):
+                    foreign.append(f"points/{point.name}")
+                elif point.is_dir():
+                    foreign += [f"points/{point.name}/{entry}" for entry in foreign_entries(point)]
+        elif name in WRITTEN_IN and path.is_dir() and not path.is_symlink():
+            for folder, folders, files in os.walk(path):
+                for entry in sorted(folders + files):
+                    relative = (Path(folder) / entry).relative_to(path).as_posix()
+                    if not _written(name, relative):
+                        foreign.append(f"{name}/{relative}")
+                folders[:] = [
+                    f for f in folders if f"{name}/{Path(folder, f).relative_to(path).as_posix()}" not in foreign
+                ]
+    return sorted(foreign)
 
 
 def _within(path, folder):
@@ -467,10 +506,20 @@ def prepare_output(out, overwrite=False, resume=False, protect=()):
 
 
 def remove_report(out):
-    """Delete OUT/report/: it describes contents that are about to change."""
+    """Delete what ``refexmc report`` wrote in OUT/report/: it describes contents that are about to
+    change. Anything else there (a user's own analysis) is kept, and so is the folder then."""
     report = Path(out) / REPORT_DIR
-    if report.is_dir():
-        shutil.rmtree(report)
+    if not report.is_dir() or report.is_symlink():
+        return
+    written = [path for path in report.rglob("*") if _written(REPORT_DIR, path.relative_to(report).as_posix())]
+    for path in sorted(written, key=lambda path: len(path.parts), reverse=True):  # files before their folder
+        if path.is_dir() and not path.is_symlink():
+            with suppress(OSError):  # a user's file inside it: kept
+                path.rmdir()
+        else:
+            path.unlink()
+    with suppress(OSError):
+        report.rmdir()
 
 
 def remove_temporary_files(out):
