@@ -223,8 +223,9 @@ def test_missing_extra_is_bad_input_and_writes_nothing(tmp_path, monkeypatch):
         (["--backend", "dask", "--scheduler", "local:0"], "local:N with an integer N >= 1"),
         (["--backend", "dask", "--scheduler", "local:two"], "local:N with an integer N >= 1"),
         (["--backend", "dask", "--scheduler", "tcp://127.0.0.1:9"], "cannot connect to the Dask scheduler"),
+        (["--backend", "dask", "--scheduler", "/nonexistent/scheduler.json"], "no scheduler file"),
     ],
-    ids=["scheduler-with-loky", "dask-without-scheduler", "local-0", "local-word", "unreachable"],
+    ids=["scheduler-with-loky", "dask-without-scheduler", "local-0", "local-word", "unreachable", "no-file"],
 )
 def test_bad_backend_options_are_refused_before_anything_is_written(tmp_path, args, message):
     out = tmp_path / "out"

@@ -29,6 +29,7 @@ the worker's disk). Instead:
 """
 
 import itertools
+import os
 import threading
 import time
 import uuid
@@ -90,6 +91,12 @@ def check(scheduler=None):
 @contextmanager
 def _client(distributed, address):
     """A client of the scheduler at ``address`` (or of the scheduler file at that path)."""
+    looks_like_a_file = "://" not in address and (address.endswith(".json") or "/" in address or os.sep in address)
+    if looks_like_a_file and not Path(address).is_file():
+        raise ConfigError(
+            f"no scheduler file {address!r} (a running scheduler's file, or its address tcp://HOST:PORT)",
+            path=("--scheduler",),
+        )
     try:
         if Path(address).is_file():
             client = distributed.Client(scheduler_file=address)
