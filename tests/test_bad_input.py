@@ -582,7 +582,7 @@ PLAUSIBILITY_CASES = [
         {"vehicle": "my-vehicle.yaml"},
         False,
         "campaign.yaml:2: vehicle",
-        ["vehicle file 'my-vehicle.yaml'", "file not found"],
+        ["vehicle: vehicle file 'my-vehicle.yaml' (relative to the campaign file's folder): file not found"],
     ),
 ]
 
@@ -614,3 +614,14 @@ def test_implausible_input_is_refused_at_the_users_key_and_writes_nothing(
     if strict:  # without --strict: a warning, and the campaign validates
         result = CliRunner().invoke(main, ["validate", str(campaign)])
         assert result.exit_code == 0 and f"warning: {tmp_path / where}" in result.output, result.output
+
+
+def test_a_missing_vehicle_file_is_named_once(tmp_path):
+    """An absolute path the user wrote is printed once, after the campaign line that names it."""
+    missing = tmp_path / "refexx.yaml"
+    campaign = _hop_variant(tmp_path, vehicle=str(missing))
+    result = CliRunner().invoke(main, ["validate", str(campaign)])
+    assert result.exit_code == 2, result.output
+    line = result.output.strip()
+    assert line == f"error: {campaign}:2: vehicle: vehicle file '{missing}': file not found", line
+    assert line.count(str(missing)) == 1

@@ -729,8 +729,10 @@ def _resolve_part(campaign, key, campaign_file, lines, part_schema, checker, ren
         if error.file != path or error.line is not None:
             raise
         # the file cannot be read at all: name the campaign line that refers to it (issue 34)
+        # the path once, as written; a relative one is read from the campaign file's folder
+        relative = "" if Path(ref).is_absolute() or path.exists() else " (relative to the campaign file's folder)"
         raise ConfigError(
-            f"{key} file {ref!r} ({path}): {error.message}", file=campaign_file, line=lines.get((key,)), path=(key,)
+            f"{key} file '{ref}'{relative}: {error.message}", file=campaign_file, line=lines.get((key,)), path=(key,)
         ) from None
     if renamed is not None:
         renamed += _renamed(renames.migrate_mission(data, part_lines), path, part_lines)
