@@ -625,3 +625,32 @@ def test_a_missing_vehicle_file_is_named_once(tmp_path):
     line = result.output.strip()
     assert line == f"error: {campaign}:2: vehicle: vehicle file '{missing}': file not found", line
     assert line.count(str(missing)) == 1
+
+
+# --- sweeps (docs/studies.md sec. 2): a misspelt parameter path gets a did-you-mean ---------------
+
+
+def test_a_misspelt_sweep_parameter_gets_did_you_mean(tmp_path):
+    text = (ROOT / "campaigns/refex-propellant-sweep.yaml").read_text().replace("../configs/", f"{ROOT}/configs/")
+    assert text.count("parameter: rcs.propellant_kg") == 1
+    text = text.replace("parameter: rcs.propellant_kg", "parameter: rcs.propelant_kg")
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(text)
+    line = next(n for n, s in enumerate(text.splitlines(), 1) if "parameter: rcs.propelant_kg" in s)
+    result = CliRunner().invoke(main, ["validate", str(campaign)])
+    assert result.exit_code == 2, result.output
+    assert result.output.strip() == (
+        f"error: {campaign}:{line}: sweep.axes.0.parameter: unknown parameter path 'rcs.propelant_kg'; "
+        "did you mean 'rcs.propellant_kg'?"
+    )
+
+
+def test_a_vector_sweep_parameter_still_lists_the_scalar_paths(tmp_path):
+    """A known path that is not a scalar: no guess (it is spelt right), the paths a sweep takes."""
+    text = (ROOT / "campaigns/refex-propellant-sweep.yaml").read_text().replace("../configs/", f"{ROOT}/configs/")
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(text.replace("parameter: rcs.propellant_kg", "parameter: com_offset_m"))
+    result = CliRunner().invoke(main, ["validate", str(campaign)])
+    assert result.exit_code == 2, result.output
+    assert "sweep.axes.0.parameter: expected a scalar parameter path (mass_kg," in result.output
+    assert "got 'com_offset_m'" in result.output and "did you mean" not in result.output

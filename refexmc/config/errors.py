@@ -1,5 +1,7 @@
 """The one error type for bad input: file, line, key path and what was expected."""
 
+import difflib
+
 
 class ConfigError(Exception):
     """Bad input. ``str()`` gives ``file:line: key.path: message`` (the parts it has)."""
@@ -17,3 +19,9 @@ class ConfigError(Exception):
             where += f":{self.line}"
         key = ".".join(str(p) for p in self.path)
         return ": ".join(part for part in (where, key, self.message) if part)
+
+
+def did_you_mean(word, candidates, cutoff=0.6):
+    """``"did you mean 'x'?"`` for the closest of ``candidates`` to ``word`` (difflib), or ``""``."""
+    guess = difflib.get_close_matches(str(word), list(candidates), n=1, cutoff=cutoff)
+    return f"did you mean '{guess[0]}'?" if guess else ""

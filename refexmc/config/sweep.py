@@ -19,14 +19,13 @@ every point (keyed seeds: common random numbers).
 """
 
 import copy
-import difflib
 import itertools
 import math
 
 import numpy as np
 
 from refexmc.config import dispersions
-from refexmc.config.errors import ConfigError
+from refexmc.config.errors import ConfigError, did_you_mean
 from refexmc.config.parameters import MISSION_ROOTS  # paths under these are mission keys
 from refexmc.config.schema import SWEPT_DISTRIBUTION_PARAMETERS
 
@@ -147,6 +146,9 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
         param = dispersions.parameter(path)
         if param is None or param.shape != "scalar":
             scalar = [p for p, q in dispersions.PARAMETERS.items() if q.shape == "scalar"]
+            hint = did_you_mean(path, scalar, cutoff=0.5) if param is None else ""  # as for dispersion paths
+            if hint:
+                fail(f"unknown parameter path '{path}'; {hint}", "axes", i, "parameter")
             fail(f"expected a scalar parameter path ({', '.join(scalar)}), got '{path}'", "axes", i, "parameter")
         try:
             file_value(campaign, path)
@@ -172,9 +174,9 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
 def _column_hint(metric, columns):
     """'; did you mean ...?' or the campaign's own columns (a mode's columns carry its name)."""
     own = [c for c in columns if not c.startswith("p.")]
-    guess = difflib.get_close_matches(str(metric), own, n=1, cutoff=0.6)
-    if guess:
-        return f"; did you mean '{guess[0]}'?"
+    hint = did_you_mean(metric, own)
+    if hint:
+        return f"; {hint}"
     return f"; this campaign's columns (and its p. inputs): {', '.join(own)}"
 
 
