@@ -894,18 +894,22 @@ def load_campaign(path, warnings=None):
             validate(item, schema.POINTING_REQUIREMENT, path, within, prefix=prefix)
     pointed = pointing.parse(campaign["requirements"], mission, campaign["dispersions"], path, lines)
     columns += [req.column for req in pointed]  # their runs columns (docs/pointing.md)
-    requirements.check_requirements(campaign["requirements"], columns, path, lines)
-    published.check_published(campaign.get("published", []), columns, path, lines)
+    # the columns the table has but this vehicle and mission never fill (NaN in every run): a
+    # requirement, published value, sweep metric, event or Sobol' metric on one is bad input
+    absent = requirements.unproduced_columns(vehicle, mission)
+    columns = [c for c in columns if c not in absent]
+    requirements.check_requirements(campaign["requirements"], columns, path, lines, absent)
+    published.check_published(campaign.get("published", []), columns, path, lines, absent=absent)
     if "sweep" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
         from refexmc.config import sweep
 
         campaign["sweep"] = data["sweep"]
-        sweep.check_sweep(campaign, path, lines, columns)
+        sweep.check_sweep(campaign, path, lines, columns, absent)
         found += plausibility.check_sweep(campaign["sweep"]["axes"], path, lines)
     if "rare_event" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
         from refexmc.config.rare_event import check_rare_event
 
-        campaign["rare_event"] = check_rare_event(data, campaign, columns, path, lines)
+        campaign["rare_event"] = check_rare_event(data, campaign, columns, path, lines, absent)
     enumerated = enumerated_failures(campaign)
     if enumerated is not None:
         n_units = n_thrusters if enumerated is THRUSTER_FAILURES else len(wheel_units)
@@ -926,14 +930,16 @@ def load_campaign(path, warnings=None):
         saltelli.check(campaign, path, lines)
     if "sobol" in data:  # only when given: the resolved campaign (its digest) of a file without it is unchanged
         campaign["sobol"] = data["sobol"]
-        check_sobol_metrics(campaign, [c for c in columns if not c.startswith("p.")], path, lines)
+        check_sobol_metrics(campaign, [c for c in columns if not c.startswith("p.")], path, lines, absent)
     return campaign
 
 
-def check_sobol_metrics(campaign, columns, path=None, lines=None):
+def check_sobol_metrics(campaign, columns, path=None, lines=None, absent=None):
     """ConfigError (file, line, key path) unless the ``sobol`` key goes with ``sampling: saltelli``
-    and names only ``success`` and runs columns the mission produces (``columns``)."""
+    and names only ``success`` and runs columns the mission produces (``columns``; ``absent``:
+    {column: why} of those its table has but never fills, requirements.unproduced_columns)."""
     lines = lines or {}
+    absent = absent or {}
     if campaign["sampling"] != "saltelli":
         raise ConfigError(
             "'sobol' goes with 'sampling: saltelli' (the design its indices need), "
@@ -942,18 +948,22 @@ def check_sobol_metrics(campaign, columns, path=None, lines=None):
             line=lines.get(("sobol",)),
             path=("sobol",),
         )
-    known = ["success", *columns, "pulses_total"]
+    known = ["success", *(c for c in columns if c not in absent), "pulses_total"]
     for i, metric in enumerate(campaign["sobol"]["metrics"]):
         if metric in known:
             continue
+        where = {
+            "file": path,
+            "line": lines.get(("sobol", "metrics", i)) or lines.get(("sobol", "metrics")),
+            "path": ("sobol", "metrics", i),
+        }
+        if metric in absent:
+            raise requirements.not_produced(f"Sobol' metric '{metric}'", metric, absent, known, **where)
         guess = difflib.get_close_matches(metric, known, n=1, cutoff=0.6)
         hint = f"did you mean '{guess[0]}'? " if guess else ""
         shown = ", ".join(c for c in known if not c.startswith("pulses_"))
         raise ConfigError(
-            f"unknown metric '{metric}': this mission produces no such runs column; {hint}(metrics: {shown})",
-            file=path,
-            line=lines.get(("sobol", "metrics", i)) or lines.get(("sobol", "metrics")),
-            path=("sobol", "metrics", i),
+            f"unknown metric '{metric}': this mission produces no such runs column; {hint}(metrics: {shown})", **where
         )
 
 

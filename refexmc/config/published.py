@@ -27,6 +27,7 @@ from refexmc.config.requirements import (
     POINTING_COLUMNS,
     SUGGESTED_STATS,
     WHEEL_COLUMNS,
+    not_produced,
     parse_percentile_stat,
     valid_stat,
 )
@@ -62,10 +63,12 @@ def statistic_meaning(stat):
     return text if bound is None else f"one-sided 95 % {bound} confidence bound of the {text}"
 
 
-def check_published(entries, columns, file=None, lines=None, prefix=("published",)):
+def check_published(entries, columns, file=None, lines=None, prefix=("published",), absent=None):
     """[Published] from a campaign's ``published`` list (schema-validated); ConfigError unless each
-    statistic is one of the grammar's and each column one of the runs ``columns``."""
+    statistic is one of the grammar's and each column one of the runs ``columns`` (``absent``:
+    {column: why} of those the campaign does not produce, requirements.unproduced_columns)."""
     lines = lines or {}
+    absent = absent or {}
     columns = [c for c in columns if c not in NOT_METRIC_COLUMNS] + [c for c in DERIVED_COLUMNS if c not in columns]
 
     def fail(message, *path):
@@ -83,6 +86,8 @@ def check_published(entries, columns, file=None, lines=None, prefix=("published"
         for column in entry["values"]:
             if column in columns:
                 continue
+            if column in absent:
+                fail(not_produced(f"published '{column}'", column, absent, columns).message, i, "values", column)
             guess = difflib.get_close_matches(column, columns, n=1, cutoff=0.6)
             if column in ORBIT_COLUMNS:
                 hint = "it is a column of vehicles with the orbit trajectory only"

@@ -41,8 +41,10 @@ class Event:
         return f"{self.metric} {self.op} {self.value:g}"
 
 
-def parse_event(text, columns, file=None, line=None, path=()):
-    """The :class:`Event` of ``'METRIC OP VALUE'`` over the runs ``columns``; ConfigError for bad input."""
+def parse_event(text, columns, file=None, line=None, path=(), absent=None):
+    """The :class:`Event` of ``'METRIC OP VALUE'`` over the runs ``columns``; ConfigError for bad input,
+    an event on a column the campaign does not produce too (``absent``: {column: why},
+    requirements.unproduced_columns)."""
     where = {"file": file, "line": line, "path": path}
     match = _EVENT.match(text) if isinstance(text, str) else None
     if not match:
@@ -57,6 +59,10 @@ def parse_event(text, columns, file=None, line=None, path=()):
     if not math.isfinite(value):
         raise ConfigError(f"expected a finite number after '{op}', got '{value_text}'", **where)
     numeric = [c for c in columns if c not in ("run_id", "seed")]
+    if absent and metric in absent:
+        from refexmc.config.requirements import not_produced
+
+        raise not_produced(f"event '{text.strip()}'", metric, absent, numeric, **where)
     if metric not in numeric:
         import difflib
 
@@ -85,16 +91,18 @@ def design_problem(per_level, p0):
     return None
 
 
-def check_rare_event(data, campaign, columns, file, lines):
+def check_rare_event(data, campaign, columns, file, lines, absent=None):
     """The resolved ``rare_event`` of campaign file ``data`` (defaults filled in); ConfigError (file,
-    line, key path) for a study that cannot be flown. Sets ``campaign['runs']`` to ``per_level``."""
+    line, key path) for a study that cannot be flown. Sets ``campaign['runs']`` to ``per_level``.
+    ``columns``: the runs columns the campaign produces; ``absent``: as :func:`parse_event`."""
     spec = {**DEFAULTS, **data["rare_event"]}
 
     def fail(message, *key):
         line = next((lines[key[:k]] for k in range(len(key), 0, -1) if key[:k] in lines), None)
         raise ConfigError(message, file=file, line=line, path=key)
 
-    parse_event(spec["event"], columns, file, lines.get(("rare_event", "event")), ("rare_event", "event"))
+    event_line = lines.get(("rare_event", "event"))
+    parse_event(spec["event"], columns, file, event_line, ("rare_event", "event"), absent)
     problem = design_problem(spec["per_level"], spec["p0"])
     if problem:
         fail(problem, "rare_event", "per_level" if "p0 <=" not in problem else "p0")

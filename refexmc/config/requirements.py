@@ -23,7 +23,9 @@ OP is one of ``>= <= > < ==``; VALUE a number. A metric that is not computable (
 too few runs for a bound) fails its requirement. Unknown metrics are bad input (ConfigError):
 ``load_campaign`` checks a campaign file's ``requirements`` against the columns its runs table
 will have (:func:`runs_metric_columns`), so that a misspelt metric is refused before any run is
-flown; ``refexmc report`` checks them again against the stored table, with ``--require``.
+flown, and so is a metric on a column the table has but the vehicle and mission never fill
+(:func:`unproduced_columns`: ``attitude_error_end_deg`` of a hop); ``refexmc report`` checks them
+again against the stored table, with ``--require``.
 Evaluating them is the report's job (``refexmc.report.requirements.evaluate``).
 """
 
@@ -34,7 +36,7 @@ import re
 from dataclasses import dataclass
 
 from refexmc.config.errors import ConfigError
-from refexmc.config.schema import DEFAULT_TRAJECTORY
+from refexmc.config.schema import DEFAULT_TRAJECTORY, MODE_KINDS
 
 CAMPAIGN_METRICS = {
     "runs": "runs in the runs table (ok and errored)",
@@ -96,10 +98,13 @@ def valid_stat(stat):
     return True
 
 
-def check_metric(metric, columns, file=None, line=None, path=()):
-    """ConfigError (with did-you-mean) unless ``metric`` names a metric of a campaign with ``columns``."""
+def check_metric(metric, columns, file=None, line=None, path=(), absent=None):
+    """ConfigError (with did-you-mean) unless ``metric`` names a metric of a campaign with ``columns``;
+    ``absent``: {column: why} of the columns the campaign does not produce (:func:`unproduced_columns`)."""
     columns = [c for c in columns if c not in NOT_METRIC_COLUMNS] + list(DERIVED_COLUMNS)
     column, stat = split_metric(metric)
+    if absent and column in absent:
+        raise not_produced(f"metric '{metric}'", column, absent, columns, file=file, line=line, path=path)
     if column is not None and (stat is None or (column in columns and valid_stat(stat))):
         return
     if column in columns:
@@ -121,8 +126,9 @@ def check_metric(metric, columns, file=None, line=None, path=()):
     )
 
 
-def parse_requirement(text, columns, source="--require", file=None, line=None, path=()):
-    """Parse ``'METRIC OP VALUE'`` against the runs ``columns``; ConfigError for bad input."""
+def parse_requirement(text, columns, source="--require", file=None, line=None, path=(), absent=None):
+    """Parse ``'METRIC OP VALUE'`` against the runs ``columns`` (``absent``: as :func:`check_metric`);
+    ConfigError for bad input."""
     where = {"file": file, "line": line, "path": path}
     if not isinstance(text, str):
         raise ConfigError(f"expected a string 'METRIC OP VALUE', got {text!r}", **where)
@@ -138,7 +144,7 @@ def parse_requirement(text, columns, source="--require", file=None, line=None, p
         raise ConfigError(f"expected a number after '{op}', got '{value_text}' in '{text}'", **where) from None
     if not math.isfinite(value):
         raise ConfigError(f"expected a finite number after '{op}', got '{value_text}' in '{text}'", **where)
-    check_metric(metric, columns, **where)
+    check_metric(metric, columns, **where, absent=absent)
     return Requirement(text=text.strip(), metric=metric, op=op, value=value, source=source)
 
 
@@ -265,6 +271,55 @@ def run_value_columns(mode_names, trajectory=DEFAULT_TRAJECTORY, pointing=False,
     return columns
 
 
+def unproduced_columns(vehicle, mission):
+    """{column: why} of the runs columns (:func:`run_value_columns`) that this vehicle and mission never
+    fill: NaN in every run, so that no requirement, event, sweep metric or Sobol' index of them can be
+    computed (the report leaves such columns out as outputs the mission does not produce).
+
+    - ``attitude_error_end_deg``: the angle to the last mode's reference attitude as the program ends
+      (core.flight); a last mode whose kind has no attitude reference (``schema.MODE_KINDS``:
+      ``translate``, ``locked``, ``rate_damping``) gives none;
+    - ``fuel_remaining``: the fraction of the RCS propellant left; a vehicle without an RCS has none.
+    """
+    absent = {}
+    modes = mission.get("modes") or []
+    if modes:
+        last = modes[-1]
+        if "attitude_reference" not in MODE_KINDS.get(last.get("kind"), {}).get("provides", ("attitude_reference",)):
+            absent["attitude_error_end_deg"] = (
+                f"the mission's last mode '{last['name']}' is a {last['kind']} mode, which has no attitude "
+                "reference to measure the end attitude error against"
+            )
+    if "rcs" not in vehicle:
+        absent["fuel_remaining"] = "the vehicle has no RCS, so no RCS propellant to take a fraction of"
+    return absent
+
+
+def columns_text(columns):
+    """The runs columns for a message: outputs by name, the thrusters' pulse counts and the dispersed
+    inputs folded (``pulses_1 .. pulses_8``, ``p.<path>``)."""
+    pulses = [c for c in columns if c.startswith("pulses_") and c[7:].isdigit()]
+    shown = [c for c in columns if c not in pulses and not c.startswith("p.") and c not in NOT_METRIC_COLUMNS]
+    if pulses:
+        shown.append(f"{pulses[0]} .. {pulses[-1]}" if len(pulses) > 1 else pulses[0])
+    if any(c.startswith("p.") for c in columns):
+        shown.append("p.<dispersed path>")
+    return ", ".join(shown)
+
+
+def not_produced(what, column, absent, columns, file=None, line=None, path=()):
+    """The ConfigError for ``what`` (e.g. "metric 'attitude_error_end_deg.max'") on a runs column the
+    campaign does not produce (``absent``: :func:`unproduced_columns`); ``columns``: those it produces."""
+    produced = [c for c in columns if c not in absent]
+    return ConfigError(
+        f"{what}: this campaign does not produce the runs column '{column}' ({absent[column]}), so it has no "
+        f"value in any run; the columns it produces: {columns_text(produced)}",
+        file=file,
+        line=line,
+        path=path,
+    )
+
+
 def entry_metric_columns(parameter_columns=()):
     """The numeric columns of an entry campaign's runs table (campaign.entry_plan)."""
     return [*ENTRY_COLUMNS, *parameter_columns]
@@ -279,14 +334,16 @@ def runs_metric_columns(
     return [*values, "modes_completed", *pulses, *parameter_columns]
 
 
-def check_requirements(requirements, columns, file=None, lines=None):
+def check_requirements(requirements, columns, file=None, lines=None, absent=None):
     """Parse a campaign file's ``'METRIC OP VALUE'`` requirements (ConfigError with file, line and
-    key path); its pointing records (mappings) are ``config.pointing``'s."""
+    key path); its pointing records (mappings) are ``config.pointing``'s. ``absent``: {column: why}
+    of the columns the campaign does not produce (:func:`unproduced_columns`): refused too."""
     lines = lines or {}
     parsed = []
     for i, text in enumerate(requirements):
         if isinstance(text, dict):  # a pointing requirement (config.pointing checks it)
             continue
         line = lines.get(("requirements", i))
-        parsed.append(parse_requirement(text, columns, "campaign", file=file, line=line, path=("requirements", i)))
+        where = {"file": file, "line": line, "path": ("requirements", i)}
+        parsed.append(parse_requirement(text, columns, "campaign", **where, absent=absent))
     return parsed

@@ -27,6 +27,7 @@ import numpy as np
 from refexmc.config import dispersions
 from refexmc.config.errors import ConfigError, did_you_mean
 from refexmc.config.parameters import MISSION_ROOTS  # paths under these are mission keys
+from refexmc.config.requirements import not_produced, unproduced_columns
 from refexmc.config.schema import SWEPT_DISTRIBUTION_PARAMETERS
 
 DEFAULT_METRICS = ("fuel_remaining", "attitude_error_end_deg", "rcs_propellant_kg")  # those the runs table has
@@ -120,9 +121,12 @@ def _check_dispersion_axis(campaign, i, axis, fail, file):
             fail(f"at {name} = {value:g}: {exc.message}", "axes", i)
 
 
-def check_sweep(campaign, file=None, lines=None, columns=()):
-    """ConfigError (file, line, key path) unless the campaign's ``sweep`` can be flown."""
+def check_sweep(campaign, file=None, lines=None, columns=(), absent=None):
+    """ConfigError (file, line, key path) unless the campaign's ``sweep`` can be flown; ``columns``:
+    the runs columns it produces, ``absent``: {column: why} of those its table has but never fills
+    (requirements.unproduced_columns)."""
     lines = lines or {}
+    absent = absent or {}
     sweep = campaign["sweep"]
 
     def fail(message, *path):
@@ -167,6 +171,8 @@ def check_sweep(campaign, file=None, lines=None, columns=()):
                     key,
                 )
     for j, metric in enumerate(sweep.get("metrics", [])):
+        if metric in absent:
+            fail(not_produced(f"sweep metric '{metric}'", metric, absent, columns).message, "metrics", j)
         if metric not in columns:
             fail(f"expected a runs column, got '{metric}'{_column_hint(metric, columns)}", "metrics", j)
 
@@ -181,6 +187,11 @@ def _column_hint(metric, columns):
 
 
 def metrics(campaign, columns):
-    """The runs columns the report draws against the swept value."""
+    """The runs columns the report draws against the swept value: the listed ones, else those of
+    ``DEFAULT_METRICS`` the campaign produces (``columns``, less requirements.unproduced_columns)."""
     listed = campaign["sweep"].get("metrics")
-    return list(listed) if listed is not None else [c for c in DEFAULT_METRICS if c in columns]
+    if listed is not None:
+        return list(listed)
+    mission = campaign["mission"]
+    absent = {} if "entry_flight" in mission else unproduced_columns(campaign["vehicle"], mission)
+    return [c for c in DEFAULT_METRICS if c in columns and c not in absent]
