@@ -654,3 +654,23 @@ def test_a_vector_sweep_parameter_still_lists_the_scalar_paths(tmp_path):
     assert result.exit_code == 2, result.output
     assert "sweep.axes.0.parameter: expected a scalar parameter path (mass_kg," in result.output
     assert "got 'com_offset_m'" in result.output and "did you mean" not in result.output
+
+
+# --- --until-decided on a rare-event study (docs/rare-events.md) ---------------------------------
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="refexmc/campaign/ (not config's): check_sequential_campaign does not refuse rare_event, so "
+    "run_until_decided's own runs= reaches apply_overrides and the message names --runs",
+)
+def test_until_decided_on_a_rare_event_study_names_until_decided(tmp_path):
+    out = tmp_path / "udx"
+    result = CliRunner().invoke(
+        main,
+        ["run", str(ROOT / "campaigns/surveyor-hop-rare.yaml"), "--until-decided", "-o", str(out), "--no-progress"],
+    )
+    assert result.exit_code == 2, result.output
+    assert "--until-decided" in result.output and "rare" in result.output, result.output
+    assert "--runs" not in result.output, result.output
+    assert not out.exists()
