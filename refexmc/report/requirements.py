@@ -75,6 +75,7 @@ def evaluate(requirement, campaign, level):
     if requirement.metric in CAMPAIGN_METRICS:
         actual = float(level[requirement.metric])
         covers = campaign_metric_covers(campaign)
+        failing_ids = campaign_metric_failing_ids(requirement.metric, campaign)
     else:
         column, stat = split_metric(requirement.metric)
         if column.startswith(INPUT_PREFIX):
@@ -106,8 +107,11 @@ def evaluate(requirement, campaign, level):
     passed = computable and bool(OPERATORS[requirement.op](actual, requirement.value))
     if not computable and not note:
         note = "not computable (no runs, or too few runs for this bound)"
-    if passed and requirement.metric == "success_rate" and requirement.op in (">=", ">"):
-        note = _estimate_only(level, requirement.value) or note
+    if requirement.metric == "success_rate" and requirement.op in (">=", ">"):
+        if passed:
+            note = _estimate_only(level, requirement.value) or note
+        elif computable:
+            note = _failed_by_estimate_only(level, requirement.value, requirement.op) or note
     verdict.update(
         actual=actual if computable else None,
         passed=passed,
@@ -118,6 +122,44 @@ def evaluate(requirement, campaign, level):
         note=note,
     )
     return verdict
+
+
+SUCCESS_METRICS = (  # campaign metrics counting successes: the unsuccessful runs count as failing them
+    "success_rate",
+    "success_rate_lower95",
+    "success_rate_upper95",
+    "failure_rate_upper95",
+    "success_count",
+    "failure_count",
+)
+ERROR_METRICS = ("ok_count", "error_count", "error_rate")  # the errored runs count as failing them
+
+
+def campaign_metric_failing_ids(metric, campaign):
+    """The runs that count as failing a campaign metric (``failing_run_ids``, docs/report.md): the
+    unsuccessful ones (failed flights and errored runs) for the success metrics, the errored ones for
+    the error metrics, none for ``runs``."""
+    if metric in SUCCESS_METRICS:
+        ids = (*campaign.failed["run_id"].to_numpy(), *campaign.errored["run_id"].to_numpy())
+    elif metric in ERROR_METRICS:
+        ids = campaign.errored["run_id"].to_numpy()
+    else:
+        return []
+    return sorted(int(i) for i in ids)
+
+
+def _failed_by_estimate_only(level, value, op):
+    """The note of a success rate below its bound by the estimate whose one-sided 95 % upper bound
+    still reaches the bound ('' when the upper bound is below it too): the runs do not show it met,
+    nor missed; not demonstrated either way (the mirror of ``_estimate_only``)."""
+    upper = float(level["success_rate_upper95"])
+    if not OPERATORS[op](upper, value):
+        return ""
+    return (
+        f"failed by the estimate only: the one-sided 95 % upper bound is {upper:.3g} over "
+        f"{plural(int(level['runs']), 'run')}, so the rate may still be {op} {value:g}: not demonstrated either "
+        f"way; 'success_rate_upper95 < {value:g}' would show the failure with confidence"
+    )
 
 
 def _estimate_only(level, value):
