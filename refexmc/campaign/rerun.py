@@ -74,3 +74,55 @@ def rerun(out, run_id, history_rate_hz=None, dest=None):
         keys = list(row) + [key for key in stored if key not in row]
         differ = [key for key in keys if key not in row or key not in stored or not _same(row[key], stored[key])]
     return {"row": row, "stored": stored, "differ": differ, "path": path, "campaign": campaign}
+
+
+ARCSEC_PER_DEG = 3600.0
+SMALL_ANGLE_DEG = 0.1  # below it the end angle prints in arcsec (IRASSI's 4e-5 deg is 0.15 arcsec, not 0.000 deg)
+
+
+def wheels_only(vehicle):
+    """A vehicle whose flight software commands reaction wheels alone (IRASSI): no thrusters, no propellant."""
+    return (vehicle.get("flight_software") or {}).get("actuation") == "wheels"
+
+
+def angle_text(theta_deg):
+    """The end angle with digits that show it: deg from 0.1 deg, arcsec below."""
+    if abs(theta_deg) >= SMALL_ANGLE_DEG:
+        return f"{theta_deg:.3f} deg"
+    return f"{theta_deg * ARCSEC_PER_DEG:.4g} arcsec"
+
+
+def summary_lines(result):
+    """What `refexmc rerun` prints of a re-flown run (``rerun``'s result), in the mission's words:
+    propellant only where the run has a value (a wheel vehicle has none), the end angle in arcsec
+    when below 0.1 deg, failed thrusters only for a vehicle with thrusters, failed wheels where the
+    runs table has them."""
+    from refexmc.config.mission_words import end_condition, end_name
+
+    row = result["row"]
+    campaign = result["campaign"]
+    mission = campaign["mission"]
+    verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
+    lines = [f"run {row['run_id']} of {campaign['name']}: {verdict}, status {row['status']}"]
+    if "entry_flight" in mission:  # an entry campaign (issue 24, docs/x38.md)
+        lines.append(
+            f"  the entry ended at Mach {row['terminal_mach']:.3f}, {row['terminal_altitude_m'] / 1000:.1f} km, "
+            f"t = {row['t_end_s']:.1f} s; RCS propellant {row['rcs_propellant_kg']:.3f} kg"
+        )
+        return lines
+    lines.append(f"  the mission: {end_condition(mission)}")
+    stopped = end_name(mission) if row["success"] else "flight stopped"
+    parts = []
+    fuel = row.get("fuel_remaining")
+    if fuel is not None and math.isfinite(fuel):
+        parts.append(f"propellant remaining {100 * fuel:.1f} %")
+    parts.append(f"{stopped} at t = {row['t_end_s']:.2f} s")
+    theta = row.get("attitude_error_end_deg")
+    if theta is not None and math.isfinite(theta):
+        parts.append(f"total angle error {angle_text(theta)}")
+    if "failed_thrusters" in row and not wheels_only(campaign.get("vehicle") or {}):
+        parts.append(f"failed thrusters [{row['failed_thrusters']}]")
+    if "failed_wheels" in row:
+        parts.append(f"failed wheels [{row['failed_wheels']}]")
+    lines.append("  " + ", ".join(parts))
+    return lines

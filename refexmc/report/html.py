@@ -5,7 +5,16 @@ import html
 
 from refexmc.report import outputs
 from refexmc.report.requirements import requirement_label
-from refexmc.report.text import TABLE_STATS, TAIL_TITLES, constant_line, number, percent, pulse_table, row_digits
+from refexmc.report.text import (
+    TABLE_STATS,
+    TAIL_TITLES,
+    constant_line,
+    not_produced_line,
+    number,
+    percent,
+    pulse_table,
+    row_digits,
+)
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; }
@@ -149,11 +158,8 @@ def statistics_section(summary):
     if thrusters:
         rows = [[e(h), *(number(v) for v in values)] for h, values in pulse_rows]
         parts.append("<h3>Valve pulses per thruster</h3>" + table(["thruster", *thrusters], rows))
-    if plan.get("not_produced"):
-        parts.append(
-            f"<p>Columns without a value in any flown run (not produced by this mission): "
-            f"{e(', '.join(plan['not_produced']))}.</p>"
-        )
+    if not_produced_line(summary):
+        parts.append(f"<p>{e(not_produced_line(summary)).capitalize()}.</p>")
     return "\n".join(parts)
 
 

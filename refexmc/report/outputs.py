@@ -11,7 +11,8 @@ The report is built from the campaign, not from one reference mission:
   line (a requirement metric keeps its row even when constant);
 - columns without a finite value in any run are outputs the mission does **not produce** (a
   propellant fraction without propellant, an end-of-flight angle of an orbit mission) and are left
-  out;
+  out; so is the propellant used of a mission without a propellant load (``fuel_remaining`` not
+  produced) when it is 0 in every flown run (a wheel vehicle);
 - the per-thruster pulse counts ``pulses_<k>`` are **folded** into one table.
 
 Words: a column's description comes from ``tails.TAIL_RULES``; the angle at the end of the flight
@@ -44,6 +45,7 @@ UNITS = (  # (column suffix, unit as shown); the first match decides
     ("_s", "s"),
 )
 END_ANGLE_COLUMN = "attitude_error_end_deg"
+PROPELLANT_USED_COLUMNS = ("fuel_used_kg",)  # not produced when 0 in every flown run without a propellant load
 DISPLAY_ORDER = (  # the other outputs a runs table has come in this order, then the rest in table order
     "fuel_remaining",
     "fuel_used_kg",
@@ -181,6 +183,12 @@ def plan(campaign, verdicts):
             constants[column] = float(values[0])
             continue
         others.append(column)
+    if "fuel_remaining" in not_produced:  # no propellant load (a wheel vehicle): its zero use is no output
+        for column in [c for c in others + list(constants) if c in PROPELLANT_USED_COLUMNS]:
+            if (ok[column].to_numpy(dtype=float) == 0.0).all():
+                others = [c for c in others if c != column]
+                constants.pop(column, None)
+                not_produced.append(column)
     position = {c: k for k, c in enumerate(runs.columns)}
     others.sort(key=lambda c: (DISPLAY_ORDER.index(c) if c in DISPLAY_ORDER else len(DISPLAY_ORDER), position[c]))
     if pulses:

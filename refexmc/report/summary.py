@@ -119,18 +119,32 @@ def column_sections(campaign, plan=None):
     return result
 
 
-def statistics_notes(campaign):
+TAIL_WORDS = {"upper": "upper tail (larger is worse)", "lower": "lower tail (smaller is worse)", "both": "both ends"}
+
+
+def tails_note(plan):
+    """Which columns show which tail, in the words of this mission's own columns (a wheel vehicle
+    reads no propellant, a hop no attitude words): what each tail holds, from the plan's labels."""
+    held = {tail: [] for tail in TAIL_WORDS}
+    for column in (*plan["requirement_columns"], *plan["other_columns"], *plan["pulse_columns"]):
+        tail = plan["tails"].get(column)
+        what = plan["labels"].get(column, column).split("; required: ")[0]
+        if tail in held and what not in held[tail]:
+            held[tail].append(what)
+    parts = [f"{TAIL_WORDS[tail]}: {', '.join(whats)}" for tail, whats in held.items() if whats]
+    return "; ".join(parts) + " (docs/report.md)" if parts else "docs/report.md lists each column's tail"
+
+
+def statistics_notes(campaign, plan=None):
     """What the columns of the statistics tables are, for the text and the page."""
     coverage = f"{100 * stats.TOLERANCE_COVERAGE:g} %"
+    plan = plan or outputs.plan(campaign, [])
     return {
         "population": (
             "successful flights only (status ok, success true); failed flights and errored runs are in the "
             "failure-reason table and count as failing every requirement"
         ),
-        "tails": (
-            "upper tail (larger is worse): durations, angle errors, pulses, propellant used; lower tail "
-            "(smaller is worse): propellant remaining (docs/report.md)"
-        ),
+        "tails": tails_note(plan),
         "tolerance_99_95": (
             f"one-sided tolerance bound: with 95 % confidence at least {coverage} of successful flights lie on "
             "its good side; the order statistic (distribution-free) when n allows it (n >= 299), else the normal "
@@ -746,7 +760,7 @@ def build(campaign, verdicts=()):
         "success": success_section(campaign, level),
         "outputs": plan,
         "columns": column_sections(campaign, plan),
-        "statistics_notes": statistics_notes(campaign),
+        "statistics_notes": statistics_notes(campaign, plan),
         "failure_reasons": failure_reasons(campaign),
         "inputs": inputs_section(campaign),
         "nominal": None

@@ -95,6 +95,15 @@ def constant_line(summary):
     return ", ".join(f"{column} = {number(value, 6)}" for column, value in constants.items())
 
 
+def not_produced_line(summary):
+    """The columns this mission does not produce (no value in any flown run; a propellant used without a
+    propellant load), in one line ('' when none); the terminal and the page say the same."""
+    columns = (summary.get("outputs") or {}).get("not_produced") or []
+    if not columns:
+        return ""
+    return f"not produced by this mission, left out: {', '.join(columns)}"
+
+
 def pulse_table(summary):
     """Per-thruster pulse counts folded into one table: [(stat header, [value per thruster])]."""
     columns = [c for c in (summary.get("outputs") or {}).get("pulse_columns", ()) if c in summary["columns"]]
@@ -130,6 +139,9 @@ def statistics_lines(summary, columns=None):
     constants = constant_line(summary)
     if constants:
         lines.append(f"the same in every successful flight: {constants}")
+    not_produced = not_produced_line(summary)
+    if not_produced:
+        lines.append(not_produced)
     thrusters, pulse_rows = pulse_table(summary)
     if thrusters:
         lines.append("valve pulses per thruster " + " ".join(t.rjust(6) for t in thrusters))
