@@ -659,18 +659,30 @@ def test_a_vector_sweep_parameter_still_lists_the_scalar_paths(tmp_path):
 # --- --until-decided on a rare-event study (docs/rare-events.md) ---------------------------------
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="refexmc/campaign/ (not config's): check_sequential_campaign does not refuse rare_event, so "
-    "run_until_decided's own runs= reaches apply_overrides and the message names --runs",
-)
-def test_until_decided_on_a_rare_event_study_names_until_decided(tmp_path):
-    out = tmp_path / "udx"
+def test_until_decided_into_an_existing_out_is_one_line_without_progress(tmp_path):
+    """The run's own checks come after --until-decided's: its progress is shown only once runs fly."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
     result = CliRunner().invoke(
-        main,
-        ["run", str(ROOT / "campaigns/surveyor-hop-rare.yaml"), "--until-decided", "-o", str(out), "--no-progress"],
+        main, ["run", str(ROOT / "campaigns/refex-until-decided.yaml"), "--until-decided", "-o", str(out)]
     )
     assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "output directory exists" in lines[0], result.output
+    assert sorted(path.name for path in out.iterdir()) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("progress", [[], ["--no-progress"]])
+def test_until_decided_on_a_rare_event_study_names_until_decided(tmp_path, progress):
+    """Before: "--runs cannot be used with rare_event", --runs not given (run_until_decided's own
+    runs= reached the overrides); and no progress line before the error."""
+    out = tmp_path / "udx"
+    result = CliRunner().invoke(
+        main, ["run", str(ROOT / "campaigns/surveyor-hop-rare.yaml"), "--until-decided", "-o", str(out), *progress]
+    )
+    assert result.exit_code == 2, result.output
+    assert len(result.output.strip().splitlines()) == 1, result.output
     assert "--until-decided" in result.output and "rare" in result.output, result.output
     assert "--runs" not in result.output, result.output
     assert not out.exists()

@@ -71,7 +71,7 @@ def run_until_decided(
     stored = storage.read_manifest(out)["runs"] if resume and storage.is_output(out) else 0
     common = {"campaign_file": campaign_file, "out": out, "seed": seed, "chunk_size": batch_chunk_size(batch)}
     if isinstance(options.get("progress"), str):  # one meter over the budget, not one per look
-        options = {**options, "progress": Progress(budget, min(stored, budget), options["progress"])}
+        options = {**options, "progress": Progress(budget, min(stored, budget), options["progress"], start=False)}
     if notify is not None:
         common["notify"] = notify
     result = None

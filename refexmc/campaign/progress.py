@@ -17,23 +17,33 @@ class Progress:
     """Runs done out of ``total`` (``done`` of them before this invocation), runs/s and ETA.
 
     ``mode``: 'bar' (tqdm), 'lines' (a line every ``LINE_INTERVAL_S`` and one at the end) or None (silent).
+    ``start=False``: nothing is shown until :meth:`start` (a meter made before its campaign is checked).
     """
 
-    def __init__(self, total, done=0, mode=None, stream=None):
+    def __init__(self, total, done=0, mode=None, stream=None, start=True):
         self.total = total
         self.done = done
         self.mode = mode
         self.stream = stream or sys.stderr
-        self._start = self._last_line = time.monotonic()
         self._timed_from = None  # (time, runs done) when the first runs ended: the rate counts from there
         self._bar = None
-        if mode == "bar":
+        self._started = False
+        if start:
+            self.start()
+
+    def start(self):
+        """Show the meter (once): the clock starts here."""
+        if self._started:
+            return
+        self._started = True
+        self._start = self._last_line = time.monotonic()
+        if self.mode == "bar":
             from tqdm import tqdm
 
-            self._bar = tqdm(total=total, initial=done, unit="run", file=self.stream, dynamic_ncols=True)
+            self._bar = tqdm(total=self.total, initial=self.done, unit="run", file=self.stream, dynamic_ncols=True)
             self._bar.set_description_str("compiling", refresh=True)
-        elif mode == "lines" and done < total:
-            print(f"{done}/{total} runs: {COMPILING}; ETA once they are done", file=self.stream, flush=True)
+        elif self.mode == "lines" and self.done < self.total:
+            print(f"{self.done}/{self.total} runs: {COMPILING}; ETA once they are done", file=self.stream, flush=True)
 
     def update(self, runs):
         self.done += runs
@@ -52,6 +62,8 @@ class Progress:
             self._line()
 
     def close(self):
+        if not self._started:  # never shown: nothing to end
+            self.mode = None
         if self._bar is not None:
             self._bar.close()
             self._bar = None

@@ -376,6 +376,7 @@ def _run_locked(flight, previous, options, progress, notify):
     write_manifest("running")
     if isinstance(progress, Progress):  # the caller's meter over all its runs (run --until-decided's budget)
         meter, closes = progress, False
+        meter.start()
     else:
         meter, closes = Progress(campaign["runs"], campaign["runs"] - sum(len(r) for _, r in todo), progress), True
     pandas = _import_meanwhile("pandas")

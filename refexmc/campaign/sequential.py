@@ -286,6 +286,13 @@ def check_sequential_campaign(campaign, file=None):
         raise ConfigError(
             "--until-decided does not stop a sweep (fly its points' campaigns)", file=file, path=("sweep",)
         )
+    if "rare_event" in campaign:
+        raise ConfigError(
+            "--until-decided cannot be used with a rare_event study: it flies level by level, "
+            "each level's runs decided by the last (docs/rare-events.md)",
+            file=file,
+            path=("rare_event",),
+        )
     sampling = campaign.get("sampling", "random")
     if sampling in ("lhs", "saltelli"):
         raise ConfigError(
