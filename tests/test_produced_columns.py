@@ -130,3 +130,19 @@ def test_a_requirement_on_a_column_the_hop_produces_still_validates(tmp_path):
     path.write_text(path.read_text() + "  - speed_end_m_s.max <= 0.02\n")
     result = CliRunner().invoke(main, ["validate", "--strict", str(path)])
     assert result.exit_code == 0, result.output
+
+
+PULSES = "requirements:\n  - pulses_total.max <= 500\n"
+
+
+@pytest.mark.parametrize("name", ["irassi-fine-pointing.yaml", "x38-nominal.yaml"])
+def test_pulses_total_is_a_metric_only_where_thrusters_count_pulses(tmp_path, name):
+    """A wheel vehicle's runs table has no ``pulses_<i>`` (an entry's neither): ``pulses_total``
+    is unknown there (before: it validated, flew, and the report failed with KeyError)."""
+    path = campaign_copy(name, tmp_path)
+    path.write_text(path.read_text() + "  - pulses_total.max <= 5\n")
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert "unknown metric 'pulses_total.max'" in result.output and "Traceback" not in result.output
+    smoke = campaign_copy("smoke.yaml", tmp_path, "smoke-pulses.yaml", [("requirements:\n", PULSES)])  # thrusters
+    assert CliRunner().invoke(main, ["validate", str(smoke)]).exit_code == 0

@@ -948,7 +948,7 @@ def check_sobol_metrics(campaign, columns, path=None, lines=None, absent=None):
             line=lines.get(("sobol",)),
             path=("sobol",),
         )
-    known = ["success", *(c for c in columns if c not in absent), "pulses_total"]
+    known = ["success", *(c for c in columns if c not in absent), *requirements.derived_columns(columns)]
     for i, metric in enumerate(campaign["sobol"]["metrics"]):
         if metric in known:
             continue

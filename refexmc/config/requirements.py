@@ -98,10 +98,17 @@ def valid_stat(stat):
     return True
 
 
+def derived_columns(columns):
+    """The :data:`DERIVED_COLUMNS` a runs table of ``columns`` has: ``pulses_total`` where thrusters
+    count pulses (``pulses_<i>``: not a wheel vehicle's, nor an entry's)."""
+    return ["pulses_total"] if any(c.startswith("pulses_") and c[7:].isdigit() for c in columns) else []
+
+
 def check_metric(metric, columns, file=None, line=None, path=(), absent=None):
     """ConfigError (with did-you-mean) unless ``metric`` names a metric of a campaign with ``columns``;
     ``absent``: {column: why} of the columns the campaign does not produce (:func:`unproduced_columns`)."""
-    columns = [c for c in columns if c not in NOT_METRIC_COLUMNS] + list(DERIVED_COLUMNS)
+    columns = [c for c in columns if c not in NOT_METRIC_COLUMNS]
+    columns += derived_columns(columns)
     column, stat = split_metric(metric)
     if absent and column in absent:
         raise not_produced(f"metric '{metric}'", column, absent, columns, file=file, line=line, path=path)
