@@ -9,7 +9,9 @@ Spearman rho^2 (the monotone part), for a factor the correlation ratio of the ou
 its levels. For a unit's failure indicator (two levels) the two coincide: eta^2 is the rho^2 of
 the indicator, and the entry keeps that rho's sign (+: the runs with the failure rank higher).
 A factor's significance is the Kruskal-Wallis test, H = (n - 1) eta^2 on chi^2 with levels - 1
-degrees of freedom (the Mann-Whitney test for two levels).
+degrees of freedom (the Mann-Whitney test for two levels). A factor with fewer than two runs per
+level on average (a failure sweep's set, one run each) is not ranked: its eta^2 is near 1 by chance
+alone, so its row has ``supported: false``, a ``flag`` and the ``runs_needed``, no eta^2 or p.
 
 A factor is named for what it is: ``wheel 1 failed (undetected)``, ``thruster 3 failed
 (detected)`` (the campaign's ``detected``: whether the flight software knew), ``failed wheel set
@@ -70,6 +72,23 @@ def factors(campaign, runs):
     return found
 
 
+MIN_RUNS_PER_LEVEL = 2  # on average: as many runs beyond one per level as there are levels
+
+
+def replication_flag(n, levels):
+    """Why a factor's eta^2 is not supported ('' when it is): with n runs over k levels, eta^2 of
+    chance alone is (k - 1) / (n - 1) (1 with one run per level: a failure sweep's sets); the
+    factor needs ``MIN_RUNS_PER_LEVEL`` runs per level on average to be ranked."""
+    if n >= MIN_RUNS_PER_LEVEL * levels:
+        return ""
+    chance = (levels - 1) / (n - 1) if n > 1 else 1.0
+    within = "no within-level replication" if n == levels else f"{n - levels} runs beyond one per level"
+    return (
+        f"not supported: {n} runs over {levels} levels ({within}); eta2 of chance alone is {chance:.2f}, "
+        f"{MIN_RUNS_PER_LEVEL * levels} runs would rank it"
+    )
+
+
 def factor_rows(found, output, keep):
     """Sensitivity entries of the factors ``found`` against ``output`` over the runs ``keep``."""
     output_ranks = stats.average_ranks(output[keep])
@@ -81,6 +100,11 @@ def factor_rows(found, output, keep):
             continue
         row = {"parameter": name, "kind": kind, "levels": levels, "eta2": eta2, "p_value": p, "rho": None}
         row.update(prcc=None, prcc_p_value=None)
+        flag = replication_flag(len(labels), levels)
+        if flag:  # eta^2 of chance alone is (k - 1) / (n - 1): 1 with one run per level
+            row.update(eta2=None, p_value=None, supported=False, flag=flag, runs_needed=MIN_RUNS_PER_LEVEL * levels)
+            rows.append(row)
+            continue
         if kind == "failure":  # two levels: eta^2 = rho^2 of the indicator; rho's sign says which way
             failed = labels.astype(bool)
             row["runs_with"] = int(failed.sum())

@@ -315,7 +315,7 @@ def sensitivity_figure(section, targets, labels=None):
     axes = np.atleast_1d(figure.subplots(1, len(targets)))
     critical = section.get("critical_abs_rho_95")
     for ax, output in zip(axes, targets, strict=True):
-        rows = section[output][:TORNADO_BARS][::-1]
+        rows = [r for r in section[output] if r.get("eta2") is not None][:TORNADO_BARS][::-1]  # ranked ones only
         rho = np.array([math.sqrt(r["eta2"]) if r.get("rho") is None else r["rho"] for r in rows])
         y = np.arange(len(rows))
         factor = [r.get("kind", "input") != "input" for r in rows]

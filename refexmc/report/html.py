@@ -313,6 +313,11 @@ def _levels(row, shown=3):
     return f" <span class='text'>(highest: {e(text)})</span>"
 
 
+def _flag(row):
+    """Why a cause is not ranked (a factor without replication within its levels), or ''."""
+    return f"<br><small>{e(row['flag'])}</small>" if row.get("flag") else ""
+
+
 def sensitivity_section(section, labels=None):
     parts = [
         f"<p>{e(section['method'])}, N = {section['runs']}, {section.get('parameters', '')} inputs that vary; "
@@ -330,7 +335,7 @@ def sensitivity_section(section, labels=None):
     for output in section.get("targets", labels or ()):
         rows = [
             [
-                f"<code>{e(r['parameter'])}</code>" + _levels(r),
+                f"<code>{e(r['parameter'])}</code>" + _levels(r) + _flag(r),
                 e(r.get("kind", "input")),
                 f"{r['eta2']:.3f}" if r.get("eta2") is not None else "-",
                 "-" if r.get("rho") is None else f"{r['rho']:+.3f}",
@@ -447,8 +452,8 @@ def page(summary, figures, sensitivity_labels=None):
         against = nominal.get("propellant_used_vs_dispersed")
         if against:
             body.append(
-                f"<p>Dispersed runs using more propellant than the nominal run: {against['more_than_nominal']} "
-                f"of {against['of']} ({100 * against['share']:.1f} %).</p>"
+                f"<p>{e(against.get('others', 'dispersed runs')).capitalize()} using more propellant than the "
+                f"nominal run: {against['more_than_nominal']} of {against['of']} ({100 * against['share']:.1f} %).</p>"
             )
     body.append(
         f"<p>Modes: {e(' → '.join(summary['modes']))}. Numbers: <code>summary.json</code> beside this page.</p>"

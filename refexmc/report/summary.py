@@ -448,7 +448,7 @@ def sensitivity(campaign, plan=None, verdicts=()):
                     }
                 )
         rows += factors.factor_rows(discrete, y, keep)
-        rows.sort(key=lambda r: -r["eta2"])
+        rows.sort(key=lambda r: (r["eta2"] is None, -(r["eta2"] or 0.0)))  # an unsupported factor last
         result[output] = rows
     return result
 
@@ -590,13 +590,30 @@ def against_nominal(campaign, nominal_row, column="fuel_used_kg"):
     if dispersed.empty or not (dispersed > 0.0).any() and nominal_row[column] == 0.0:  # no propellant used
         return None
     more = int((dispersed > nominal_row[column]).sum())
+    others = other_runs_words(campaign)
     return {
         "column": column,
         "more_than_nominal": more,
         "of": int(len(dispersed)),
         "share": more / len(dispersed),
-        "covers": "flown dispersed runs (status ok), failed flights included",
+        "others": others,
+        "covers": f"flown {others} (status ok), failed flights included",
     }
+
+
+def other_runs_words(campaign):
+    """What the runs beside the nominal one are: "dispersed runs" when an input (``p.`` column) varies
+    over them, "failure-set runs" for an undispersed enumeration of failures (a failure sweep: its
+    ``constant`` inputs differ from the nominal run's at most), else "other runs"."""
+    runs = campaign.runs
+    others = runs[(runs["run_id"] != campaign.nominal_run_id).to_numpy()]
+    for column in campaign.parameter_columns:
+        values = others[column].to_numpy(dtype=float)
+        values = values[np.isfinite(values)]
+        if len(values) and np.ptp(values) > 0:
+            return "dispersed runs"
+    modes = {(campaign.resolved.get(key) or {}).get("mode", "none") for key in ("failures", "wheel_failures")}
+    return "failure-set runs" if "enumerate" in modes else "other runs"
 
 
 def failures_section(campaign):

@@ -197,15 +197,18 @@ def driver_lines(summary):
     section = summary.get("sensitivity") or {}
     lines = []
     for target in section.get("figure_targets", ()):
-        rows = section.get(target) or []
-        if not rows:
+        rows = [r for r in section.get(target) or [] if r.get("eta2") is not None]
+        unsupported = [r for r in section.get(target) or [] if r.get("eta2") is None and r.get("flag")]
+        if not rows and not unsupported:
             continue
         shown = [
             f"{r['parameter']} ({'ρ²' if r.get('kind', 'input') == 'input' else 'η²'} {r['eta2']:.2f}, "
             f"p {r['p_value']:.2g})"
             for r in rows[:DRIVERS_SHOWN]
         ]
-        lines.append(f"what drives {target}: " + ", ".join(shown))
+        line = f"what drives {target}: " + (", ".join(shown) or "no cause ranked")
+        line += "".join(f"; {r['parameter']} {r['flag']}" for r in unsupported)
+        lines.append(line)
     return lines
 
 
@@ -257,8 +260,8 @@ def format_summary(summary, report_dir=None):
     against = (summary.get("nominal") or {}).get("propellant_used_vs_dispersed")
     if against:
         lines.append(
-            f"dispersed runs using more propellant than the nominal run: {against['more_than_nominal']} of "
-            f"{against['of']} ({percent(against['share'])})"
+            f"{against.get('others', 'dispersed runs')} using more propellant than the nominal run: "
+            f"{against['more_than_nominal']} of {against['of']} ({percent(against['share'])})"
         )
     for key, section in summary["worst_cases"].items():
         if key in ("unsuccessful", "errored") or not section["runs"]:
