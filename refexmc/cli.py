@@ -372,27 +372,10 @@ def rerun(out, run_id, history_rate, dest):
         _os_error(exc, "rerun failed")
     except ArrowException as exc:
         _unreadable(exc, f"rerun failed: cannot read {out}", DAMAGED_HINT)
-    from refexmc.config.mission_words import end_condition, end_name
+    from refexmc.campaign.rerun import summary_lines
 
-    row = result["row"]
-    mission = result["campaign"]["mission"]
-    verdict = "success" if row["success"] else f"FAILED ({row['failure_reason']})"
-    click.echo(f"run {run_id} of {result['campaign']['name']}: {verdict}, status {row['status']}")
-    if "entry_flight" in mission:  # an entry campaign (issue 24, docs/x38.md)
-        click.echo(
-            f"  the entry ended at Mach {row['terminal_mach']:.3f}, {row['terminal_altitude_m'] / 1000:.1f} km, "
-            f"t = {row['t_end_s']:.1f} s; RCS propellant {row['rcs_propellant_kg']:.3f} kg"
-        )
-    else:
-        click.echo(f"  the mission: {end_condition(mission)}")
-        stopped = end_name(mission) if row["success"] else "flight stopped"
-        theta = row["attitude_error_end_deg"]
-        click.echo(
-            f"  propellant remaining {100 * row['fuel_remaining']:.1f} %, {stopped} at t = {row['t_end_s']:.2f} s"
-            + (f", total angle error {theta:.3f} deg" if not math.isnan(theta) else "")
-            + f", failed thrusters [{row['failed_thrusters']}]"
-            + (f", failed wheels [{row['failed_wheels']}]" if "failed_wheels" in row else "")
-        )
+    for line in summary_lines(result):  # in the mission's words (a wheel vehicle: no propellant)
+        click.echo(line)
     click.echo(f"  history: {result['path']}")
     if result["stored"] is None:
         click.echo("  (this run is not in OUT/runs: nothing to compare with)")

@@ -76,3 +76,20 @@ def test_rerun_prints_a_wheel_vehicles_run_without_propellant_and_its_small_angl
     text = "\n".join(summary_lines(rerun_result(thrusters, "pwpf_table")))
     assert "propellant remaining 42.0 %" in text and "total angle error 1.250 deg" in text
     assert "failed thrusters []" in text
+
+
+def test_refexmc_rerun_prints_the_summary_lines(monkeypatch, tmp_path):
+    """The command prints :func:`summary_lines` (it printed its own propellant line before)."""
+    from click.testing import CliRunner
+
+    from refexmc.campaign import rerun as rerun_module
+    from refexmc.cli import main
+
+    row = {"run_id": 1, "success": True, "status": "ok", "failure_reason": None, "fuel_remaining": math.nan}
+    row.update(fuel_used_kg=0.0, t_end_s=79200.0, attitude_error_end_deg=4.0e-5, failed_thrusters="")
+    result = {**rerun_result(row, "wheels"), "path": tmp_path / "run-1.parquet", "stored": row, "differ": []}
+    monkeypatch.setattr(rerun_module, "rerun", lambda *args, **kwargs: result)
+    printed = CliRunner().invoke(main, ["rerun", str(tmp_path), "1"])
+    assert printed.exit_code == 0, printed.output
+    lines = summary_lines(result)
+    assert printed.output.splitlines()[: len(lines)] == lines and "propellant" not in printed.output
