@@ -358,3 +358,29 @@ def test_the_worked_example_of_docs_pointing():
     assert mixed["actual"] == pytest.approx(0.4356, abs=2e-3) and not mixed["passed"]
     for word in ("0.1354", "0.368", "0.4356", "1109", "299"):
         assert word in page
+
+
+@pytest.mark.parametrize(("n", "passes"), [(20, False), (1108, False), (1109, True)])
+def test_mixed_without_spread_is_bounded_without_the_t_distribution(n, passes):
+    """Every run with no time above the bound: the t bound would be 0 from any number of runs (a
+    PASS from 20 runs, before). The distribution-free bound instead: the mean fraction is at most
+    the share of runs with any time above, whose upper Clopper-Pearson bound with none above is
+    1 - (1 - confidence)^(1/n) (closed form): 1109 runs show 1 - P_C = 0.27 % at 95 %."""
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from refexmc.report import pointing as report_pointing
+
+    runs = pd.DataFrame(
+        {"run_id": range(n), "status": ["ok"] * n, "success": [True] * n, "failed_thrusters": [""] * n}
+    ).assign(ape_total_mixed_fraction=0.0)
+    campaign = SimpleNamespace(runs=runs, out=Path("toy"))
+    mission = {"modes": [{"name": "science"}], "navigation": {}}
+    record = {"index": "APE", "error": "total", "bound_arcsec": 5.0, "p_c": 0.9973, "interpretation": "mixed"}
+    (req,) = config_pointing.parse([{**record, "window": {}}], mission)
+    verdict = report_pointing.evaluate(req, campaign)
+    assert verdict["actual"] == pytest.approx(1.0 - 0.05 ** (1.0 / n), rel=1e-9)
+    assert verdict["passed"] is passes and verdict["runs_needed"] == 1109
+    assert ("that needs 1109" in verdict["note"]) is (not passes)

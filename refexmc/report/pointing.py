@@ -99,13 +99,28 @@ def evaluate(req, campaign):
             upper = mean + float(sps.t.ppf(req.confidence, n - 1)) * sd / math.sqrt(n)
         else:
             upper = math.nan
-        actual, threshold = upper, 1.0 - req.p_c
+        threshold = 1.0 - req.p_c
+        covers = f"{n} runs ({req.runs}); upper {100 * req.confidence:g} % t bound on the mean over runs"
+        if n >= 2 and sd == 0.0:  # no spread: the t bound would be the value itself, from any number of runs
+            # distribution-free instead: each fraction is at most 1, so the mean is at most the share of
+            # runs with any time above the bound, bounded by Clopper-Pearson (as ensemble, none above:
+            # 1109 runs show 1 - P_C = 0.27 % at 95 %)
+            above = int((fractions > 0.0).sum())
+            upper = stats.clopper_pearson_upper(above, n, req.confidence)
+            needed = runs_needed(req.p_c, req.confidence)
+            verdict.update(runs_needed=needed)
+            covers = (
+                f"{n} runs ({req.runs}); every run the same fraction, no spread for a t bound: upper "
+                f"{100 * req.confidence:g} % Clopper-Pearson bound on the share of runs with any time above "
+                f"({above} of {n})"
+            )
+            if n < needed and above == 0:
+                level = f"{100 * req.confidence:g} %"
+                note = f"{n} runs without spread cannot show {threshold:g} at {level}: that needs {needed}"
+        actual = upper
         passed = math.isfinite(upper) and upper <= threshold
         verdict.update(mean_fraction_above=mean, threshold=threshold)
         measure = f"mean fraction of window time above {req.bound:g} {req.unit}: {mean:.4g}"
-        covers = f"{n} runs ({req.runs}); upper {100 * req.confidence:g} % t bound on the mean over runs"
-        if n >= 2 and sd == 0.0:
-            note = "every run has the same fraction: the t bound is that value, without spread to judge"
     else:
         within = int((usable & (values <= req.bound)).sum())
         threshold = req.runs_fraction if req.interpretation == "temporal" else req.p_c
