@@ -331,3 +331,24 @@ def test_spearman_of_all_columns_at_once_matches_one_by_one():
     rho, _ = stats.spearman_columns(inputs, output)
     keep = np.arange(200) != 5
     assert rho[1] == pytest.approx(sps.spearmanr(inputs[keep, 1], output[keep]).statistic, abs=1e-12)
+
+
+@pytest.mark.parametrize(("percent", "side"), [(1.0, "lower"), (99.0, "upper"), (10.0, "lower"), (50.0, "upper")])
+def test_the_runs_a_percentile_bound_needs_are_the_first_sample_that_has_one(percent, side):
+    """Against the bound itself on samples of every size: absent below the count, present from it."""
+    needed = stats.percentile_bound_runs(percent, side)
+    values = np.arange(needed + 1, dtype=float)
+    assert math.isnan(stats.percentile_bound(values[: needed - 1], percent, side))
+    assert math.isfinite(stats.percentile_bound(values[:needed], percent, side))
+    assert stats.percentile_bound_runs(1.0, "lower") == 299  # ln 0.05 / ln 0.99 = 298.07
+
+
+def test_a_percentile_bound_with_too_few_runs_names_the_runs_it_needs(tmp_path):
+    from test_report import synthetic_runs, write_out
+
+    from refexmc.report import make_report
+
+    out = write_out(tmp_path / "out", synthetic_runs(n=60), requirements=["fuel_remaining.p1_lower95 >= 0.2"])
+    (verdict,) = make_report(out, html=False)["requirements"]
+    assert not verdict["passed"] and verdict["actual"] is None
+    assert verdict["note"].endswith("not computable: p1_lower95 needs at least 299 runs, this campaign has 60")

@@ -25,6 +25,7 @@ from refexmc.config.requirements import (  # noqa: F401 - the grammar, as the re
     OPERATORS,
     Requirement,
     check_metric,
+    parse_percentile_stat,
     parse_requirement,
     split_metric,
 )
@@ -59,6 +60,20 @@ def campaign_metric_covers(campaign):
     n = len(campaign.runs)
     errored = len(campaign.errored)
     return f"all {plural(n, 'run')}" + (f" ({plural(errored, 'errored run')} count as unsuccessful)" if errored else "")
+
+
+def _too_few_runs(metric, runs):
+    """Why a percentile's confidence bound has no value: the runs it needs (None for another statistic,
+    or with runs enough)."""
+    _, stat = split_metric(metric)
+    try:
+        percent, side = parse_percentile_stat(stat or "")
+    except ValueError:
+        side = None
+    needed = stats.percentile_bound_runs(percent, side) if side else None
+    if needed is not None and runs < needed:
+        return f"not computable: {stat} needs at least {needed} runs, this campaign has {runs}"
+    return None
 
 
 def evaluate(requirement, campaign, level):
@@ -105,8 +120,12 @@ def evaluate(requirement, campaign, level):
                         note = f"{plural(failing, 'failing run')} ranked at the {end} end"
     computable = math.isfinite(actual)
     passed = computable and bool(OPERATORS[requirement.op](actual, requirement.value))
-    if not computable and not note:
-        note = "not computable (no runs, or too few runs for this bound)"
+    if not computable:
+        needs = _too_few_runs(requirement.metric, len(campaign.runs))
+        if needs:
+            note = f"{note}; {needs}" if note else needs
+        elif not note:
+            note = "not computable (no runs, or too few runs for this bound)"
     if requirement.metric == "success_rate" and requirement.op in (">=", ">"):
         if passed:
             note = _estimate_only(level, requirement.value) or note

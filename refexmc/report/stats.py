@@ -120,6 +120,26 @@ def percentile_bound(sorted_values, percent, side, confidence=CONFIDENCE):
     return float(sorted_values[s - 1]) if s <= n else math.nan
 
 
+def percentile_bound_runs(percent, side, confidence=CONFIDENCE):
+    """The fewest runs for which :func:`percentile_bound` exists: the extreme run is the bound once
+    1 - (1 - p)^n >= confidence (lower, p the percentile's fraction; upper: 1 - p), so n >=
+    ln(1 - confidence) / ln(1 - p); found with the rank functions themselves from there."""
+    fraction = percent / 100.0
+    tail = fraction if side == "lower" else 1.0 - fraction
+    if not 0.0 < tail < 1.0:
+        return None
+    n = max(1, int(math.floor(math.log(1.0 - confidence) / math.log(1.0 - tail))) - 1)
+
+    def exists(k):
+        if side == "lower":
+            return order_statistic_lower_rank(k, fraction, confidence) >= 1
+        return order_statistic_upper_rank(k, fraction, confidence) <= k
+
+    while not exists(n):
+        n += 1
+    return n
+
+
 def percentile(values, percent):
     """numpy's default (linear, Hyndman-Fan type 7) percentile; NaN for no values."""
     return float(np.percentile(values, percent)) if len(values) else math.nan
