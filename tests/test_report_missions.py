@@ -187,6 +187,9 @@ def test_failure_header_matches_the_runs_table(mission):
         expected["body flap"] = int(np.isfinite(runs[blocked].to_numpy(dtype=float)).sum())
     kinds = {k["kind"]: k["runs_with_failure"] for k in report["summary"]["campaign"]["failure_kinds"]}
     assert {k: v for k, v in kinds.items() if v} == expected
+    # whether the flight software knew failed thrusters: none without them (an X-38 flap says its own)
+    thrusters = (load_campaign(ROOT / "campaigns" / name).get("failures") or {}).get("mode", "none") != "none"
+    assert (report["summary"]["campaign"]["failures_detected"] is None) is not thrusters
     header = report["summary"]["campaign"]["failures"]
     if name == "irassi-fine-pointing.yaml":
         assert expected.get("wheel", 0) > 0, "the test campaign must fail some wheels"

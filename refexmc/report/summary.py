@@ -732,6 +732,13 @@ def with_pointing(campaign, verdicts):
     return ordered + [v for v in verdicts if not any(v is o for o in ordered)]
 
 
+def thruster_failures_detected(resolved):
+    """Whether the flight software knows the campaign's failed thrusters (``failures.detected``); None
+    without thruster failures (an entry's blocked flap, failed wheels: their own ``failure_kinds``)."""
+    failures = resolved.get("failures") or {}
+    return bool(failures.get("detected", False)) if failures.get("mode", "none") != "none" else None
+
+
 def build(campaign, verdicts=()):
     """Every number of the report except the overall verdict; ``verdicts``: the requirement
     verdicts (``requirements.evaluate``), which decide the metrics the report is built around,
@@ -764,7 +771,7 @@ def build(campaign, verdicts=()):
             "nominal_first": campaign.resolved.get("nominal_first", True),
             "failures": "; ".join(f["text"] for f in failures) or "none",
             "failure_kinds": failures,
-            "failures_detected": bool((campaign.resolved.get("failures") or {}).get("detected", False)),
+            "failures_detected": thruster_failures_detected(campaign.resolved),
             "manifest_status": campaign.manifest.get("status"),
             "refexmc": campaign.manifest.get("refexmc"),
             "refex": outputs.is_refex(campaign),
