@@ -5,6 +5,7 @@ Histories are never read whole: ``history_batches`` yields record batches of the
 figure needs, part file by part file, so memory stays bounded whatever the campaign size.
 """
 
+import json
 import os
 import re
 import warnings
@@ -192,6 +193,25 @@ def read_runs_parts(parts):
     return renames.runs_failure_reasons(_join(tables))
 
 
+JSON_TYPES = {list: "a list", str: "a string", int: "a number", float: "a number", bool: "a boolean"}
+
+
+def read_manifest(path):
+    """``manifest.json`` at ``path`` as a dict, its column names as now named (``storage.read_manifest``);
+    ConfigError naming the file (and the line of a JSON error) when it is not a JSON object."""
+    path = Path(path)
+    try:
+        info = json.loads(path.read_bytes().decode("utf-8"))
+    except json.JSONDecodeError as exc:  # cut short by a full disk or a kill, or edited by hand
+        raise ConfigError(f"not valid JSON: {exc.msg} (column {exc.colno})", file=path, line=exc.lineno) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not valid JSON: not UTF-8 text (byte {exc.start})", file=path) from None
+    if not isinstance(info, dict):
+        got = "null" if info is None else JSON_TYPES.get(type(info), type(info).__name__)
+        raise ConfigError(f"expected a JSON object, got {got} (`refexmc run` writes an object)", file=path)
+    return renames.manifest(info)
+
+
 def load(out):
     """Read OUT for the report; ConfigError when OUT is not a campaign output with runs."""
     out = Path(out)
@@ -206,7 +226,7 @@ def load(out):
     resolved, lines = read_yaml(resolved_path)
     renames.migrate_campaign(resolved, lines)  # written before a rename: read as of now (issue 34)
     manifest_path = out / "manifest.json"
-    manifest = storage.read_manifest(out) if manifest_path.is_file() else {}
+    manifest = read_manifest(manifest_path) if manifest_path.is_file() else {}
     # a column at a time (split_blocks), each freed once converted: at 10^6 runs the table is ~1 GB,
     # and one 2-D block of its float columns would hold a second copy before the first is freed
     runs = read_runs_parts(parts).to_pandas(self_destruct=True, split_blocks=True)

@@ -39,9 +39,10 @@ def sweep_record(out):
     if not path.is_file():
         return None
     try:
-        return json.loads(path.read_text()).get("sweep")
+        info = json.loads(path.read_text())
     except ValueError:
-        return None  # the plain report says what is wrong with it
+        return None  # the plain report says what is wrong with it (report.data.read_manifest)
+    return info.get("sweep") if isinstance(info, dict) else None
 
 
 def stopping(campaign):
