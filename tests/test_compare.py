@@ -141,9 +141,10 @@ def test_paired_statistics_match_scipy_and_hand_values(tmp_path):
     assert fuel.p_value == pytest.approx(sps.binomtest(0, 28).pvalue, rel=1e-12)
     assert fuel.difference == pytest.approx(np.median(diffs), abs=1e-15)
     assert fuel.ci[0] < fuel.difference < fuel.ci[1] < -0.02
-    assert fuel.details["ks_p"] == pytest.approx(
-        sps.ks_2samp(ok_values(base_rows, "fuel_remaining"), ok_values(cur_rows, "fuel_remaining")).pvalue
-    )
+    paired_values = [[rows[i]["fuel_remaining"] for i in pairs.run_ids] for rows in (base_rows, cur_rows)]
+    assert fuel.details["ks_p"] == pytest.approx(sps.ks_2samp(*paired_values).pvalue)  # over the pairs, as the medians
+    assert fuel.baseline == pytest.approx(np.median(paired_values[0]))  # not over the baseline's run 12 as well
+    assert (fuel.n_baseline, fuel.n_current) == (28, 28)
     assert fuel.details["worse_runs"] == 28
     assert fuel.verdict == cmp.REGRESSION and not result.passed
     assert any("ok in the baseline that raise errors now: 12" in note for note in result.notes)
@@ -480,3 +481,82 @@ def test_other_missions_are_compared_by_their_own_metrics(own_mission):
     regressed = [m.metric for m in cmp.compare(root / "baseline", root / "worse").regressions]
     assert regressed == [column], worse.output
     assert f"verdict: FAIL (1 regression: {column})" in worse.output
+
+
+# --- completeness: no PASS about runs that did not all fly (docs/report.md's INCOMPLETE) ---------------
+
+
+def set_manifest(out, **changes):
+    import json
+
+    path = out / "manifest.json"
+    path.write_text(json.dumps({**json.loads(path.read_text()), **changes}))
+
+
+def interrupted(out):
+    """As a campaign killed after 10 of its 20 runs: status interrupted, the runs of part 1 never written."""
+    set_manifest(out, status="interrupted")
+    (out / "runs" / "part-00001.parquet").unlink()
+
+
+def part_deleted(out):
+    """The manifest says complete, but a runs part is gone (10 of 20 runs stored)."""
+    (out / "runs" / "part-00001.parquet").unlink()
+
+
+@pytest.mark.parametrize("damage", [interrupted, part_deleted])
+@pytest.mark.parametrize("side", ["current", "baseline"])
+def test_an_incomplete_campaign_is_never_a_pass(tmp_path, damage, side):
+    rows = synthetic_runs(n=20, errored=(), failed=(), seed=12)
+    base = write_out(tmp_path / "base", rows, histories=False, parts=1)
+    cur = write_out(tmp_path / "cur", rows, histories=False, parts=2)  # parts of runs 0-9 and 10-19
+    damage(cur)
+    pair = [str(base), str(cur)] if side == "current" else [str(cur), str(base)]
+    result = cmp.compare(*pair)
+    assert not result.regressions  # the stored runs are the same flights
+    assert not result.passed and result.verdict == "INCOMPLETE"
+    assert list(result.incomplete) == [side]
+    # the report's own completeness check, not a second one
+    assert result.incomplete[side] == data.completeness(data.load(cur))
+    cli = CliRunner().invoke(main, ["compare", *pair])
+    assert cli.exit_code == 1, cli.output
+    assert "PASS" not in cli.output
+    verdict = cli.output.strip().splitlines()[-1]
+    assert verdict.startswith(f"verdict: INCOMPLETE ({side}:") and "10 of 20 planned runs stored" in verdict
+    assert "run ids 10-19" in verdict and "--resume" in verdict
+    assert any(line.startswith(f"INCOMPLETE {side}: 10 of 20 planned runs stored") for line in cli.output.splitlines())
+    if damage is interrupted:
+        assert "manifest status is 'interrupted'" in verdict
+    report = CliRunner().invoke(main, ["report", str(cur), "--no-html"])
+    assert report.exit_code == 1 and "INCOMPLETE" in report.output  # the report agrees
+
+
+def test_an_incomplete_campaign_with_a_regression_is_still_incomplete(tmp_path):
+    rows = synthetic_runs(n=20, errored=(), failed=(), seed=13)
+    base = write_out(tmp_path / "base", rows, REQUIREMENTS, histories=False, parts=1)
+    worse = shifted(rows, "fuel_remaining", lambda i: -0.1)  # a third of the margin to 0.20 lost
+    cur = write_out(tmp_path / "cur", worse, REQUIREMENTS, histories=False, parts=2)
+    interrupted(cur)
+    result = cmp.compare(base, cur)
+    assert [m.metric for m in result.regressions] == ["fuel_remaining"] and result.verdict == "INCOMPLETE"
+    verdict = cmp.format_table(result).splitlines()[-1]
+    assert verdict.startswith("verdict: INCOMPLETE") and "on the stored runs: 1 regression (fuel_remaining)" in verdict
+
+
+def test_paired_columns_and_rates_are_over_the_same_runs(tmp_path):
+    """A current campaign of the baseline's first 10 runs: every statistic over those 10 runs, the
+    baseline column too (before: the baseline's median over its 20 runs beside rates over 10)."""
+    rows = synthetic_runs(n=20, errored=(), failed=(3, 17), seed=14)
+    base = write_out(tmp_path / "base", rows, histories=False, parts=1)
+    cur = write_out(tmp_path / "cur", rows, histories=False, parts=2)
+    part_deleted(cur)
+    result = cmp.compare(base, cur)
+    assert result.pairing.paired and len(result.pairing.run_ids) == 10
+    fuel = by_metric(result)["fuel_remaining"]
+    first = [r for r in rows[:10] if r["status"] == "ok"]
+    assert (fuel.n_baseline, fuel.n_current) == (10, 10)
+    assert fuel.baseline == pytest.approx(np.median([r["fuel_remaining"] for r in first]))
+    assert fuel.baseline == fuel.current
+    success = by_metric(result)["success_rate"]
+    assert (success.n_baseline, success.details["x_baseline"]) == (10, 9)  # run 17 is not among them
+    assert any("over the 10 run ids both campaigns hold" in note for note in result.notes)

@@ -7,6 +7,11 @@ statistically significant (two-sided, 5 %) **and** worse than the baseline by mo
 tolerance, so that numerical noise never fails CI while a real degradation does. Errored runs are
 excluded from every statistic except ``error_rate``, and counted (docs/compare.md).
 
+**No PASS about runs that did not all fly.** Either campaign incomplete by the report's own check
+(``data.completeness``: interrupted, planned runs or part files missing) makes the verdict
+INCOMPLETE (exit 1), whatever the rows, which are then of the stored runs only
+(``Comparison.incomplete``, ``Comparison.verdict``).
+
 **Which metrics, judged how** (each by the mission's own terms, no default of one mission):
 
 - ``success_rate`` (over all runs, an errored run unsuccessful, as the report counts it) and
@@ -67,6 +72,7 @@ ALPHA = 1.0 - stats.CONFIDENCE  # two-sided level of every test and interval: 5 
 PARAMETER_RTOL = 1e-9  # dispersed inputs that agree this closely are the same input (scipy ppf round-off)
 
 OK, BETTER, REGRESSION, NOT_COMPUTABLE = "ok", "better", "REGRESSION", "n/a"
+PASS, FAIL, INCOMPLETE = "PASS", "FAIL", "INCOMPLETE"  # the comparison's verdict (docs/compare.md)
 
 
 @dataclass(frozen=True)
@@ -204,14 +210,24 @@ class Comparison:
     pairing: Pairing
     metrics: list
     notes: list
+    # side ("baseline", "current") -> report.data.completeness of a campaign not every planned run of
+    # which is stored (interrupted, a part file missing): no PASS about runs that did not all fly
+    incomplete: dict = field(default_factory=dict)
 
     @property
     def regressions(self):
         return [m for m in self.metrics if m.verdict == REGRESSION]
 
     @property
+    def verdict(self):
+        """INCOMPLETE (either campaign; wins over FAIL, as in the report), FAIL (a regression) or PASS."""
+        if self.incomplete:
+            return INCOMPLETE
+        return FAIL if self.regressions else PASS
+
+    @property
     def passed(self):
-        return not self.regressions
+        return self.verdict == PASS
 
 
 # --- verdict -----------------------------------------------------------------------------------
@@ -360,15 +376,21 @@ def _finite(values):
 
 
 def compare_distribution(spec, baseline, current, pairs, tolerance):
-    """One runs column: paired (``pairs`` a Pairing that is paired) or unpaired comparison."""
-    b = _finite(baseline.ok[spec.name])
-    c = _finite(current.ok[spec.name])
+    """One runs column: paired (``pairs`` a Pairing that is paired) or unpaired comparison.
+
+    Paired, every statistic of the row (the medians shown, the per-run differences, the KS and Welch
+    details) is over the paired runs, so that the baseline's column and the current's are of the
+    same runs; unpaired, over each campaign's ok runs."""
+    if pairs.paired:
+        base_paired = baseline.ok.set_index("run_id")[spec.name].loc[pairs.run_ids].to_numpy(float)
+        cur_paired = current.ok.set_index("run_id")[spec.name].loc[pairs.run_ids].to_numpy(float)
+        b, c = _finite(base_paired), _finite(cur_paired)
+    else:
+        b, c = _finite(baseline.ok[spec.name]), _finite(current.ok[spec.name])
     mean_difference, welch = welch_interval(b, c)
     details = {"ks_p": ks_p(b, c), "mean_difference": mean_difference, "welch_ci": welch}
     if pairs.paired:
-        base_by_id = baseline.ok.set_index("run_id")[spec.name]
-        cur_by_id = current.ok.set_index("run_id")[spec.name]
-        diffs = _finite(cur_by_id.loc[pairs.run_ids].to_numpy(float) - base_by_id.loc[pairs.run_ids].to_numpy(float))
+        diffs = _finite(cur_paired - base_paired)
         difference, ci = median_interval(diffs)
         p = sign_test_p(diffs)
         details.update(pairs=len(diffs), worse_runs=_worse_runs(spec.better, diffs, tolerance))
@@ -487,11 +509,14 @@ def compare(baseline_out, current_out, tolerances=()):
     """Compare campaign output ``current_out`` against ``baseline_out``; see the module docstring.
 
     ``tolerances``: ``'METRIC=VALUE'`` strings (``parse_tolerances``). Bad input (an OUT that is not
-    a campaign output, a bad tolerance) raises ConfigError.
+    a campaign output, a damaged manifest.json, a bad tolerance) raises ConfigError.
     """
     baseline = data.load(baseline_out)
     current = data.load(current_out)
     overrides = parse_tolerances(tolerances, baseline, current)
+    # the report's completeness check (docs/report.md, INCOMPLETE): not every planned run stored
+    checked = {"baseline": data.completeness(baseline), "current": data.completeness(current)}
+    incomplete = {side: info for side, info in checked.items() if not info["complete"]}
     specs = {**RATES, **mission_metrics(baseline, current), **overrides}
     pairs = pairing(baseline, current)
     b, c = _describe(baseline), _describe(current)
@@ -516,7 +541,10 @@ def compare(baseline_out, current_out, tolerances=()):
         results.append(result)
     notes = [pairs.note]
     if pairs.paired and len(common) < max(b["runs"], c["runs"]):
-        notes.append(f"rates over the {len(common)} run ids both campaigns hold")
+        notes.append(
+            f"rates over the {len(common)} run ids both campaigns hold, columns over the "
+            f"{len(pairs.run_ids)} of them flown (status ok) in both"
+        )
     differ = sorted(
         key
         for key in {*baseline.resolved, *current.resolved}
@@ -541,7 +569,7 @@ def compare(baseline_out, current_out, tolerances=()):
         )
     if pairs.paired:
         notes += _changed_runs(baseline, current, pairs)
-    return Comparison(baseline=b, current=c, pairing=pairs, metrics=results, notes=notes)
+    return Comparison(baseline=b, current=c, pairing=pairs, metrics=results, notes=notes, incomplete=incomplete)
 
 
 def _changed_runs(baseline, current, pairs):
@@ -595,12 +623,31 @@ def _counts(info):
     )
 
 
+def _missing(info):
+    """What is missing from an incomplete campaign (``report.data.completeness``), as the report says it."""
+    planned = info["runs_planned"]
+    parts = [f"{info['runs_stored']} of {planned} planned runs stored"] if planned is not None else []
+    parts += info["problems"]
+    if info["missing_run_count"]:
+        parts.append(f"missing run ids {info['missing_run_ids']}")
+    return "; ".join(parts)
+
+
+def _resume(info):
+    return f"finish it with `{info.get('resume_command') or 'refexmc run CAMPAIGN -o OUT --resume'}`"
+
+
 def format_table(comparison):
     """The terminal table: metric, baseline, current, difference [95 % interval], test, p, tolerance, verdict."""
     b, c = comparison.baseline, comparison.current
     lines = [
         f"baseline {b['name']}: {_counts(b)} ({b['out']})",
         f"current  {c['name']}: {_counts(c)} ({c['out']})",
+    ]
+    lines += [
+        f"INCOMPLETE {side}: {_missing(info)}. No verdict until every planned run of both campaigns has flown "
+        f"({_resume(info)}); the rows below are of the stored runs only."
+        for side, info in comparison.incomplete.items()
     ]
     lines += [f"note: {note}" for note in comparison.notes]
     header = ("metric", "baseline", "current", "difference [95 % CI]", "test", "p", "tolerance", "verdict")
@@ -625,12 +672,18 @@ def format_table(comparison):
     paired = comparison.pairing.paired
     lines.append(
         "difference: current - baseline; rates: "
-        + ("McNemar exact on the runs whose outcome changed" if paired else "Newcombe hybrid score interval")
+        + (
+            "over the run ids both campaigns hold, McNemar exact on the runs whose outcome changed"
+            if paired
+            else "over each campaign's stored runs, Newcombe hybrid score interval"
+        )
         + "; columns: "
         + (
-            "median of the per-run differences, sign-test interval, baseline/current are medians"
+            f"median of the per-run differences, sign-test interval, baseline/current are medians over the "
+            f"{len(comparison.pairing.run_ids)} paired runs (ok in both)"
             if paired
-            else "difference of the means, Welch interval and t-test, baseline/current are means"
+            else "difference of the means, Welch interval and t-test, baseline/current are means over each "
+            "campaign's ok runs"
         )
         + "; each p is the test its interval inverts"
     )
@@ -642,9 +695,19 @@ def format_table(comparison):
         "outputs without a requirement are gated only with --tolerance METRIC=VALUE"
     )
     regressions = comparison.regressions
-    if regressions:
-        names = ", ".join(m.metric for m in regressions)
-        lines.append(f"verdict: FAIL ({len(regressions)} regression{'s' if len(regressions) > 1 else ''}: {names})")
+    names = ", ".join(m.metric for m in regressions)
+    found = f"{len(regressions)} regression{'s' if len(regressions) > 1 else ''}"
+    if comparison.incomplete:
+        missing = "; ".join(
+            f"{side}: {_missing(info)}; {_resume(info)}" for side, info in comparison.incomplete.items()
+        )
+        stored = f"{found} ({names})" if regressions else "no significant regression"
+        lines.append(
+            f"verdict: INCOMPLETE ({missing}): no verdict until every planned run of both campaigns has flown; "
+            f"on the stored runs: {stored}"
+        )
+    elif regressions:
+        lines.append(f"verdict: FAIL ({found}: {names})")
     else:
         lines.append("verdict: PASS (no significant regression)")
     return "\n".join(lines)
