@@ -560,3 +560,31 @@ def test_paired_columns_and_rates_are_over_the_same_runs(tmp_path):
     success = by_metric(result)["success_rate"]
     assert (success.n_baseline, success.details["x_baseline"]) == (10, 9)  # run 17 is not among them
     assert any("over the 10 run ids both campaigns hold" in note for note in result.notes)
+
+
+# --- a requirement's column on one side only: campaigns that cannot be compared -----------------------
+
+
+@pytest.mark.parametrize("side", ["current", "baseline"])
+def test_a_requirement_column_missing_on_one_side_is_bad_input(tmp_path, side):
+    """Before: the other mission's requirement metric was left out, and compare said PASS."""
+    rows = synthetic_runs(n=10, errored=(), failed=(), seed=15)
+    lacking = copy.deepcopy(rows)
+    for row in lacking:
+        row.pop("attitude_error_end_deg")
+    requirements = (*REQUIREMENTS, "attitude_error_end_deg.p99 <= 2.0")
+    full = write_out(tmp_path / "full", rows, requirements, histories=False, parts=1)
+    short = write_out(tmp_path / "short", lacking, REQUIREMENTS, histories=False, parts=1)
+    pair = [full, short] if side == "current" else [short, full]
+    other = "baseline" if side == "current" else "current"
+    message = (
+        f"the {side} campaign's runs table ({short / 'runs'}) lacks attitude_error_end_deg, judged by the {other}'s "
+        "requirements "
+        "(attitude_error_end_deg.p99 <= 2.0)"
+    )
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        cmp.compare(*pair)
+    cli = CliRunner().invoke(main, ["compare", *map(str, pair)])
+    assert cli.exit_code == 2 and isinstance(cli.exception, SystemExit), cli.output
+    lines = cli.output.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0]

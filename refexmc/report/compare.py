@@ -169,6 +169,28 @@ def mission_metrics(baseline, current):
     return specs
 
 
+def check_requirement_columns(baseline, current):
+    """ConfigError when a runs column that either campaign's requirements judge is missing from the
+    other campaign's runs table: such a metric cannot be compared, and leaving it out would let a
+    comparison pass without it (an IRASSI baseline against an X-38 campaign: the wheels' momentum)."""
+    problems = []
+    sides = (("baseline", baseline, "current", current), ("current", current, "baseline", baseline))
+    for judging, campaign, lacking, other in sides:
+        requirements = _requirements(campaign)
+        missing = [c for c in outputs.requirement_columns(requirements) if c not in other.runs.columns]
+        if missing:
+            texts = [r["requirement"] for c in missing for r in outputs.requirements_of(c, requirements)]
+            problems.append(
+                f"the {lacking} campaign's runs table ({other.out / 'runs'}) lacks {', '.join(missing)}, "
+                f"judged by the {judging}'s requirements ({'; '.join(dict.fromkeys(texts))})"
+            )
+    if problems:
+        raise ConfigError(
+            "; ".join(problems) + ": compare needs every requirement's column in both campaigns "
+            "(a campaign of another mission or vehicle is no baseline for this one)"
+        )
+
+
 @dataclass
 class Pairing:
     """Whether run i of both campaigns flew the same dispersed inputs, and on which runs."""
@@ -509,10 +531,12 @@ def compare(baseline_out, current_out, tolerances=()):
     """Compare campaign output ``current_out`` against ``baseline_out``; see the module docstring.
 
     ``tolerances``: ``'METRIC=VALUE'`` strings (``parse_tolerances``). Bad input (an OUT that is not
-    a campaign output, a damaged manifest.json, a bad tolerance) raises ConfigError.
+    a campaign output, a damaged manifest.json, a bad tolerance, a requirement's column one runs
+    table lacks: ``check_requirement_columns``) raises ConfigError.
     """
     baseline = data.load(baseline_out)
     current = data.load(current_out)
+    check_requirement_columns(baseline, current)
     overrides = parse_tolerances(tolerances, baseline, current)
     # the report's completeness check (docs/report.md, INCOMPLETE): not every planned run stored
     checked = {"baseline": data.completeness(baseline), "current": data.completeness(current)}
