@@ -517,11 +517,15 @@ def test_an_actuation_the_vehicle_cannot_drive_is_refused(tmp_path):
             "'rcs.isp_s': the vehicle file does not declare it",
         ),
         (
-            "requirements: ['pulses_total.max <= 0', 'fuel_used_kg.max <= 1', 'pulses_1.max <= 1']\n",
-            "unknown metric 'pulses_1.max'",
+            "requirements: ['fuel_used_kg.max <= 1', 'pulses_1.max <= 1']\n",
+            "requirements.1: unknown metric 'pulses_1.max'",
+        ),
+        (
+            "requirements: ['fuel_used_kg.max <= 1', 'pulses_total.max <= 0']\n",
+            "requirements.1: unknown metric 'pulses_total.max'",
         ),
     ],
-    ids=["thruster-failures", "rcs-dispersion", "pulse-requirement"],
+    ids=["thruster-failures", "rcs-dispersion", "pulse-requirement", "pulses-total-requirement"],
 )
 def test_a_wheel_campaign_refuses_what_needs_thrusters(tmp_path, extra, words):
     with pytest.raises(ConfigError) as error:
@@ -621,3 +625,12 @@ def test_the_report_reads_every_new_column_upper_and_as_a_key_column():
         expected = "both" if column.startswith("pointing_end_") else "upper"
         assert worse_tail(column) == expected, column
         assert column in KEY_COLUMNS, column
+
+
+def test_a_misspelt_column_is_matched_by_its_column_not_by_its_statistic(tmp_path):
+    # 'pulses_1.max' on wheels used to suggest 'fuel_used_kg.max': the shared '.max' carried the match
+    with pytest.raises(ConfigError) as error:
+        load_campaign(_campaign(tmp_path, extra="requirements: ['pulses_1.max <= 1']\n"))
+    assert "did you mean" not in str(error.value)
+    with pytest.raises(ConfigError, match=r"did you mean 'fuel_used_kg\.p95'\?"):
+        load_campaign(_campaign(tmp_path, extra="requirements: ['fuel_usd_kg.p95 <= 1']\n"))

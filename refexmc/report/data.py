@@ -8,6 +8,7 @@ figure needs, part file by part file, so memory stays bounded whatever the campa
 import json
 import os
 import re
+import shlex
 import warnings
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
@@ -30,6 +31,11 @@ from refexmc.config.load import read_yaml
 HISTORY_BATCH_ROWS = 1 << 18
 MODE_TIME_PATTERN = re.compile(r"^t_(.+)_s$")  # the runs table's time spent in each mode
 FLIGHT_TIME_COLUMN = "t_end_s"  # matches the pattern but is the whole flight
+
+
+def rerun_command(out, run_id):
+    """The command that re-flies run ``run_id`` of the campaign written in ``out``."""
+    return f"refexmc rerun {shlex.quote(str(out))} {int(run_id)}"
 
 
 def mode_time_column(name):

@@ -24,7 +24,7 @@ import scipy.stats as sps
 
 from refexmc.config import pointing as config_pointing
 from refexmc.report import stats
-from refexmc.report.summary import rerun_command
+from refexmc.report.data import rerun_command
 
 WORST_RUNS = 5
 

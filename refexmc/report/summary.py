@@ -1,11 +1,10 @@
 """The report's numbers as one JSON-ready dict (``OUT/report/summary.json``)."""
 
 import math
-import shlex
 
 import numpy as np
 
-from refexmc.report import data, entry_histories, factors, outputs, published, stats
+from refexmc.report import data, entry_histories, factors, outputs, pointing, published, stats
 from refexmc.report import requirements as requirements_module
 from refexmc.report.requirements import campaign_metric_covers
 
@@ -500,10 +499,6 @@ def convergence(campaign, column=None, tail="lower"):
     return out
 
 
-def rerun_command(out, run_id):
-    return f"refexmc rerun {shlex.quote(str(out))} {int(run_id)}"
-
-
 def _run_entry(campaign, row, column=None):
     entry = {
         "run_id": int(row["run_id"]),
@@ -511,7 +506,7 @@ def _run_entry(campaign, row, column=None):
         "failure_reason": row.get("failure_reason"),
         "failed_thrusters": row.get("failed_thrusters", "") or "",
         "failed_wheels": row.get("failed_wheels", "") or "",
-        "command": rerun_command(campaign.out, row["run_id"]),
+        "command": data.rerun_command(campaign.out, row["run_id"]),
     }
     if column is not None:
         entry["column"] = column
@@ -717,8 +712,6 @@ def with_pointing(campaign, verdicts):
     verdicts = list(verdicts)
     if any(v.get("kind") == "pointing" for v in verdicts):
         return verdicts
-    from refexmc.report import pointing  # pointing imports this module's rerun_command
-
     pointed = [pointing.evaluate(r, campaign) for r in pointing.requirements_of(campaign)]
     if not pointed:
         return verdicts
