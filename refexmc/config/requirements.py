@@ -118,12 +118,11 @@ def check_metric(metric, columns, file=None, line=None, path=(), absent=None):
         guess = difflib.get_close_matches(stat, SUGGESTED_STATS, n=1, cutoff=0.5)
         hint = f"did you mean '{column}.{guess[0]}'?" if guess else f"statistics: {', '.join(SUGGESTED_STATS)}, p<q>"
         raise ConfigError(f"unknown statistic '{stat}' in metric '{metric}'; {hint}", file=file, line=line, path=path)
-    candidates = list(CAMPAIGN_METRICS)
-    if stat is not None and valid_stat(stat):
-        candidates += [f"{c}.{stat}" for c in columns]
+    if stat is not None and valid_stat(stat):  # a misspelt column: match the column alone, not its '.max'
+        guess = [f"{g}.{stat}" for g in difflib.get_close_matches(column, columns, n=1, cutoff=0.6)]
     else:
-        candidates += [f"{c}.{s}" for c in columns for s in ("min", "max", "mean", "median")]
-    guess = difflib.get_close_matches(metric, candidates, n=1, cutoff=0.6)
+        candidates = list(CAMPAIGN_METRICS) + [f"{c}.{s}" for c in columns for s in ("min", "max", "mean", "median")]
+        guess = difflib.get_close_matches(metric, candidates, n=1, cutoff=0.6)
     hint = f"did you mean '{guess[0]}'?" if guess else "expected a campaign metric or '<runs column>.<statistic>'"
     raise ConfigError(
         f"unknown metric '{metric}'; {hint} (campaign metrics: {', '.join(CAMPAIGN_METRICS)})",
