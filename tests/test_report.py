@@ -712,3 +712,34 @@ def test_scatter_draws_every_run_or_a_spread_and_the_worst():
     assert 1000 <= len(shown) <= 1010 and (np.diff(shown) > 0).all()
     lower = scatter_runs(values, "lower", limit=1000, worst=10)
     assert set(range(19_990, 20_000)) <= set(lower.tolist())
+
+
+def test_a_campaign_whose_drivers_are_only_failure_sets_reports_without_a_scatter_figure(tmp_path):
+    """An enumeration of failure sets without dispersed inputs: the sensitivity ranks the sets (a
+    discrete cause, no axis of values), and the scatter of inputs has no panel; it used to raise
+    'max() arg is an empty sequence' and write no report."""
+    sets = {i: ("", "1", "2")[i % 3] for i in range(60)}
+    rows = synthetic_runs(sets=sets, errored=())
+    for i, row in enumerate(rows):
+        del row["p.rcs.isp_s"], row["p.navigation.rate_noise_deg_s"]
+        row["fuel_used_kg"] = 1.0 + (0.5 if row["failed_thrusters"] == "1" else 0.0) + 0.001 * i
+    out = write_out(tmp_path / "out", rows, requirements=["fuel_used_kg.max <= 1.2"], histories=False)
+    summary = make_report(out)
+    assert summary["verdict"] == "FAIL"
+    html = (out / "report" / "index.html").read_text()
+    assert "What drives the failing" in html and "Top inputs against" not in html
+
+
+def test_a_pointing_record_bounds_its_column_in_the_figures():
+    from refexmc.report import bounds_of
+
+    summary = {
+        "requirements": [
+            {"metric": "pointing_ape_max_arcsec", "kind": "pointing", "value": 2.0, "requirement": "APE <= 2 arcsec"},
+            {"metric": "fuel_used_kg.max", "value": 1.0, "requirement": "fuel_used_kg.max <= 1"},
+            {"metric": "success_rate", "value": 0.99, "requirement": "success_rate >= 0.99"},
+        ]
+    }
+    assert bounds_of("pointing_ape_max_arcsec", summary) == [(2.0, "required: APE <= 2 arcsec")]
+    assert bounds_of("fuel_used_kg", summary) == [(1.0, "required: fuel_used_kg.max <= 1")]
+    assert bounds_of("success_rate", summary) == []

@@ -117,11 +117,13 @@ def fuel_thresholds(summary):
 
 
 def bounds_of(column, summary, scale=1.0):
-    """(value, label) of each requirement bound on ``column``, in the column's unit."""
+    """(value, label) of each requirement bound on ``column``, in the column's unit: a
+    ``<column>.<stat>`` requirement's and a pointing record's (its verdict's metric is the column)."""
     return [
         (scale * r["value"], f"required: {r['requirement']}")
         for r in summary["requirements"]
-        if r["metric"] not in CAMPAIGN_METRICS and split_metric(r["metric"])[0] == column
+        if r["metric"] not in CAMPAIGN_METRICS
+        and (split_metric(r["metric"])[0] if r.get("kind") != "pointing" else r["metric"]) == column
     ]
 
 
@@ -311,21 +313,22 @@ def render_figures(campaign, summary):
                         "rho": entry["rho"],
                     }
                 )
-        result.append(
-            (
-                "Top inputs against the requirement metrics",
-                f"Each flown run's value of the {SCATTER_INPUTS} inputs with the largest |Spearman ρ| against the "
-                "metric (ρ over every flown run); dashed red: the requirement's bound."
-                + (
-                    f" Of the {len(ok)} flown runs, {MAX_SCATTER_POINTS} evenly spaced in run-id order and the "
-                    f"{SCATTER_WORST} worst of each metric are drawn."
-                    if len(ok) > MAX_SCATTER_POINTS
-                    else ""
-                ),
-                figures.scatter_figure(scatter),
-                "scatter",
+        if scatter:  # none when every top entry is a discrete cause
+            result.append(
+                (
+                    "Top inputs against the requirement metrics",
+                    f"Each flown run's value of the {SCATTER_INPUTS} inputs with the largest |Spearman ρ| against the "
+                    "metric (ρ over every flown run); dashed red: the requirement's bound."
+                    + (
+                        f" Of the {len(ok)} flown runs, {MAX_SCATTER_POINTS} evenly spaced in run-id order and the "
+                        f"{SCATTER_WORST} worst of each metric are drawn."
+                        if len(ok) > MAX_SCATTER_POINTS
+                        else ""
+                    ),
+                    figures.scatter_figure(scatter),
+                    "scatter",
+                )
             )
-        )
     convergence = summary["convergence"]
     if convergence and len(convergence["n"]) >= 2:
         column = convergence.get("column")
