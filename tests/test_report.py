@@ -743,3 +743,15 @@ def test_a_pointing_record_bounds_its_column_in_the_figures():
     assert bounds_of("pointing_ape_max_arcsec", summary) == [(2.0, "required: APE <= 2 arcsec")]
     assert bounds_of("fuel_used_kg", summary) == [(1.0, "required: fuel_used_kg.max <= 1")]
     assert bounds_of("success_rate", summary) == []
+
+
+def test_a_worst_case_is_printed_with_the_digits_of_its_statistics_row(tmp_path):
+    """A flight time spread over micro-seconds: 4 significant digits printed the worst run as '100',
+    like every other run (SPORE's entry angle read '-5'); it gets the digits its row shows."""
+    rows = synthetic_runs(errored=())
+    for i, row in enumerate(rows):
+        row["t_end_s"] = 100.0 + 1e-6 * i
+    out = write_out(tmp_path / "out", rows, histories=False)
+    text = make_report(out, html=False)["text"]
+    line = next(s for s in text.splitlines() if s.startswith("largest t_end_s"))
+    assert "(100.000059)" in line, line

@@ -269,7 +269,8 @@ def format_summary(summary, report_dir=None):
         run = section["runs"][0]
         column = section["column"]
         word = "smallest" if section["side"] == "low" else "largest"
-        lines.append(f"{word} {column}: run {run['run_id']} ({number(run[column])}): {run['command']}")
+        digits = row_digits(summary["columns"].get(column) or {})  # as its statistics row
+        lines.append(f"{word} {column}: run {run['run_id']} ({number(run[column], digits)}): {run['command']}")
     lines += published_lines(summary)
     lines += driver_lines(summary)
     reasons = failure_reason_lines(summary)
