@@ -108,12 +108,22 @@ def test_the_propellant_fraction_of_a_vehicle_with_wheels_only_is_refused(tmp_pa
     _refused(path, "requirements.1", "fuel_remaining.min", "fuel_remaining", "the vehicle has no RCS")
 
 
+def test_the_propellant_used_by_a_vehicle_with_wheels_only_is_refused(tmp_path):
+    # 0 kg in every run: 'fuel_used_kg.max <= 1' was always met, a PASS about nothing
+    path = campaign_copy(
+        "irassi-fine-pointing.yaml",
+        tmp_path,
+        replace=[("  - success_rate >= 1.0\n", "  - success_rate >= 1.0\n  - fuel_used_kg.max <= 1\n")],
+    )
+    _refused(path, "requirements.1", "fuel_used_kg.max", "fuel_used_kg", "uses no propellant")
+
+
 @pytest.mark.parametrize(
     ("vehicle", "mission", "absent"),
     [
         ("refex.yaml", "refex-exo.yaml", []),  # ends tracking the entry attitude; an RCS
         ("cold-gas-surveyor.yaml", "surveyor-hop.yaml", [HOP_ANGLE]),
-        ("irassi.yaml", "irassi-small-angle.yaml", ["fuel_remaining"]),
+        ("irassi.yaml", "irassi-small-angle.yaml", ["fuel_remaining", "fuel_used_kg"]),
     ],
 )
 def test_unproduced_columns_follow_the_last_mode_and_the_actuators(vehicle, mission, absent):

@@ -517,11 +517,11 @@ def test_an_actuation_the_vehicle_cannot_drive_is_refused(tmp_path):
             "'rcs.isp_s': the vehicle file does not declare it",
         ),
         (
-            "requirements: ['fuel_used_kg.max <= 1', 'pulses_1.max <= 1']\n",
+            "requirements: ['wheel_saturated_s.max <= 1', 'pulses_1.max <= 1']\n",
             "requirements.1: unknown metric 'pulses_1.max'",
         ),
         (
-            "requirements: ['fuel_used_kg.max <= 1', 'pulses_total.max <= 0']\n",
+            "requirements: ['wheel_saturated_s.max <= 1', 'pulses_total.max <= 0']\n",
             "requirements.1: unknown metric 'pulses_total.max'",
         ),
     ],
@@ -632,5 +632,5 @@ def test_a_misspelt_column_is_matched_by_its_column_not_by_its_statistic(tmp_pat
     with pytest.raises(ConfigError) as error:
         load_campaign(_campaign(tmp_path, extra="requirements: ['pulses_1.max <= 1']\n"))
     assert "did you mean" not in str(error.value)
-    with pytest.raises(ConfigError, match=r"did you mean 'fuel_used_kg\.p95'\?"):
-        load_campaign(_campaign(tmp_path, extra="requirements: ['fuel_usd_kg.p95 <= 1']\n"))
+    with pytest.raises(ConfigError, match=r"did you mean 'wheel_saturated_s\.p95'\?"):
+        load_campaign(_campaign(tmp_path, extra="requirements: ['wheel_saturatd_s.p95 <= 1']\n"))

@@ -285,7 +285,9 @@ def unproduced_columns(vehicle, mission):
     - ``attitude_error_end_deg``: the angle to the last mode's reference attitude as the program ends
       (core.flight); a last mode whose kind has no attitude reference (``schema.MODE_KINDS``:
       ``translate``, ``locked``, ``rate_damping``) gives none;
-    - ``fuel_remaining``: the fraction of the RCS propellant left; a vehicle without an RCS has none.
+    - ``fuel_remaining``: the fraction of the RCS propellant left; a vehicle without an RCS has none;
+    - ``fuel_used_kg``: 0 in every run of a vehicle without an RCS (its table keeps the column), a
+      requirement on it always met.
     """
     absent = {}
     modes = mission.get("modes") or []
@@ -298,6 +300,7 @@ def unproduced_columns(vehicle, mission):
             )
     if "rcs" not in vehicle:
         absent["fuel_remaining"] = "the vehicle has no RCS, so no RCS propellant to take a fraction of"
+        absent["fuel_used_kg"] = "the vehicle has no RCS, so it uses no propellant (0 kg in every run)"
     return absent
 
 
