@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo smoke baseline test test-fast test-cuda device-wheels mutate bench bench-campaign lint format clean
+.PHONY: demo smoke baseline test test-fast test-cuda test-cpus device-wheels mutate bench bench-campaign lint format clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -36,22 +36,31 @@ baseline: $(STAMP)
 	cp -R runs/smoke-baseline/runs runs/smoke-baseline/manifest.json runs/smoke-baseline/campaign.resolved.yaml \
 		baselines/smoke/
 
-## test: the whole test suite (what CI runs), on TEST_WORKERS pytest-xdist workers (2: CI's cores). A file's tests
-## stay on one worker (--dist loadfile: module fixtures fly once), files in tests/conftest.py's order (longest first,
-## not xdist's by test count) so that the workers finish together. TEST_WORKERS=0 runs them in this process
+## test: the test suite (what CI runs, with test-cuda and test-cpus), on TEST_WORKERS pytest-xdist workers (2: CI's
+## cores). A file's tests stay on one worker (--dist loadfile: module fixtures fly once), files in tests/conftest.py's
+## order (longest first, not xdist's by test count) so that the workers finish together. TEST_WORKERS=0 runs them in
+## this process
 TEST_WORKERS ?= 2
 XDIST := -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 test: $(STAMP)
-	$(BIN)/python -m pytest -q $(XDIST) -m "not cuda"
+	$(BIN)/python -m pytest -q $(XDIST) -m "not cuda and not emulated_cpu"
 
 ## test-fast: skip tests marked slow
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q $(XDIST) -m "not slow and not cuda"
+	$(BIN)/python -m pytest -q $(XDIST) -m "not slow and not cuda and not emulated_cpu"
 
 ## test-cuda: the GPU backend's simulator flights and every family's PTX compile (no GPU needed; minutes of
 ## numba-cuda compiles, so apart from make test's 15 minutes; .ci/run runs both)
 test-cuda: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist load -m cuda
+
+## test-cpus: every vehicle family flown on emulated CPUs (other OpenBLAS kernels, glibc's libm without its FMA
+## variants, numpy at SSE4.2 with numba compiling every kernel for a generic x86-64 in a cold cache of its own) to
+## the same runs-table bits, and that cold compile's family pruning (docs/campaigns.md "On any CPU",
+## docs/families.md). Its cold compile is ~200 s of one core, so apart from make test's 15 minutes; .ci/run runs it.
+## The test flies its CPUs in subprocesses side by side: one pytest process
+test-cpus: $(STAMP)
+	$(BIN)/python -m pytest -q -m emulated_cpu tests/test_cpu_independence.py
 
 ## mutate: mutation testing (mutmut) of refexmc/core/ and report/requirements.py against their unit tests, in a
 ## copy (build/mutate) whose kernels lose their @jit decorators (mutmut skips decorated functions; REFEXMC_DISABLE_JIT=1

@@ -18,9 +18,9 @@ CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 # the test files of more than a minute on one core (cold kernel cache), about longest first; the
 # others follow in pytest's order. Measured with `make test` (pytest --durations): add a file that
-# gets long. test_cpu_independence (its cold generic-x86-64 compile into a cache of its own: five
-# minutes on one core) starts at once: beside it the other worker compiles the first families
-# into the shared cache, where a second file flying them would wait for that compile's lock
+# gets long. test_cpu_independence starts at once: its machine-code scan flies every family, which
+# in a cold cache compiles them one after the other (minutes; the cache's lock lets one process
+# compile at a time), while the other worker flies the first families it compiled
 LONGEST_FIRST = [
     "test_cpu_independence.py",
     "test_rare_event.py",

@@ -12,6 +12,10 @@ each of these changed some draws by an ulp on an AVX-512 machine with FMA; on th
 (LAPACK's pinv for the wheels' distribution) OpenBLAS's Nehalem kernels changed IRASSI's runs.
 Emulation only finds what differs on the CPU at hand, so a second check does not depend on it:
 everything that feeds a run is packed with BLAS and LAPACK poisoned (``tests/blas_poison.py``).
+
+The flights of every family on the emulated CPUs (marker ``emulated_cpu``: the generic CPU's cold
+compile of every kernel is ~200 s of one core) run in ``make test-cpus``, not in ``make test``;
+CI runs both. The draws, the poisoned packing and the machine-code scan run in ``make test``.
 """
 
 import itertools
@@ -270,6 +274,7 @@ def emulated_flights(tmp_path_factory):
 
 
 @pytest.mark.slow
+@pytest.mark.emulated_cpu
 @x86_64_only
 def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(emulated_flights):
     """A few runs of every vehicle family (thrusters, feeds, wheels with and without a detected
@@ -297,6 +302,7 @@ def test_every_familys_runs_table_is_the_same_bits_on_every_emulated_cpu(emulate
 
 
 @pytest.mark.slow
+@pytest.mark.emulated_cpu
 def test_a_family_compiles_none_of_the_other_families_steps(emulated_flights):
     """Compile what is flown (style.md 11): in the generic CPU's process, whose numba cache starts
     empty, the IRASSI kernel (actuation wheels, no trajectory) flown first compiles no thruster,
