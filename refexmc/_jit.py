@@ -29,7 +29,6 @@ import refexmc
 os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # before numba reads its configuration
 
 import numba  # noqa: E402
-import numba.core.event  # noqa: E402
 
 JIT_OPTIONS = {"cache": True, "fastmath": False, "nogil": True, "error_model": "numpy"}
 DISABLED = os.environ.get("REFEXMC_DISABLE_JIT", "0") not in ("", "0")
@@ -106,17 +105,14 @@ def jit_inline(function):
 # the other family's kernel under this family's key (a third process loading it would fly the
 # wrong family). A load between a save's index and its data reads a data file that is not there
 # yet, or an older one of the same name (the index of an edited source starts again at ``n = 1``).
-# ``tests/test_cache_lock.py`` forces these interleavings. Hence three locks, ``flock``s that the
-# kernel releases however their holder ends:
+# ``tests/test_cache_lock.py`` forces these interleavings. Hence two locks, both ``flock``s that
+# the kernel releases however their holder ends:
 # - :func:`cache_files_lock`: ``cache.lock`` in the directory of the index, held by every read and
 #   write of numba's cache files (:func:`guard_cache_files` wraps numba's ``IndexDataCacheFile``),
 #   milliseconds at a time: saves never interleave, and a load sees a save whole or not at all;
-# - :func:`compile_lock`: ``compile-<name>.lock``, held by a family's load or compile: a second
-#   process that needs the same family waits for the first one's compile and then loads it;
-# - ``compiling.lock``, held while numba compiles anything (a cache miss: its ``numba:compile``
-#   event, :class:`_OneCompileAtATime`): one process compiles into the cache at a time, so that a
-#   kernel several families call (a step, an integrator) is compiled once and the next family's
-#   compile loads it; a load (a cache hit) never waits for another process's compile.
+# - :func:`compile_lock`: ``compile-<name>.lock``, held by a family's compile (seconds to minutes):
+#   a second process that needs the same family waits and then loads it; other families compile
+#   or load meanwhile.
 
 CACHE_FILES_LOCK_NAME = "cache.lock"
 
@@ -132,30 +128,19 @@ class _FileLock:
         self._depth = 0
         self._fd = None
 
-    def acquire(self):
-        self._thread.acquire()
-        try:
-            if self._depth == 0:
-                self._fd = _locked_descriptor(self.path)
-        except BaseException:  # interrupted while waiting: not held
-            self._thread.release()
-            raise
-        self._depth += 1
-
-    def release(self):
-        self._depth -= 1
-        if self._depth == 0 and self._fd is not None:
-            os.close(self._fd)  # closing the file releases the flock
-            self._fd = None
-        self._thread.release()
-
     @contextlib.contextmanager
     def held(self):
-        self.acquire()
-        try:
-            yield
-        finally:
-            self.release()
+        with self._thread:
+            if self._depth == 0:
+                self._fd = _locked_descriptor(self.path)
+            self._depth += 1
+            try:
+                yield
+            finally:
+                self._depth -= 1
+                if self._depth == 0 and self._fd is not None:
+                    os.close(self._fd)  # closing the file releases the flock
+                    self._fd = None
 
 
 def _locked_descriptor(path):
@@ -186,40 +171,17 @@ def cache_files_lock(directory):
 
 
 def compile_lock(name):
-    """Hold the lock on loading or compiling ``name`` (a family's kernel; see above): one process
-    compiles it, the others that need it wait and then load it from the cache. Held by
+    """Hold the lock on compiling ``name`` (a family's kernel; see above) into the kernel cache:
+    one process compiles it, the others that need it wait and then load it from the cache. Held by
     ``simulate.load_kernels`` (which a family's first ``fly`` in a process calls too),
     ``simulate.load_entry_kernel`` and a GPU kernel's first launch. No lock where the JIT is
     disabled."""
     if DISABLED:
         return contextlib.nullcontext()
-    return _cache_directory_lock(f"compile-{name}.lock").held()
-
-
-def _cache_directory_lock(name):
     directory = Path(numba.config.CACHE_DIR)
     with contextlib.suppress(OSError):
         directory.mkdir(parents=True, exist_ok=True)
-    return _file_lock(directory / name)
-
-
-COMPILING_LOCK_NAME = "compiling.lock"
-
-
-class _OneCompileAtATime(numba.core.event.Listener):
-    """Numba's compiles (``numba:compile`` events: a cache miss, nested for the callees compiled on
-    the way) under ``compiling.lock`` of the cache directory (see above)."""
-
-    def __init__(self):
-        self._held = []  # numba compiles one thread at a time (its global compiler lock)
-
-    def on_start(self, event):
-        lock = _cache_directory_lock(COMPILING_LOCK_NAME)
-        lock.acquire()
-        self._held.append(lock)
-
-    def on_end(self, event):
-        self._held.pop().release()
+    return _file_lock(directory / f"compile-{name}.lock").held()
 
 
 def guard_cache_files(caching):
@@ -242,12 +204,10 @@ def guard_cache_files(caching):
     files.save, files.load = save, load
 
 
-ONE_COMPILE_AT_A_TIME = _OneCompileAtATime()
 if not DISABLED:
     from numba.core import caching as _numba_caching
 
     guard_cache_files(_numba_caching)
-    numba.core.event.register("numba:compile", ONE_COMPILE_AT_A_TIME)
 
 
 # --- the GPU target (refexmc run --backend cuda, docs/gpu.md) ---------------------------------

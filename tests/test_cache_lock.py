@@ -9,7 +9,6 @@ import os
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -36,23 +35,20 @@ def family_kernel(constant):
     return jit(family)
 """
 
-# What the children below begin with: the family ARGV[1]; refexmc's locks ARGV[3] ("files": on
-# numba's cache files, "compiles": one compile at a time, comma-separated) and numba as it comes
-# without them; a meeting directory ARGV[2] where each marks what it did ("<what>-<ARGV[4]>").
+# What the children below begin with: refexmc's lock on numba's cache files (ARGV[3] == "1") or numba's
+# own unguarded files, and a meeting directory where each marks what it did ("<what>-<ARGV[4]>").
 PRELUDE = """
 import fcntl, json, sys, time
 from pathlib import Path
 import numba
-from numba.core import caching, event
+from numba.core import caching
 from refexmc import _jit
 import race_family
 
-constant, meeting, locks, who = int(sys.argv[1]), Path(sys.argv[2]), sys.argv[3].split(","), sys.argv[4]
-if "files" not in locks:
+constant, meeting, locked, who = int(sys.argv[1]), Path(sys.argv[2]), sys.argv[3] == "1", sys.argv[4]
+if not locked:
     caching.IndexDataCacheFile.save = caching.IndexDataCacheFile.unguarded_save
     caching.IndexDataCacheFile.load = caching.IndexDataCacheFile.unguarded_load
-if "compiles" not in locks:
-    event.unregister("numba:compile", _jit.ONE_COMPILE_AT_A_TIME)
 
 def mark(what):
     (meeting / f"{what}-{who}").touch()
@@ -130,14 +126,6 @@ mark("loaded")
 print(json.dumps({"hits": sum(kernel.stats.cache_hits.values()), "value": kernel(2.0)}))
 """
 
-# A child loads family ARGV[1] from the cache or compiles it.
-COMPILER = """
-kernel = race_family.family_kernel(constant)
-kernel.compile((numba.float64,))
-hits, misses = (sum(counts.values()) for counts in (kernel.stats.cache_hits, kernel.stats.cache_misses))
-print(json.dumps({"hits": hits, "misses": misses, "value": kernel(2.0)}))
-"""
-
 # A third process: each family's kernel from the cache, and what it computes.
 READER = """
 import json, sys
@@ -172,13 +160,14 @@ def _result(process):
     return json.loads(stdout.strip().splitlines()[-1])
 
 
-def compile_two_families_at_once(tmp_path, locks):
+def compile_two_families_at_once(tmp_path, locked):
     """Two children compile families 3 and 5 into a fresh cache at once; then a third process loads
     both. Returns {family: {"hits": cache hits, "value": kernel(2.0)}} as the third process found them."""
     (tmp_path / "race_family.py").write_text(FAMILY_SOURCE)
     meeting = tmp_path / "meeting"
     meeting.mkdir()
-    children = [_python(PRELUDE + CHILD, [str(c), str(meeting), locks, str(c)], tmp_path) for c in (3, 5)]
+    flag = "1" if locked else "0"
+    children = [_python(PRELUDE + CHILD, [str(c), str(meeting), flag, str(c)], tmp_path) for c in (3, 5)]
     for constant, child in zip((3, 5), children, strict=True):
         compiled = _result(child)
         assert compiled == {"misses": 1, "value": 2.0 * constant + 1.0}  # each child compiled its own family
@@ -188,24 +177,22 @@ def compile_two_families_at_once(tmp_path, locks):
     return {int(c): v for c, v in found.items()}
 
 
-@pytest.mark.parametrize("locks", ["files,compiles", "files"])
-def test_two_families_compiled_at_once_are_both_found_in_the_cache(tmp_path, locks):
-    """As refexmc runs, and with the lock on the cache files alone: it suffices."""
-    found = compile_two_families_at_once(tmp_path, locks)
+def test_two_families_compiled_at_once_are_both_found_in_the_cache(tmp_path):
+    found = compile_two_families_at_once(tmp_path, locked=True)
     for constant in (3, 5):
         assert found[constant] == {"hits": 1, "value": 2.0 * constant + 1.0}, found
 
 
-def test_without_the_locks_the_forced_interleaving_loses_a_family(tmp_path):
-    """The check above can fail: without the locks the same two compiles leave one family out of the
+def test_without_the_lock_the_forced_interleaving_loses_a_family(tmp_path):
+    """The check above can fail: without the lock the same two compiles leave one family out of the
     cache (its index entry overwritten), or a family's key naming the other one's kernel."""
-    found = compile_two_families_at_once(tmp_path, "")
+    found = compile_two_families_at_once(tmp_path, locked=False)
     lost = [c for c in (3, 5) if found[c]["hits"] == 0]
     mixed = [c for c in (3, 5) if found[c]["value"] != 2.0 * c + 1.0]
     assert lost or mixed, found
 
 
-def load_during_a_save(tmp_path, locks):
+def load_during_a_save(tmp_path, locked):
     """Family 7 compiled into the cache, then the family's source edited (numba's index of the new
     source starts again at data file 1, over family 7's), then family 3 saved by one child while
     another loads it between the save's index and its data. Returns what the loader found."""
@@ -214,44 +201,21 @@ def load_during_a_save(tmp_path, locks):
     (tmp_path / "race_family.py").write_text(FAMILY_SOURCE + "# edited\n")  # same lines, another stamp
     meeting = tmp_path / "meeting"
     meeting.mkdir()
-    saver = _python(PRELUDE + SAVER, ["3", str(meeting), locks, "saver"], tmp_path)
-    loader = _python(PRELUDE + LOADER, ["3", str(meeting), locks, "loader"], tmp_path)
+    flag = "1" if locked else "0"
+    saver = _python(PRELUDE + SAVER, ["3", str(meeting), flag, "saver"], tmp_path)
+    loader = _python(PRELUDE + LOADER, ["3", str(meeting), flag, "loader"], tmp_path)
     assert _result(saver) == {"misses": 1, "value": 7.0}
     return _result(loader)
 
 
 def test_a_load_during_a_save_waits_for_the_save_whole(tmp_path):
-    assert load_during_a_save(tmp_path, "files,compiles") == {"hits": 1, "value": 7.0}
+    assert load_during_a_save(tmp_path, locked=True) == {"hits": 1, "value": 7.0}
 
 
-def test_without_the_locks_a_load_during_a_save_flies_an_older_kernel(tmp_path):
-    """The check above can fail: without the locks, the loader reads the new index's entry and the data file
+def test_without_the_lock_a_load_during_a_save_flies_an_older_kernel(tmp_path):
+    """The check above can fail: unguarded, the loader reads the new index's entry and the data file
     it names before the save has written it, which still holds family 7's kernel."""
-    assert load_during_a_save(tmp_path, "") == {"hits": 1, "value": 15.0}
-
-
-def test_a_load_never_waits_for_another_process_compile_and_a_compile_does(tmp_path):
-    """Another process compiling (``compiling.lock`` held here on a description of its own): a family
-    in the cache loads at once; a family that is not waits until that compile ends, then compiles."""
-    (tmp_path / "race_family.py").write_text(FAMILY_SOURCE)
-    assert _result(_python(READER, ["3"], tmp_path))["3"] == {"hits": 0, "value": 7.0}  # now in the cache
-    meeting = tmp_path / "meeting"
-    meeting.mkdir()
-    cache = tmp_path / "cache" / f"refexmc-{_jit._source_hash()}"
-    other = os.open(cache / _jit.COMPILING_LOCK_NAME, os.O_RDWR | os.O_CREAT)
-    fcntl.flock(other, fcntl.LOCK_EX)
-    try:
-        loaded = _result(_python(PRELUDE + COMPILER, ["3", str(meeting), "files,compiles", "loader"], tmp_path))
-        assert loaded == {"hits": 1, "misses": 0, "value": 7.0}
-        compiling = _python(PRELUDE + COMPILER, ["5", str(meeting), "files,compiles", "compiler"], tmp_path)
-        deadline = time.monotonic() + 120.0  # a bound only: it blocks within seconds of starting
-        while not (meeting / "blocked-compiler").exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert (meeting / "blocked-compiler").exists() and compiling.poll() is None
-        assert not (meeting / "blocked-loader").exists()
-    finally:
-        os.close(other)  # the other process's compile ends
-    assert _result(compiling) == {"hits": 0, "misses": 1, "value": 11.0}
+    assert load_during_a_save(tmp_path, locked=False) == {"hits": 1, "value": 15.0}
 
 
 def _is_held(path):
