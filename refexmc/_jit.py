@@ -94,120 +94,57 @@ def jit_inline(function):
     return numba.njit(inline="always", **JIT_OPTIONS)(function)
 
 
-# --- the kernel cache's locks (issue 37 point 6) --------------------------------------------
-# Numba's cache keeps one index file per function (``<name>-<line>.pyXY.nbi``: a pickled dict from
-# signature, CPU and closure-cell hash to a data file ``<name>-<line>.pyXY.<n>.nbc``). Saving a
-# compiled kernel loads the index, picks the first free ``n``, writes the index, then the data
-# (``IndexDataCacheFile.save`` in ``numba/core/caching.py``); each file is replaced atomically, but
-# nothing orders two processes. Two processes saving two families at once both read the same index
-# and both pick ``n = 1`` for their own family's ``fly_run`` (one function, keyed by its closure):
-# the index written last loses the other family's entry, and the data file written last may hold
-# the other family's kernel under this family's key (a third process loading it would fly the
-# wrong family). A load between a save's index and its data reads a data file that is not there
-# yet, or an older one of the same name (the index of an edited source starts again at ``n = 1``).
-# ``tests/test_cache_lock.py`` forces these interleavings. Hence two locks, both ``flock``s that
-# the kernel releases however their holder ends:
-# - :func:`cache_files_lock`: ``cache.lock`` in the directory of the index, held by every read and
-#   write of numba's cache files (:func:`guard_cache_files` wraps numba's ``IndexDataCacheFile``),
-#   milliseconds at a time: saves never interleave, and a load sees a save whole or not at all;
-# - :func:`compile_lock`: ``compile-<name>.lock``, held by a family's compile (seconds to minutes):
-#   a second process that needs the same family waits and then loads it; other families compile
-#   or load meanwhile.
-
-CACHE_FILES_LOCK_NAME = "cache.lock"
+_CACHE_LOCK_NAME = "compile.lock"
+_cache_lock_thread = threading.RLock()  # one thread of this process at a time holds the file lock
+_cache_lock_depth = 0
 
 
-class _FileLock:
-    """An exclusive ``flock`` on one file, re-entrant within a process (its threads take turns).
-    Where the file cannot be opened (a cache directory that cannot be written) nothing is locked:
-    numba caches nothing there either."""
+@contextlib.contextmanager
+def cache_lock():
+    """Hold the kernel cache's inter-process lock while compiling kernels into it.
 
-    def __init__(self, path):
-        self.path = path
-        self._thread = threading.RLock()
-        self._depth = 0
-        self._fd = None
+    Numba's cache keeps one index file per function (``<name>-<line>.pyXY.nbi``: a pickled dict
+    from signature, CPU and closure-cell hash to a data file ``<name>-<line>.pyXY.<n>.nbc``). Saving
+    a compiled kernel loads the index, picks the first free ``n``, writes the index, then the data
+    (``IndexDataCacheFile.save`` in ``numba/core/caching.py``); each file is replaced atomically,
+    but nothing orders two processes. Two processes compiling two families at once both read the
+    same index, both pick ``n = 1`` for their own family's ``run_flight`` (and ``_fly``, and each
+    step typed apart): the index written last loses the other family's entry, and the data file
+    written last may hold the other family's kernel under this family's key (the third process
+    that loads it would fly the wrong family). ``tests/test_cache_lock.py`` forces that interleaving.
 
-    @contextlib.contextmanager
-    def held(self):
-        with self._thread:
-            if self._depth == 0:
-                self._fd = _locked_descriptor(self.path)
-            self._depth += 1
+    Every compile refexmc asks for (``simulate.load_kernels``, which a family's first ``fly`` in a
+    process calls too, and ``simulate.load_entry_kernel``) holds this lock: an ``flock`` on
+    ``compile.lock`` in the cache directory, released by the kernel however its holder ends. A
+    second process waits for the first one's compile, and then finds it in the cache. Re-entrant
+    within a process; no lock where the JIT is disabled or the cache directory cannot be written
+    (numba then caches nothing).
+    """
+    global _cache_lock_depth
+    with _cache_lock_thread:
+        if _cache_lock_depth or DISABLED:
+            _cache_lock_depth += 1
             try:
                 yield
             finally:
-                self._depth -= 1
-                if self._depth == 0 and self._fd is not None:
-                    os.close(self._fd)  # closing the file releases the flock
-                    self._fd = None
-
-
-def _locked_descriptor(path):
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-    except OSError:
-        return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-    except OSError:
-        os.close(fd)
-        return None
-    return fd
-
-
-_file_locks = {}
-_file_locks_guard = threading.Lock()
-
-
-def _file_lock(path):
-    with _file_locks_guard:
-        return _file_locks.setdefault(str(path), _FileLock(str(path)))
-
-
-def cache_files_lock(directory):
-    """Hold the lock on the numba cache files in ``directory`` (see above)."""
-    return _file_lock(Path(directory) / CACHE_FILES_LOCK_NAME).held()
-
-
-def compile_lock(name):
-    """Hold the lock on compiling ``name`` (a family's kernel; see above) into the kernel cache:
-    one process compiles it, the others that need it wait and then load it from the cache. Held by
-    ``simulate.load_kernels`` (which a family's first ``fly`` in a process calls too),
-    ``simulate.load_entry_kernel`` and a GPU kernel's first launch. No lock where the JIT is
-    disabled."""
-    if DISABLED:
-        return contextlib.nullcontext()
-    directory = Path(numba.config.CACHE_DIR)
-    with contextlib.suppress(OSError):
-        directory.mkdir(parents=True, exist_ok=True)
-    return _file_lock(directory / f"compile-{name}.lock").held()
-
-
-def guard_cache_files(caching):
-    """Every read and write of ``caching.IndexDataCacheFile`` (numba's ``numba.core.caching``, or
-    numba-cuda's ``numba.cuda.core.caching``) under :func:`cache_files_lock` of its directory. Its
-    unguarded methods stay as ``unguarded_save`` and ``unguarded_load`` (the tests' control)."""
-    files = caching.IndexDataCacheFile
-    if "unguarded_save" in vars(files):
-        return
-    files.unguarded_save, files.unguarded_load = files.save, files.load
-
-    def save(self, key, data):
-        with cache_files_lock(self._cache_path):
-            return files.unguarded_save(self, key, data)
-
-    def load(self, key):
-        with cache_files_lock(self._cache_path):
-            return files.unguarded_load(self, key)
-
-    files.save, files.load = save, load
-
-
-if not DISABLED:
-    from numba.core import caching as _numba_caching
-
-    guard_cache_files(_numba_caching)
+                _cache_lock_depth -= 1
+            return
+        fd = None
+        try:
+            Path(numba.config.CACHE_DIR).mkdir(parents=True, exist_ok=True)
+            fd = os.open(Path(numba.config.CACHE_DIR) / _CACHE_LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            if fd is not None:
+                os.close(fd)
+            fd = None
+        _cache_lock_depth += 1
+        try:
+            yield
+        finally:
+            _cache_lock_depth -= 1
+            if fd is not None:
+                os.close(fd)  # closing the file releases the flock
 
 
 # --- the GPU target (refexmc run --backend cuda, docs/gpu.md) ---------------------------------
@@ -244,32 +181,28 @@ def cuda_kernel(function, cache_key=None):
     compiled without contraction (:func:`cuda_without_contraction`). With a ``cache_key`` (a
     repr-stable description of what ``function``'s closure captures), the compiled kernel is kept
     on disk beside the CPU kernels (:func:`_keyed_cuda_cache`), and the first launch, which
-    compiles or loads it, holds its :func:`compile_lock`."""
+    compiles or loads it, holds :func:`cache_lock`."""
     from numba import cuda
 
     dispatcher = cuda.jit(fastmath=False)(function)
-    name = "cuda"
     if cache_key is not None and not CUDA_SIMULATOR:
         dispatcher._cache = _keyed_cuda_cache(function, cache_key)
-        name = f"cuda-{_cuda_cache_key(cache_key)[:16]}"
-    return _UncontractedKernel(dispatcher, name)
+    return _UncontractedKernel(dispatcher)
 
 
 class _UncontractedKernel:
     """A numba-cuda kernel whose launches (the first one compiles it) run under
-    :func:`cuda_without_contraction`, the first one under its :func:`compile_lock` too."""
+    :func:`cuda_without_contraction`, the first one under :func:`cache_lock` too."""
 
-    def __init__(self, dispatcher, name):
+    def __init__(self, dispatcher):
         self.dispatcher = dispatcher
-        self.name = name
         self.launched = False
 
     def __getitem__(self, launch_configuration):
         launcher = self.dispatcher[launch_configuration]
 
         def launch(*args):
-            first = compile_lock(self.name) if not self.launched else contextlib.nullcontext()
-            with first, cuda_without_contraction():
+            with cache_lock() if not self.launched else contextlib.nullcontext(), cuda_without_contraction():
                 result = launcher(*args)
             self.launched = True
             return result
@@ -286,13 +219,11 @@ def _keyed_cuda_cache(function, cache_key):
     key. A failure to load or save is a recompile, not a failed campaign."""
     import warnings
 
-    from numba.cuda.core import caching as cuda_caching
     from numba.cuda.core import config as cuda_config
     from numba.cuda.dispatcher import CUDACache
 
-    guard_cache_files(cuda_caching)
     cuda_config.CACHE_DIR = str(cache_dir() / "cuda")
-    stable = _cuda_cache_key(cache_key)
+    stable = hashlib.sha256(repr(cache_key).encode()).hexdigest()
 
     class KeyedCUDACache(CUDACache):
         def _index_key(self, sig, codegen):
@@ -312,10 +243,6 @@ def _keyed_cuda_cache(function, cache_key):
                 warnings.warn(f"the GPU kernel was not cached ({type(exc).__name__}: {exc})", stacklevel=2)
 
     return KeyedCUDACache(function)
-
-
-def _cuda_cache_key(cache_key):
-    return hashlib.sha256(repr(cache_key).encode()).hexdigest()
 
 
 @contextlib.contextmanager

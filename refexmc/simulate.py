@@ -353,22 +353,15 @@ def load_kernels(families=()):
     the keyed kernels while the parent still prepares the campaign (numba's first load also sets
     up its target, ~0.4 s) and its campaign's family before its first run (``chunk.RunPlan``),
     so that the run costs the run only. Other families' kernels are neither loaded nor compiled.
-    Each compile holds its lock (``refexmc._jit.compile_lock``): a process that needs a family
-    another one is compiling waits for it and loads it; other families compile or load meanwhile."""
-    global _keyed_uniforms_loaded
-    for family in families:
-        fly_run = flight.kernel_parts(*family).fly_run
-        if hasattr(fly_run, "compile") and not fly_run.signatures:  # not with REFEXMC_DISABLE_JIT
-            with _jit.compile_lock("flight-" + "-".join(map(str, family))):
+    Compiles hold the cache's lock (``refexmc._jit.cache_lock``): two processes never save into
+    one cache index at once."""
+    with _jit.cache_lock():
+        for family in families:
+            fly_run = flight.kernel_parts(*family).fly_run
+            if hasattr(fly_run, "compile") and not fly_run.signatures:  # not with REFEXMC_DISABLE_JIT
                 fly_run.compile(_flight_argument_types())
-    if not _keyed_uniforms_loaded:
-        with _jit.compile_lock("keyed-uniforms"):
-            keyed_uniforms((0,), 1)
-            keyed_uniforms_for_runs((0,), [0], 0, 0, 1)
-        _keyed_uniforms_loaded = True
-
-
-_keyed_uniforms_loaded = False  # in this process (load_kernels)
+        keyed_uniforms((0,), 1)
+        keyed_uniforms_for_runs((0,), [0], 0, 0, 1)
 
 
 # --- the entry flight (issue 24, docs/x38.md): core.entry_flight, a kernel of its own ---
@@ -473,5 +466,5 @@ def load_entry_kernel(flown, initial):
 
     if hasattr(ef.fly, "signatures") and not ef.fly.signatures:
         flown.control[ef.CT_MAX_TIME_S] = 0.0
-        with _jit.compile_lock("entry"):  # see load_kernels
+        with _jit.cache_lock():  # see load_kernels
             fly_entry(flown, initial)
